@@ -1,0 +1,15 @@
+//! Godot-free core of the punch controller.
+//!
+//! Everything here is plain Rust and unit-tested with `cargo test`: the Godot layer (`punch_godot`) only
+//! converts engine types and reports errors. Policy inference lives here so that the training server and
+//! the in-game controller run the exact same code.
+
+pub mod error;
+pub mod policy;
+pub mod runtime;
+
+pub use error::CoreError;
+pub use policy::{Policy, Tensor};
+
+/// Version of this crate (and of the extension built on it).
+pub const VERSION: &str = env!("CARGO_PKG_VERSION");

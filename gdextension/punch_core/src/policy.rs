@@ -1,0 +1,120 @@
+//! A policy is an ONNX model with one float input of shape [batch, obs_dim] and float outputs of shape
+//! [batch, k]. Inference for many characters is one call with a larger batch.
+
+use ort::session::{Session, builder::GraphOptimizationLevel};
+use ort::value::{TensorRef, ValueType};
+
+use crate::error::{CoreError, CoreResult};
+use crate::runtime;
+
+/// One named output of a policy run, row-major `[batch, width]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Tensor {
+    pub name: String,
+    pub batch: usize,
+    pub width: usize,
+    pub data: Vec<f32>,
+}
+
+/// A loaded policy model.
+pub struct Policy {
+    session: Session,
+    input_name: String,
+    input_width: usize,
+    output_names: Vec<String>,
+}
+
+impl Policy {
+    /// Builds a policy from the bytes of an .onnx file (bytes, not a path, so models inside a Godot .pck
+    /// work too). Fails if the runtime is not initialised, the bytes are not ONNX, or the model does not have
+    /// one float input of shape [batch, n] with a fixed n.
+    pub fn from_bytes(model_bytes: &[u8]) -> CoreResult<Self> {
+        let environment = runtime::environment()?;
+        if model_bytes.is_empty() {
+            return Err(CoreError::InvalidModel("the file is empty".into()));
+        }
+        let invalid = |e: ort::Error| CoreError::InvalidModel(e.to_string());
+        let session = Session::builder(environment)
+            .map_err(invalid)?
+            .with_optimization_level(GraphOptimizationLevel::Level3)
+            .map_err(|e| invalid(e.into()))?
+            // Godot's worker pool already uses every core; one ORT thread avoids oversubscription.
+            .with_intra_threads(1)
+            .map_err(|e| invalid(e.into()))?
+            .with_inter_threads(1)
+            .map_err(|e| invalid(e.into()))?
+            .with_intra_op_spinning(false)
+            .map_err(|e| invalid(e.into()))?
+            .commit_from_memory(model_bytes)
+            .map_err(invalid)?;
+
+        let [input] = session.inputs() else {
+            return Err(CoreError::NotAPolicy(format!("expected 1 input, found {}", session.inputs().len())));
+        };
+        let input_width = match input.dtype() {
+            ValueType::Tensor { ty: ort::value::TensorElementType::Float32, shape, .. }
+                if shape.len() == 2 && shape[1] > 0 =>
+            {
+                shape[1] as usize
+            }
+            other => {
+                return Err(CoreError::NotAPolicy(format!(
+                    "input '{}' must be float32 of shape [batch, n], found {other}",
+                    input.name()
+                )));
+            }
+        };
+        let input_name = input.name().to_string();
+        let output_names = session.outputs().iter().map(|o| o.name().to_string()).collect();
+        Ok(Self { session, input_name, input_width, output_names })
+    }
+
+    /// Width n of the input `[batch, n]`.
+    pub fn input_width(&self) -> usize {
+        self.input_width
+    }
+
+    /// Name of the model's input.
+    pub fn input_name(&self) -> &str {
+        &self.input_name
+    }
+
+    /// Names of the model's outputs, in graph order.
+    pub fn output_names(&self) -> &[String] {
+        &self.output_names
+    }
+
+    /// A custom metadata entry of the model (written by the exporter), if present.
+    pub fn metadata(&self, key: &str) -> Option<String> {
+        self.session.metadata().ok().and_then(|m| m.custom(key))
+    }
+
+    /// Runs the policy on `batch` rows of `input` (row-major `[batch, input_width]`). Non-finite inputs are
+    /// refused: they would only come back as NaN actions.
+    pub fn run(&mut self, input: &[f32], batch: usize) -> CoreResult<Vec<Tensor>> {
+        if batch == 0 || input.len() != batch * self.input_width {
+            return Err(CoreError::BadInput(format!(
+                "expected {batch} x {} = {} values, got {}",
+                self.input_width,
+                batch * self.input_width,
+                input.len()
+            )));
+        }
+        if let Some(index) = input.iter().position(|v| !v.is_finite()) {
+            return Err(CoreError::BadInput(format!("value {index} is not finite ({})", input[index])));
+        }
+        let failed = |e: ort::Error| CoreError::Inference(e.to_string());
+        let tensor = TensorRef::from_array_view(([batch, self.input_width], input)).map_err(failed)?;
+        let outputs = self.session.run(ort::inputs![self.input_name.as_str() => tensor]).map_err(failed)?;
+        let mut result = Vec::with_capacity(self.output_names.len());
+        for name in &self.output_names {
+            let (shape, data) = outputs[name.as_str()].try_extract_tensor::<f32>().map_err(failed)?;
+            let width = if batch == 0 { 0 } else { data.len() / batch };
+            if shape.first().copied() != Some(batch as i64) || width * batch != data.len() {
+                return Err(CoreError::Inference(format!("output '{name}' has shape {shape:?}, expected [{batch}, k]")));
+            }
+            result.push(Tensor { name: name.clone(), batch, width, data: data.to_vec() });
+        }
+        Ok(result)
+    }
+}

@@ -1,0 +1,105 @@
+//! The process-wide ONNX Runtime: found beside the extension, loaded once by absolute path.
+//!
+//! ort allows one environment per process, so it lives in a `OnceLock` here and every policy shares it.
+
+use std::ffi::CStr;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use crate::error::{CoreError, CoreResult};
+
+/// File name prefix of the ONNX Runtime shared library shipped next to the extension.
+pub const LIBRARY_PREFIX: &str = "libonnxruntime.so";
+
+struct Runtime {
+    environment: ort::environment::Environment,
+    library_path: PathBuf,
+    version: String,
+}
+
+static RUNTIME: OnceLock<Runtime> = OnceLock::new();
+
+/// Finds `libonnxruntime.so*` in `dir`. When several versions are present the highest name wins, so a
+/// stale copy never shadows the one the build just installed.
+pub fn find_library_in(dir: &Path) -> CoreResult<PathBuf> {
+    let missing = || CoreError::RuntimeLibraryMissing { dir: dir.to_path_buf() };
+    let entries = std::fs::read_dir(dir).map_err(|_| missing())?;
+    let mut candidates: Vec<PathBuf> = entries
+        .filter_map(|entry| entry.ok().map(|e| e.path()))
+        .filter(|path| {
+            path.file_name()
+                .and_then(|name| name.to_str())
+                .is_some_and(|name| name.starts_with(LIBRARY_PREFIX))
+        })
+        .collect();
+    candidates.sort();
+    candidates.pop().ok_or_else(missing)
+}
+
+/// Loads ONNX Runtime from `library_path` (made absolute first: ort resolves relative paths against the
+/// executable, which is Godot, not the project). A second call is a no-op that returns the first result.
+pub fn init(library_path: &Path) -> CoreResult<()> {
+    if RUNTIME.get().is_some() {
+        return Ok(());
+    }
+    let library_path = std::path::absolute(library_path).map_err(|e| CoreError::RuntimeLoad {
+        path: library_path.to_path_buf(),
+        reason: e.to_string(),
+    })?;
+    let load_error = |reason: String| CoreError::RuntimeLoad { path: library_path.clone(), reason };
+    if !library_path.is_file() {
+        return Err(load_error("no such file".into()));
+    }
+    let version = read_version(&library_path).map_err(load_error)?;
+    let environment = ort::init_from(&library_path)
+        .map_err(|e| load_error(e.to_string()))?
+        .with_name("punch_controller")
+        .build()
+        .map_err(|e| load_error(e.to_string()))?;
+    // A racing thread may have won; its runtime is equivalent, so losing the race is fine.
+    let _ = RUNTIME.set(Runtime { environment, library_path, version });
+    Ok(())
+}
+
+/// Loads ONNX Runtime from the first `libonnxruntime.so*` found in `dir`.
+pub fn init_from_dir(dir: &Path) -> CoreResult<()> {
+    if RUNTIME.get().is_some() {
+        return Ok(());
+    }
+    init(&find_library_in(dir)?)
+}
+
+/// The loaded ONNX Runtime's version string (e.g. "1.31.1"), if it is loaded.
+pub fn version() -> Option<&'static str> {
+    RUNTIME.get().map(|r| r.version.as_str())
+}
+
+/// Absolute path of the loaded library, if it is loaded.
+pub fn library_path() -> Option<&'static Path> {
+    RUNTIME.get().map(|r| r.library_path.as_path())
+}
+
+pub(crate) fn environment() -> CoreResult<&'static ort::environment::Environment> {
+    RUNTIME.get().map(|r| &r.environment).ok_or(CoreError::RuntimeNotInitialised)
+}
+
+/// Asks the library itself for its version (`OrtGetApiBase()->GetVersionString()`), so the figure we report
+/// is the one actually running, not the one in a file name.
+fn read_version(library_path: &Path) -> Result<String, String> {
+    // SAFETY: loading ONNX Runtime runs no initialisers with preconditions; ort loads the same file next.
+    let library = unsafe { libloading::Library::new(library_path) }.map_err(|e| e.to_string())?;
+    // SAFETY: OrtGetApiBase has this signature in every ONNX Runtime release.
+    let get_api_base = unsafe {
+        library.get::<unsafe extern "C" fn() -> *const ort::sys::OrtApiBase>(b"OrtGetApiBase")
+    }
+    .map_err(|_| "the library does not export OrtGetApiBase (not ONNX Runtime?)".to_string())?;
+    // SAFETY: the API base is a static table inside the library, valid while the library is loaded.
+    let version = unsafe {
+        let base = get_api_base();
+        if base.is_null() {
+            return Err("OrtGetApiBase returned null".into());
+        }
+        CStr::from_ptr(((*base).GetVersionString)()).to_string_lossy().into_owned()
+    };
+    Ok(version)
+}
