@@ -92,7 +92,10 @@ impl Policy {
     /// Runs the policy on `batch` rows of `input` (row-major `[batch, input_width]`). Non-finite inputs are
     /// refused: they would only come back as NaN actions.
     pub fn run(&mut self, input: &[f32], batch: usize) -> CoreResult<Vec<Tensor>> {
-        if batch == 0 || input.len() != batch * self.input_width {
+        if batch == 0 {
+            return Err(CoreError::BadInput("batch must be at least 1".into()));
+        }
+        if input.len() != batch * self.input_width {
             return Err(CoreError::BadInput(format!(
                 "expected {batch} x {} = {} values, got {}",
                 self.input_width,
@@ -109,7 +112,7 @@ impl Policy {
         let mut result = Vec::with_capacity(self.output_names.len());
         for name in &self.output_names {
             let (shape, data) = outputs[name.as_str()].try_extract_tensor::<f32>().map_err(failed)?;
-            let width = if batch == 0 { 0 } else { data.len() / batch };
+            let width = data.len() / batch;
             if shape.first().copied() != Some(batch as i64) || width * batch != data.len() {
                 return Err(CoreError::Inference(format!("output '{name}' has shape {shape:?}, expected [{batch}, k]")));
             }

@@ -19,8 +19,8 @@ struct Runtime {
 
 static RUNTIME: OnceLock<Runtime> = OnceLock::new();
 
-/// Finds `libonnxruntime.so*` in `dir`. When several versions are present the highest name wins, so a
-/// stale copy never shadows the one the build just installed.
+/// Finds `libonnxruntime.so*` in `dir`. When several versions are present the highest version wins (compared
+/// numerically: 1.31 > 1.9), so a stale copy never shadows the one the build just installed.
 pub fn find_library_in(dir: &Path) -> CoreResult<PathBuf> {
     let missing = || CoreError::RuntimeLibraryMissing { dir: dir.to_path_buf() };
     let entries = std::fs::read_dir(dir).map_err(|_| missing())?;
@@ -32,8 +32,14 @@ pub fn find_library_in(dir: &Path) -> CoreResult<PathBuf> {
                 .is_some_and(|name| name.starts_with(LIBRARY_PREFIX))
         })
         .collect();
-    candidates.sort();
+    candidates.sort_by_key(|path| version_key(path));
     candidates.pop().ok_or_else(missing)
+}
+
+/// The numeric parts after `.so` in a library name: `libonnxruntime.so.1.31.1` -> [1, 31, 1].
+fn version_key(path: &Path) -> Vec<u64> {
+    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or_default();
+    name.trim_start_matches(LIBRARY_PREFIX).split('.').filter_map(|part| part.parse().ok()).collect()
 }
 
 /// Loads ONNX Runtime from `library_path` (made absolute first: ort resolves relative paths against the
