@@ -4,9 +4,11 @@
 //! converts engine types and reports errors. Policy inference lives here so that the training server and
 //! the in-game controller run the exact same code.
 
+pub mod character;
 pub mod error;
 pub mod policy;
 pub mod runtime;
+pub mod sensing;
 
 pub use error::CoreError;
 pub use policy::{Policy, Tensor};

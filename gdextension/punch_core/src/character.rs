@@ -1,0 +1,264 @@
+//! The punching character's control spec: bodies, joints, the 10 actuated degrees of freedom, how an action
+//! becomes joint targets, and the motor law that drives the joints toward them.
+//!
+//! Frame: the character faces +Z (toward the bag), +X is the character's left, +Y is up (right-handed).
+//! Joint frames are aligned with that frame in the rest pose (a boxing guard), so every joint angle is 0 at
+//! rest, and an angle is the component of the rotation vector of the child relative to the parent, about the
+//! joint's X, Y or Z axis (right-hand rule).
+//!
+//! Drive: each joint is a Jolt 6DOF constraint whose angular *velocity motors* have a torque limit. Every
+//! physics frame the motor target is `gain * (rotation vector from current to target)`, capped at
+//! `MAX_JOINT_SPEED_RAD_S`. Jolt solves motors inside its constraint solver, so this is stable for any action
+//! sequence (unlike explicit PD torques on light segments), and the torque limits keep speeds human.
+
+use glam::{Quat, Vec3};
+
+/// Physics rate of training and play, in Hz (50 frames = 0.83 s, long enough for a wind-up).
+pub const PHYSICS_HZ: u32 = 60;
+/// Physics frames each action is held for (the paper's 5).
+pub const DEFAULT_DECISION_PERIOD: u32 = 5;
+/// Number of actuated degrees of freedom (the action size).
+pub const DOF_COUNT: usize = 10;
+/// Motor law gain, 1/s: a joint closes its error with a 1/gain = 50 ms time constant when torque allows.
+pub const POSITION_GAIN_PER_S: f32 = 20.0;
+/// Cap on commanded joint speed, rad/s (fast human elbow extension in punches peaks around 25 rad/s).
+pub const MAX_JOINT_SPEED_RAD_S: f32 = 25.0;
+
+/// Rigid bodies of the character, in the order every per-body array uses. The pelvis is fixed in place.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Body {
+    Pelvis,
+    Torso,
+    UpperArmR,
+    ForearmR,
+    UpperArmL,
+    ForearmL,
+}
+
+impl Body {
+    pub const ALL: [Body; 6] = [Body::Pelvis, Body::Torso, Body::UpperArmR, Body::ForearmR, Body::UpperArmL, Body::ForearmL];
+
+    /// Node name of the body in the character scene.
+    pub const fn node_name(self) -> &'static str {
+        match self {
+            Body::Pelvis => "Pelvis",
+            Body::Torso => "Torso",
+            Body::UpperArmR => "UpperArmR",
+            Body::ForearmR => "ForearmR",
+            Body::UpperArmL => "UpperArmL",
+            Body::ForearmL => "ForearmL",
+        }
+    }
+
+    pub const fn index(self) -> usize {
+        self as usize
+    }
+}
+
+/// A joint axis in the joint frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Axis {
+    X,
+    Y,
+    Z,
+}
+
+impl Axis {
+    pub const fn index(self) -> usize {
+        self as usize
+    }
+}
+
+/// One joint: a Generic6DOFJoint3D node between a parent and a child body.
+#[derive(Debug, Clone, Copy)]
+pub struct JointSpec {
+    pub node_name: &'static str,
+    pub parent: Body,
+    pub child: Body,
+}
+
+/// The joints, in the order every per-joint array uses.
+pub const JOINTS: [JointSpec; 5] = [
+    JointSpec { node_name: "Waist", parent: Body::Pelvis, child: Body::Torso },
+    JointSpec { node_name: "ShoulderR", parent: Body::Torso, child: Body::UpperArmR },
+    JointSpec { node_name: "ElbowR", parent: Body::UpperArmR, child: Body::ForearmR },
+    JointSpec { node_name: "ShoulderL", parent: Body::Torso, child: Body::UpperArmL },
+    JointSpec { node_name: "ElbowL", parent: Body::UpperArmL, child: Body::ForearmL },
+];
+
+/// One actuated degree of freedom: a joint axis with limits relative to the rest (guard) pose and a torque
+/// limit for its motor.
+#[derive(Debug, Clone, Copy)]
+pub struct DofSpec {
+    pub name: &'static str,
+    /// Index into `JOINTS`.
+    pub joint: usize,
+    pub axis: Axis,
+    pub lower_rad: f32,
+    pub upper_rad: f32,
+    pub max_torque_nm: f32,
+    /// What a positive angle does, for the env card.
+    pub positive: &'static str,
+}
+
+const fn deg(value: f32) -> f32 {
+    value * std::f32::consts::PI / 180.0
+}
+
+/// The 10 actuated DOF, in action order. Limits are human ranges of motion expressed relative to the guard
+/// pose (upper arm 35 degrees forward, elbow bent 120 degrees); torques approximate adult male strength.
+pub const DOFS: [DofSpec; DOF_COUNT] = [
+    DofSpec { name: "waist_flexion", joint: 0, axis: Axis::X, lower_rad: deg(-15.0), upper_rad: deg(30.0), max_torque_nm: 150.0, positive: "trunk leans forward" },
+    DofSpec { name: "waist_rotation", joint: 0, axis: Axis::Y, lower_rad: deg(-45.0), upper_rad: deg(45.0), max_torque_nm: 100.0, positive: "trunk turns left" },
+    DofSpec { name: "shoulder_r_flexion", joint: 1, axis: Axis::X, lower_rad: deg(-120.0), upper_rad: deg(90.0), max_torque_nm: 70.0, positive: "right arm swings back" },
+    DofSpec { name: "shoulder_r_rotation", joint: 1, axis: Axis::Y, lower_rad: deg(-60.0), upper_rad: deg(80.0), max_torque_nm: 50.0, positive: "right arm turns left (across the body)" },
+    DofSpec { name: "shoulder_r_abduction", joint: 1, axis: Axis::Z, lower_rad: deg(-110.0), upper_rad: deg(30.0), max_torque_nm: 60.0, positive: "right arm moves in toward the body" },
+    DofSpec { name: "elbow_r_extension", joint: 2, axis: Axis::X, lower_rad: deg(-25.0), upper_rad: deg(118.0), max_torque_nm: 60.0, positive: "right elbow straightens" },
+    DofSpec { name: "shoulder_l_flexion", joint: 3, axis: Axis::X, lower_rad: deg(-120.0), upper_rad: deg(90.0), max_torque_nm: 70.0, positive: "left arm swings back" },
+    DofSpec { name: "shoulder_l_rotation", joint: 3, axis: Axis::Y, lower_rad: deg(-80.0), upper_rad: deg(60.0), max_torque_nm: 50.0, positive: "left arm turns left (away from the body)" },
+    DofSpec { name: "shoulder_l_abduction", joint: 3, axis: Axis::Z, lower_rad: deg(-30.0), upper_rad: deg(110.0), max_torque_nm: 60.0, positive: "left arm moves out, away from the body" },
+    DofSpec { name: "elbow_l_extension", joint: 4, axis: Axis::X, lower_rad: deg(-25.0), upper_rad: deg(118.0), max_torque_nm: 60.0, positive: "left elbow straightens" },
+];
+
+/// Which axes of a joint are actuated (the others are locked by the constraint).
+pub fn joint_dofs(joint: usize) -> impl Iterator<Item = (usize, &'static DofSpec)> {
+    DOFS.iter().enumerate().filter(move |(_, dof)| dof.joint == joint)
+}
+
+/// Joint-angle targets (rad) for an action in [-1, 1]^10: 0 holds the guard pose, +1 and -1 reach the
+/// upper and lower limits, linearly on each side. Values outside [-1, 1] are clamped. Returns None when
+/// the action has the wrong length or a non-finite value.
+pub fn targets_from_action(action: &[f32]) -> Option<[f32; DOF_COUNT]> {
+    if action.len() != DOF_COUNT || action.iter().any(|a| !a.is_finite()) {
+        return None;
+    }
+    let mut targets = [0.0; DOF_COUNT];
+    for ((target, &a), dof) in targets.iter_mut().zip(action).zip(&DOFS) {
+        let a = a.clamp(-1.0, 1.0);
+        *target = if a >= 0.0 { a * dof.upper_rad } else { -a * dof.lower_rad };
+    }
+    Some(targets)
+}
+
+/// Orientation of the child joint frame relative to the parent joint frame. `parent_rotation` and
+/// `child_rotation` are the bodies' world rotations now; `*_rest_rotation` their world rotations in the
+/// rest pose (where both joint frames are world-aligned).
+pub fn joint_rotation(parent_rotation: Quat, parent_rest_rotation: Quat, child_rotation: Quat, child_rest_rotation: Quat) -> Quat {
+    let parent_frame = parent_rotation * parent_rest_rotation.inverse();
+    let child_frame = child_rotation * child_rest_rotation.inverse();
+    (parent_frame.inverse() * child_frame).normalize()
+}
+
+/// Rotation vector (axis * angle, rad) of a unit quaternion, with the angle in [0, pi].
+pub fn rotation_vector(rotation: Quat) -> Vec3 {
+    let rotation = if rotation.w < 0.0 { -rotation } else { rotation };
+    let sin_half = Vec3::new(rotation.x, rotation.y, rotation.z).length();
+    if sin_half < 1e-7 {
+        return 2.0 * Vec3::new(rotation.x, rotation.y, rotation.z);
+    }
+    let angle = 2.0 * sin_half.atan2(rotation.w);
+    Vec3::new(rotation.x, rotation.y, rotation.z) * (angle / sin_half)
+}
+
+/// Target orientation of a joint (child frame relative to parent frame) from the DOF targets.
+pub fn joint_target(joint: usize, targets: &[f32; DOF_COUNT]) -> Quat {
+    let mut vector = Vec3::ZERO;
+    for (index, dof) in joint_dofs(joint) {
+        vector[dof.axis.index()] = targets[index];
+    }
+    Quat::from_scaled_axis(vector)
+}
+
+/// Motor target velocities (rad/s, in Godot's 6DOF motor convention) that drive `joint_rotation` toward
+/// `target`: the desired relative angular velocity of the child, expressed in the child's joint frame, is
+/// gain * rotation vector of the remaining rotation, capped; Godot's 6DOF motor turns the child at *minus*
+/// its target velocity (verified against Jolt in tests/godot), hence the sign.
+pub fn motor_velocities(joint_rotation: Quat, target: Quat) -> Vec3 {
+    let remaining = joint_rotation.inverse() * target;
+    let desired = (POSITION_GAIN_PER_S * rotation_vector(remaining)).clamp_length_max(MAX_JOINT_SPEED_RAD_S);
+    -desired
+}
+
+/// The DOF angles (rad) of every joint, from joint rotations in `JOINTS` order.
+pub fn dof_angles(joint_rotations: &[Quat; 5]) -> [f32; DOF_COUNT] {
+    let vectors = joint_rotations.map(rotation_vector);
+    std::array::from_fn(|i| vectors[DOFS[i].joint][DOFS[i].axis.index()])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn zero_action_holds_the_guard_pose() {
+        assert_eq!(targets_from_action(&[0.0; DOF_COUNT]), Some([0.0; DOF_COUNT]));
+    }
+
+    #[test]
+    fn extreme_actions_reach_the_limits_and_are_clamped() {
+        let upper = targets_from_action(&[1.0; DOF_COUNT]).expect("valid");
+        let lower = targets_from_action(&[-3.0; DOF_COUNT]).expect("valid");
+        for (i, dof) in DOFS.iter().enumerate() {
+            assert_eq!(upper[i], dof.upper_rad);
+            assert_eq!(lower[i], dof.lower_rad);
+            assert!(dof.lower_rad < 0.0 && dof.upper_rad > 0.0, "{} must contain the guard pose", dof.name);
+        }
+    }
+
+    #[test]
+    fn bad_actions_are_refused() {
+        assert_eq!(targets_from_action(&[0.0; 9]), None);
+        let mut action = [0.0; DOF_COUNT];
+        action[3] = f32::NAN;
+        assert_eq!(targets_from_action(&action), None);
+    }
+
+    #[test]
+    fn rotation_vector_inverts_from_scaled_axis() {
+        for vector in [Vec3::new(0.3, -0.2, 0.1), Vec3::new(0.0, 2.5, 0.0), Vec3::new(-1.0, 0.4, 1.2), Vec3::ZERO] {
+            let back = rotation_vector(Quat::from_scaled_axis(vector));
+            assert!((back - vector).length() < 1e-5, "{vector} -> {back}");
+        }
+    }
+
+    #[test]
+    fn joint_rotation_is_identity_at_rest_whatever_the_body_rotations() {
+        let parent = Quat::from_rotation_y(0.7);
+        let child = Quat::from_rotation_x(-2.7);
+        let q = joint_rotation(parent, parent, child, child);
+        assert!(rotation_vector(q).length() < 1e-6);
+    }
+
+    #[test]
+    fn motor_drives_toward_the_target_and_stops_there() {
+        let targets = targets_from_action(&[0.5; DOF_COUNT]).expect("valid");
+        for joint in 0..JOINTS.len() {
+            let target = joint_target(joint, &targets);
+            // At the target: no motion commanded.
+            assert!(motor_velocities(target, target).length() < 1e-5);
+            // Integrate the commanded relative velocity (child frame; motor sign undone) from rest.
+            let mut rotation = Quat::IDENTITY;
+            for _ in 0..120 {
+                let child_frame_velocity = -motor_velocities(rotation, target);
+                rotation = (rotation * Quat::from_scaled_axis(child_frame_velocity / PHYSICS_HZ as f32)).normalize();
+            }
+            assert!(rotation_vector(rotation.inverse() * target).length() < 1e-3, "joint {joint} did not converge");
+        }
+    }
+
+    #[test]
+    fn commanded_speed_is_capped() {
+        let far = Quat::from_rotation_x(3.0);
+        assert!((motor_velocities(Quat::IDENTITY, far).length() - MAX_JOINT_SPEED_RAD_S).abs() < 1e-4);
+    }
+
+    #[test]
+    fn dof_angles_read_back_targets() {
+        let targets = targets_from_action(&[0.3, -0.2, 0.4, -0.1, 0.2, 0.6, -0.5, 0.1, 0.3, -0.4]).expect("valid");
+        let rotations: [Quat; 5] = std::array::from_fn(|joint| joint_target(joint, &targets));
+        let angles = dof_angles(&rotations);
+        for i in 0..DOF_COUNT {
+            assert!((angles[i] - targets[i]).abs() < 1e-5, "{}", DOFS[i].name);
+        }
+    }
+}

@@ -1,0 +1,352 @@
+//! Per-physics-frame sensing: what the character and the bag did in one frame, in the character's frame,
+//! as a flat feature vector (rewards are written over these features). The exploit guard flags frames
+//! with non-physical events so that rewards can ignore them.
+
+use glam::{Quat, Vec3};
+
+use crate::character::{Body, DOF_COUNT, DOFS, JOINTS, PHYSICS_HZ, dof_angles, joint_rotation};
+
+/// State of one rigid body in world coordinates.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct BodyState {
+    pub position: Vec3,
+    pub rotation: Quat,
+    pub linear_velocity: Vec3,
+    pub angular_velocity: Vec3,
+}
+
+/// Everything read from the engine for one frame (world coordinates).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FrameReading {
+    /// Bodies in `Body::ALL` order.
+    pub bodies: [BodyState; 6],
+    pub bag: BodyState,
+    /// Contact impulse (N s) that each fist applied to the bag this frame: [right, left].
+    pub fist_impulses: [Vec3; 2],
+}
+
+/// Geometry fixed for a character instance, read from its scene once.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CharacterGeometry {
+    /// World rotation of each body in the rest pose (`Body::ALL` order).
+    pub rest_rotations: [Quat; 6],
+    /// Fist centres in the forearm's local frame: [right, left].
+    pub fist_offsets: [Vec3; 2],
+    pub fist_radius_m: f32,
+    /// Joint anchor in the parent's and the child's local frames (`JOINTS` order).
+    pub joint_anchors: [(Vec3, Vec3); 5],
+    pub bag_radius_m: f32,
+    pub bag_height_m: f32,
+    pub bag_mass_kg: f32,
+    /// World transform of the character's root (the frame features are expressed in).
+    pub root_rotation: Quat,
+    pub root_position: Vec3,
+}
+
+/// Guard flags (bits of the `exploit_flags` feature).
+pub mod guard {
+    /// A fist moves faster than the drives can make it (human punches peak near 12 m/s).
+    pub const FIST_TOO_FAST: u32 = 1 << 0;
+    /// A joint's two anchors drifted apart: the constraint was violated.
+    pub const JOINT_SEPARATED: u32 = 1 << 1;
+    /// A fist is deep inside the bag.
+    pub const PENETRATION: u32 = 1 << 2;
+    /// A body's velocity jumped without a contact to explain it (a body snapping back into place).
+    pub const VELOCITY_JUMP: u32 = 1 << 3;
+
+    pub const FIST_SPEED_LIMIT_MPS: f32 = 15.0;
+    pub const JOINT_SEPARATION_LIMIT_M: f32 = 0.02;
+    pub const PENETRATION_LIMIT_M: f32 = 0.03;
+    /// Largest velocity change in one frame (m/s) that the drives can cause without a contact (about 60 g).
+    pub const VELOCITY_JUMP_LIMIT_MPS: f32 = 10.0;
+    /// Contact impulse (N s) below which a body counts as not touching anything.
+    pub const CONTACT_IMPULSE_EPSILON: f32 = 1e-3;
+}
+
+/// Gravity the simulation uses, m/s^2 (Godot's default 3D gravity).
+pub const GRAVITY_MPS2: f32 = 9.8;
+
+/// Names of the per-frame features, in order.
+pub const FEATURE_NAMES: [&str; FEATURE_COUNT] = [
+    "fist_r_pos_x", "fist_r_pos_y", "fist_r_pos_z", "fist_r_vel_x", "fist_r_vel_y", "fist_r_vel_z",
+    "fist_l_pos_x", "fist_l_pos_y", "fist_l_pos_z", "fist_l_vel_x", "fist_l_vel_y", "fist_l_vel_z",
+    "fist_r_impulse_x", "fist_r_impulse_y", "fist_r_impulse_z",
+    "fist_l_impulse_x", "fist_l_impulse_y", "fist_l_impulse_z",
+    "bag_pos_x", "bag_pos_y", "bag_pos_z", "bag_vel_x", "bag_vel_y", "bag_vel_z",
+    "bag_momentum_change_x", "bag_momentum_change_y", "bag_momentum_change_z",
+    "fist_r_bag_distance", "fist_l_bag_distance",
+    "angle_waist_flexion", "angle_waist_rotation",
+    "angle_shoulder_r_flexion", "angle_shoulder_r_rotation", "angle_shoulder_r_abduction", "angle_elbow_r_extension",
+    "angle_shoulder_l_flexion", "angle_shoulder_l_rotation", "angle_shoulder_l_abduction", "angle_elbow_l_extension",
+    "speed_waist_flexion", "speed_waist_rotation",
+    "speed_shoulder_r_flexion", "speed_shoulder_r_rotation", "speed_shoulder_r_abduction", "speed_elbow_r_extension",
+    "speed_shoulder_l_flexion", "speed_shoulder_l_rotation", "speed_shoulder_l_abduction", "speed_elbow_l_extension",
+    "exploit_flags",
+];
+pub const FEATURE_COUNT: usize = 50;
+
+/// Units of each feature group, for the env card.
+pub const FEATURE_UNITS: &str = "pos m, vel m/s, impulse and momentum change N s, distance m, angle rad, speed rad/s, exploit_flags bit set";
+
+/// Index of a feature by name.
+pub fn feature_index(name: &str) -> Option<usize> {
+    FEATURE_NAMES.iter().position(|n| *n == name)
+}
+
+/// Turns engine readings into features, frame after frame (it remembers the previous frame for velocity
+/// jumps and the bag's momentum change).
+#[derive(Debug, Clone)]
+pub struct Sensor {
+    geometry: CharacterGeometry,
+    previous: Option<FrameReading>,
+}
+
+impl Sensor {
+    pub fn new(geometry: CharacterGeometry) -> Self {
+        Self { geometry, previous: None }
+    }
+
+    pub fn geometry(&self) -> &CharacterGeometry {
+        &self.geometry
+    }
+
+    /// Forgets the previous frame (call at episode reset).
+    pub fn reset(&mut self) {
+        self.previous = None;
+    }
+
+    /// Joint rotations (child frame relative to parent frame) of a reading, in `JOINTS` order.
+    pub fn joint_rotations(&self, reading: &FrameReading) -> [Quat; 5] {
+        let rest = &self.geometry.rest_rotations;
+        std::array::from_fn(|j| {
+            let (p, c) = (JOINTS[j].parent.index(), JOINTS[j].child.index());
+            joint_rotation(reading.bodies[p].rotation, rest[p], reading.bodies[c].rotation, rest[c])
+        })
+    }
+
+    /// World positions and velocities of the fists: [(position, velocity); right, left].
+    pub fn fists(&self, reading: &FrameReading) -> [(Vec3, Vec3); 2] {
+        std::array::from_fn(|side| {
+            let body = &reading.bodies[[Body::ForearmR, Body::ForearmL][side].index()];
+            let arm = body.rotation * self.geometry.fist_offsets[side];
+            (body.position + arm, body.linear_velocity + body.angular_velocity.cross(arm))
+        })
+    }
+
+    /// Features of one frame (see `FEATURE_NAMES`), in the character root's frame.
+    pub fn features(&mut self, reading: &FrameReading) -> [f32; FEATURE_COUNT] {
+        let g = &self.geometry;
+        let to_local_rotation = g.root_rotation.inverse();
+        let local_point = |p: Vec3| to_local_rotation * (p - g.root_position);
+        let local_vector = |v: Vec3| to_local_rotation * v;
+
+        let fists = self.fists(reading);
+        let bag_position = reading.bag.position;
+        let dt = 1.0 / PHYSICS_HZ as f32;
+        let bag_momentum_change = match &self.previous {
+            Some(previous) => {
+                g.bag_mass_kg * (reading.bag.linear_velocity - previous.bag.linear_velocity)
+                    + g.bag_mass_kg * GRAVITY_MPS2 * dt * Vec3::Y
+            }
+            None => Vec3::ZERO,
+        };
+
+        let rotations = self.joint_rotations(reading);
+        let angles = dof_angles(&rotations);
+        let speeds = self.joint_speeds(reading);
+        let flags = self.exploit_flags(reading, &fists);
+
+        let mut out = [0.0f32; FEATURE_COUNT];
+        let mut cursor = 0;
+        let mut push = |values: &[f32]| {
+            out[cursor..cursor + values.len()].copy_from_slice(values);
+            cursor += values.len();
+        };
+        for (position, velocity) in fists {
+            push(&local_point(position).to_array());
+            push(&local_vector(velocity).to_array());
+        }
+        for impulse in reading.fist_impulses {
+            push(&local_vector(impulse).to_array());
+        }
+        push(&local_point(bag_position).to_array());
+        push(&local_vector(reading.bag.linear_velocity).to_array());
+        push(&local_vector(bag_momentum_change).to_array());
+        push(&[fists[0].0.distance(bag_position), fists[1].0.distance(bag_position)]);
+        push(&angles);
+        push(&speeds);
+        push(&[flags as f32]);
+        debug_assert_eq!(cursor, FEATURE_COUNT);
+        self.previous = Some(*reading);
+        out
+    }
+
+    /// Joint angular speeds (rad/s) about each DOF axis, in the parent joint frame.
+    fn joint_speeds(&self, reading: &FrameReading) -> [f32; DOF_COUNT] {
+        let rest = &self.geometry.rest_rotations;
+        std::array::from_fn(|i| {
+            let joint = &JOINTS[DOFS[i].joint];
+            let (p, c) = (joint.parent.index(), joint.child.index());
+            let parent_frame = reading.bodies[p].rotation * rest[p].inverse();
+            let relative = reading.bodies[c].angular_velocity - reading.bodies[p].angular_velocity;
+            (parent_frame.inverse() * relative)[DOFS[i].axis.index()]
+        })
+    }
+
+    fn exploit_flags(&self, reading: &FrameReading, fists: &[(Vec3, Vec3); 2]) -> u32 {
+        let g = &self.geometry;
+        let mut flags = 0;
+        if fists.iter().any(|(_, velocity)| velocity.length() > guard::FIST_SPEED_LIMIT_MPS) {
+            flags |= guard::FIST_TOO_FAST;
+        }
+        for (joint, (parent_anchor, child_anchor)) in JOINTS.iter().zip(&g.joint_anchors) {
+            let parent = &reading.bodies[joint.parent.index()];
+            let child = &reading.bodies[joint.child.index()];
+            let gap = (parent.position + parent.rotation * *parent_anchor) - (child.position + child.rotation * *child_anchor);
+            if gap.length() > guard::JOINT_SEPARATION_LIMIT_M {
+                flags |= guard::JOINT_SEPARATED;
+            }
+        }
+        let bag_rotation = reading.bag.rotation.inverse();
+        for (position, _) in fists {
+            let local = bag_rotation * (*position - reading.bag.position);
+            let radial = Vec3::new(local.x, 0.0, local.z).length();
+            let inside_height = local.y.abs() < g.bag_height_m / 2.0;
+            let depth = g.bag_radius_m + g.fist_radius_m - radial;
+            if inside_height && depth > g.fist_radius_m + guard::PENETRATION_LIMIT_M {
+                flags |= guard::PENETRATION;
+            }
+        }
+        if let Some(previous) = &self.previous {
+            let touching = reading.fist_impulses.iter().any(|i| i.length() > guard::CONTACT_IMPULSE_EPSILON);
+            let jumped = |now: &BodyState, before: &BodyState| {
+                (now.linear_velocity - before.linear_velocity).length() > guard::VELOCITY_JUMP_LIMIT_MPS
+            };
+            let body_jump = reading.bodies.iter().zip(&previous.bodies).any(|(now, before)| jumped(now, before));
+            if !touching && (body_jump || jumped(&reading.bag, &previous.bag)) {
+                flags |= guard::VELOCITY_JUMP;
+            }
+        }
+        flags
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rest_geometry() -> CharacterGeometry {
+        CharacterGeometry {
+            rest_rotations: [Quat::IDENTITY; 6],
+            fist_offsets: [Vec3::new(0.0, -0.155, 0.0); 2],
+            fist_radius_m: 0.045,
+            joint_anchors: [(Vec3::ZERO, Vec3::ZERO); 5],
+            bag_radius_m: 0.175,
+            bag_height_m: 1.0,
+            bag_mass_kg: 35.0,
+            root_rotation: Quat::IDENTITY,
+            root_position: Vec3::ZERO,
+        }
+    }
+
+    fn reading_at_rest() -> FrameReading {
+        let mut reading = FrameReading::default();
+        for body in &mut reading.bodies {
+            body.rotation = Quat::IDENTITY;
+        }
+        reading.bag.rotation = Quat::IDENTITY;
+        reading.bag.position = Vec3::new(0.0, 1.35, 0.72);
+        reading
+    }
+
+    #[test]
+    fn names_are_unique_and_counted() {
+        let mut names = FEATURE_NAMES.to_vec();
+        names.sort();
+        names.dedup();
+        assert_eq!(names.len(), FEATURE_COUNT);
+    }
+
+    #[test]
+    fn at_rest_every_motion_feature_is_zero() {
+        let mut sensor = Sensor::new(rest_geometry());
+        let features = sensor.features(&reading_at_rest());
+        for (name, value) in FEATURE_NAMES.iter().zip(features) {
+            if name.contains("vel") || name.contains("impulse") || name.starts_with("angle") || name.starts_with("speed") || *name == "exploit_flags" {
+                assert_eq!(value, 0.0, "{name}");
+            }
+        }
+    }
+
+    #[test]
+    fn fist_velocity_includes_rotation() {
+        let mut reading = reading_at_rest();
+        reading.bodies[Body::ForearmR.index()].angular_velocity = Vec3::new(10.0, 0.0, 0.0);
+        let sensor = Sensor::new(rest_geometry());
+        let [(_, velocity), _] = sensor.fists(&reading);
+        // omega x r = (10,0,0) x (0,-0.155,0) = (0, 0, -1.55)
+        assert!((velocity - Vec3::new(0.0, 0.0, -1.55)).length() < 1e-5);
+    }
+
+    #[test]
+    fn bag_momentum_change_cancels_gravity() {
+        let mut sensor = Sensor::new(rest_geometry());
+        let mut reading = reading_at_rest();
+        sensor.features(&reading);
+        // Free fall for one frame: no impulse other than gravity acted.
+        reading.bag.linear_velocity = Vec3::new(0.0, -GRAVITY_MPS2 / PHYSICS_HZ as f32, 0.0);
+        let features = sensor.features(&reading);
+        let y = feature_index("bag_momentum_change_y").expect("feature");
+        assert!(features[y].abs() < 1e-4, "{}", features[y]);
+    }
+
+    #[test]
+    fn features_are_in_the_root_frame() {
+        let mut geometry = rest_geometry();
+        geometry.root_rotation = Quat::from_rotation_y(std::f32::consts::FRAC_PI_2);
+        geometry.root_position = Vec3::new(5.0, 0.0, 0.0);
+        let mut sensor = Sensor::new(geometry);
+        let mut reading = reading_at_rest();
+        // Root turned 90 degrees left: its forward (+Z) is world +X.
+        reading.bag.position = Vec3::new(5.72, 1.35, 0.0);
+        let features = sensor.features(&reading);
+        let z = feature_index("bag_pos_z").expect("feature");
+        assert!((features[z] - 0.72).abs() < 1e-5);
+    }
+
+    #[test]
+    fn guard_flags_fast_fists_separated_joints_penetration_and_jumps() {
+        let mut sensor = Sensor::new(rest_geometry());
+        let flags_index = feature_index("exploit_flags").expect("feature");
+        let mut reading = reading_at_rest();
+        assert_eq!(sensor.features(&reading)[flags_index], 0.0);
+
+        let mut fast = reading;
+        fast.bodies[Body::ForearmR.index()].linear_velocity = Vec3::new(0.0, 0.0, 20.0);
+        let flags = sensor.features(&fast)[flags_index] as u32;
+        assert_ne!(flags & guard::FIST_TOO_FAST, 0);
+        assert_ne!(flags & guard::VELOCITY_JUMP, 0, "20 m/s in one frame with no contact");
+
+        sensor.reset();
+        let mut separated = reading;
+        separated.bodies[Body::ForearmL.index()].position = Vec3::new(0.0, 0.0, 0.1);
+        assert_ne!(sensor.features(&separated)[flags_index] as u32 & guard::JOINT_SEPARATED, 0);
+
+        sensor.reset();
+        // Right fist centre 5 cm inside the bag's axis region.
+        reading.bodies[Body::ForearmR.index()].position = reading.bag.position + Vec3::new(0.0, 0.155, -0.05);
+        assert_ne!(sensor.features(&reading)[flags_index] as u32 & guard::PENETRATION, 0);
+    }
+
+    #[test]
+    fn a_hit_is_not_a_velocity_jump() {
+        let mut sensor = Sensor::new(rest_geometry());
+        let flags_index = feature_index("exploit_flags").expect("feature");
+        let mut reading = reading_at_rest();
+        reading.bodies[Body::ForearmR.index()].linear_velocity = Vec3::new(0.0, 0.0, 11.0);
+        sensor.features(&reading);
+        reading.bodies[Body::ForearmR.index()].linear_velocity = Vec3::ZERO;
+        reading.fist_impulses[0] = Vec3::new(0.0, 0.0, 15.0);
+        assert_eq!(sensor.features(&reading)[flags_index] as u32 & guard::VELOCITY_JUMP, 0);
+    }
+}
