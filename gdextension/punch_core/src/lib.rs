@@ -5,10 +5,14 @@
 //! the in-game controller run the exact same code.
 
 pub mod character;
+pub mod controller;
 pub mod error;
+pub mod observation;
 pub mod policy;
+pub mod protocol;
 pub mod runtime;
 pub mod sensing;
+pub mod session;
 
 pub use error::CoreError;
 pub use policy::{Policy, Tensor};

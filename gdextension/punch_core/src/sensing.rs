@@ -265,6 +265,7 @@ mod tests {
         names.sort();
         names.dedup();
         assert_eq!(names.len(), FEATURE_COUNT);
+        assert_eq!(feature_index("exploit_flags"), Some(FEATURE_COUNT - 1), "the session reads flags from the end");
     }
 
     #[test]

@@ -1,8 +1,11 @@
 //! The punch controller's Godot classes. This crate only registers classes and converts engine types;
 //! the logic is in `punch_core`.
 
+mod convert;
+mod punch_character;
 mod punch_policy;
 mod punch_runtime;
+mod punch_training_server;
 
 use godot::prelude::{ExtensionLibrary, gdextension};
 

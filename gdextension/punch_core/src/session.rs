@@ -1,0 +1,314 @@
+//! The training server's logic, free of Godot: it answers protocol messages and runs episodes over a
+//! `World` (the Godot layer implements it with real Jolt bodies). Messages and fields: docs/protocol.md.
+
+use glam::Vec3;
+use serde_json::{Value, json};
+
+use crate::character::{DOF_COUNT, DOFS, PHYSICS_HZ};
+use crate::controller::CharacterController;
+use crate::observation::{OBS_DIM, OBS_SPEC_VERSION, observation, observation_names, spec_hash};
+use crate::protocol::{Array, Message, PROTOCOL_VERSION, error_reply};
+use crate::sensing::{CharacterGeometry, FEATURE_COUNT, FEATURE_NAMES, FrameReading, guard};
+
+/// Where a slot's bag hangs, in the character's frame: `distance_m` ahead (+Z), `height_m` of its centre
+/// of mass above the ground, `side_m` to the character's left (+X).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BagPlacement {
+    pub distance_m: f32,
+    pub height_m: f32,
+    pub side_m: f32,
+}
+
+impl Default for BagPlacement {
+    fn default() -> Self {
+        Self { distance_m: 0.72, height_m: 1.35, side_m: 0.0 }
+    }
+}
+
+impl BagPlacement {
+    /// Centre of mass of the bag in the character's frame.
+    pub fn position(&self) -> Vec3 {
+        Vec3::new(self.side_m, self.height_m, self.distance_m)
+    }
+}
+
+/// The physics the session drives: N character slots, each with its own bag, never touching each other.
+pub trait World {
+    fn slot_count(&self) -> usize;
+    /// Rebuilds every slot in its initial state (a fresh physics world, so every reset is identical).
+    fn reset(&mut self, placements: &[BagPlacement]) -> Result<(), String>;
+    fn geometry(&self, slot: usize) -> CharacterGeometry;
+    fn read(&self, slot: usize) -> FrameReading;
+    /// Sets the joint motors of a slot for the next physics step.
+    fn drive(&mut self, slot: usize, motor_velocities: &[Vec3; 5]);
+}
+
+/// What the engine layer does after handing a message to the session.
+#[derive(Debug)]
+pub enum Outcome {
+    /// Send this reply now, then wait for the next message.
+    Reply(Message),
+    /// Let physics run; call `physics_frame` every frame until it returns a reply.
+    Running,
+    /// Send this reply and close the connection.
+    Close(Message),
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Command {
+    Step,
+    Rollout,
+}
+
+#[derive(Debug)]
+struct Run {
+    command: Command,
+    frames_total: usize,
+    frames_done: usize,
+    /// Open-loop actions [slot][decision][dof] (rollout only).
+    actions: Vec<f32>,
+    decisions: usize,
+    features: Vec<f32>,
+}
+
+/// Episode state shared by all slots (they always run in lockstep).
+pub struct Session {
+    slots: Vec<CharacterController>,
+    decision_period: usize,
+    frames_per_episode: usize,
+    frame_index: usize,
+    last_features: Vec<[f32; FEATURE_COUNT]>,
+    broken: Vec<bool>,
+    run: Option<Run>,
+    episode_started: bool,
+}
+
+/// The guard flags are the last feature (a sensing test checks it).
+const FLAGS: usize = FEATURE_COUNT - 1;
+
+impl Session {
+    pub fn new(decision_period: usize) -> Self {
+        Self {
+            slots: Vec::new(),
+            decision_period: decision_period.max(1),
+            frames_per_episode: 50,
+            frame_index: 0,
+            last_features: Vec::new(),
+            broken: Vec::new(),
+            run: None,
+            episode_started: false,
+        }
+    }
+
+    pub fn decision_period(&self) -> usize {
+        self.decision_period
+    }
+
+    /// The handshake: versions, the spec and its hash, slot count, rates, and every name.
+    pub fn hello(&self, slot_count: usize) -> Message {
+        Message::new("hello")
+            .with("protocol_version", json!(PROTOCOL_VERSION))
+            .with("spec_version", json!(OBS_SPEC_VERSION))
+            .with("spec_hash", json!(spec_hash(self.decision_period as u32)))
+            .with("extension_version", json!(crate::VERSION))
+            .with("slot_count", json!(slot_count))
+            .with("physics_hz", json!(PHYSICS_HZ))
+            .with("decision_period", json!(self.decision_period))
+            .with("action_names", json!(DOFS.iter().map(|d| d.name).collect::<Vec<_>>()))
+            .with("action_lower_rad", json!(DOFS.iter().map(|d| d.lower_rad).collect::<Vec<_>>()))
+            .with("action_upper_rad", json!(DOFS.iter().map(|d| d.upper_rad).collect::<Vec<_>>()))
+            .with("observation_names", json!(observation_names()))
+            .with("feature_names", json!(FEATURE_NAMES.to_vec()))
+    }
+
+    /// Handles one message. Bad requests get an error reply and change nothing.
+    pub fn handle(&mut self, message: &Message, world: &mut impl World) -> Outcome {
+        let result = match message.message_type() {
+            "hello" => self.check_hello(message).map(|()| Outcome::Reply(self.hello(world.slot_count()))),
+            "reset" => self.reset(message, world).map(Outcome::Reply),
+            "step" => self.start_step(message, world),
+            "rollout" => self.start_rollout(message, world),
+            "close" => Ok(Outcome::Close(Message::new("bye"))),
+            other => Err(format!("unknown message type '{other}' (expected hello, reset, step, rollout or close)")),
+        };
+        result.unwrap_or_else(|error| Outcome::Reply(error_reply(&error)))
+    }
+
+    fn check_hello(&self, message: &Message) -> Result<(), String> {
+        match message.header.get("protocol_version").and_then(Value::as_u64) {
+            Some(version) if version == PROTOCOL_VERSION as u64 => Ok(()),
+            Some(version) => Err(format!("protocol version {version} is not supported; this server speaks {PROTOCOL_VERSION}")),
+            None => Err("hello needs an integer 'protocol_version'".into()),
+        }
+    }
+
+    fn reset(&mut self, message: &Message, world: &mut impl World) -> Result<Message, String> {
+        let slot_count = world.slot_count();
+        let frames = match message.header.get("frames") {
+            None => 50,
+            Some(value) => value.as_u64().filter(|&f| f > 0 && f <= 10_000).ok_or("'frames' must be an integer in 1..=10000")? as usize,
+        };
+        if frames % self.decision_period != 0 {
+            return Err(format!("'frames' ({frames}) must be a multiple of the decision period ({})", self.decision_period));
+        }
+        let placements = parse_placements(message.header.get("bags"), slot_count)?;
+        world.reset(&placements)?;
+        self.frames_per_episode = frames;
+        self.frame_index = 0;
+        self.slots = (0..slot_count).map(|slot| CharacterController::new(world.geometry(slot))).collect();
+        self.broken = vec![false; slot_count];
+        self.last_features = (0..slot_count).map(|slot| self.slots[slot].features(&world.read(slot))).collect();
+        self.episode_started = true;
+        let mut features = Vec::with_capacity(slot_count * FEATURE_COUNT);
+        let mut observations = Vec::with_capacity(slot_count * OBS_DIM);
+        for last in &self.last_features {
+            features.extend_from_slice(last);
+            observations.extend_from_slice(&observation(last, 0, self.decisions_per_episode() as u32));
+        }
+        Ok(Message::new("reset_done")
+            .with("frames", json!(frames))
+            .with("decisions", json!(self.decisions_per_episode()))
+            .with_array(Array::new("observations", vec![slot_count, OBS_DIM], observations))
+            .with_array(Array::new("features", vec![slot_count, FEATURE_COUNT], features)))
+    }
+
+    fn decisions_per_episode(&self) -> usize {
+        self.frames_per_episode / self.decision_period
+    }
+
+    fn start_step(&mut self, message: &Message, world: &mut impl World) -> Result<Outcome, String> {
+        if !self.episode_started {
+            return Err("no episode: send reset first".into());
+        }
+        if self.frame_index >= self.frames_per_episode {
+            return Err("the episode is over: send reset".into());
+        }
+        let slot_count = self.slots.len();
+        let actions = message.array("actions", &[slot_count, DOF_COUNT]).map_err(|e| e.to_string())?;
+        for (slot, action) in self.slots.iter_mut().zip(actions.data.chunks_exact(DOF_COUNT)) {
+            slot.set_action(action).map_err(|e| e.to_string())?;
+        }
+        self.begin(Command::Step, self.decision_period, Vec::new(), 1, world);
+        Ok(Outcome::Running)
+    }
+
+    fn start_rollout(&mut self, message: &Message, world: &mut impl World) -> Result<Outcome, String> {
+        let slot_count = world.slot_count();
+        let decisions = message.arrays.iter().find(|a| a.name == "actions").and_then(|a| a.shape.get(1).copied()).unwrap_or(0);
+        let actions = message.array("actions", &[slot_count, decisions, DOF_COUNT]).map_err(|e| e.to_string())?.data.clone();
+        if decisions == 0 {
+            return Err("a rollout needs at least one decision".into());
+        }
+        let mut reset = message.clone();
+        reset.header.insert("frames".into(), json!(decisions * self.decision_period));
+        self.reset(&reset, world)?;
+        self.begin(Command::Rollout, decisions * self.decision_period, actions, decisions, world);
+        Ok(Outcome::Running)
+    }
+
+    fn begin(&mut self, command: Command, frames_total: usize, actions: Vec<f32>, decisions: usize, world: &mut impl World) {
+        let slot_count = self.slots.len();
+        self.run = Some(Run {
+            command,
+            frames_total,
+            frames_done: 0,
+            actions,
+            decisions,
+            features: Vec::with_capacity(slot_count * frames_total * FEATURE_COUNT),
+        });
+        self.drive_all(world);
+    }
+
+    /// Open-loop actions for the decision that starts at the current frame, then motors for every slot.
+    fn drive_all(&mut self, world: &mut impl World) {
+        let Some(run) = &self.run else { return };
+        if run.command == Command::Rollout && run.frames_done % self.decision_period == 0 {
+            let decision = run.frames_done / self.decision_period;
+            for (slot, controller) in self.slots.iter_mut().enumerate() {
+                let start = (slot * run.decisions + decision) * DOF_COUNT;
+                // Validated as finite when the message arrived.
+                let _ = controller.set_action(&run.actions[start..start + DOF_COUNT]);
+            }
+        }
+        for (slot, controller) in self.slots.iter().enumerate() {
+            world.drive(slot, &controller.motor_commands(&world.read(slot)));
+        }
+    }
+
+    /// Call once per physics frame while running (after the engine stepped): records the frame and either
+    /// drives the next one or returns the reply.
+    pub fn physics_frame(&mut self, world: &mut impl World) -> Option<Message> {
+        let run = self.run.as_mut()?;
+        for (slot, controller) in self.slots.iter_mut().enumerate() {
+            let features = controller.features(&world.read(slot));
+            if features[FLAGS] as u32 & guard::JOINT_SEPARATED != 0 {
+                self.broken[slot] = true;
+            }
+            run.features.extend_from_slice(&features);
+            self.last_features[slot] = features;
+        }
+        run.frames_done += 1;
+        self.frame_index += 1;
+        if run.frames_done < run.frames_total {
+            self.drive_all(world);
+            return None;
+        }
+        let run = self.run.take()?;
+        Some(self.reply(run))
+    }
+
+    fn reply(&self, run: Run) -> Message {
+        let slot_count = self.slots.len();
+        // Features arrive frame-major ([frame][slot][feature]); replies are slot-major.
+        let mut features = vec![0.0f32; run.features.len()];
+        for frame in 0..run.frames_total {
+            for slot in 0..slot_count {
+                let from = (frame * slot_count + slot) * FEATURE_COUNT;
+                let to = (slot * run.frames_total + frame) * FEATURE_COUNT;
+                features[to..to + FEATURE_COUNT].copy_from_slice(&run.features[from..from + FEATURE_COUNT]);
+            }
+        }
+        let features = Array::new("features", vec![slot_count, run.frames_total, FEATURE_COUNT], features);
+        match run.command {
+            Command::Rollout => Message::new("rollout_done").with_array(features),
+            Command::Step => {
+                let decision = self.frame_index / self.decision_period;
+                let over = self.frame_index >= self.frames_per_episode;
+                let mut observations = Vec::with_capacity(slot_count * OBS_DIM);
+                for last in &self.last_features {
+                    observations.extend_from_slice(&observation(last, decision as u32, self.decisions_per_episode() as u32));
+                }
+                Message::new("step_done")
+                    .with("decision", json!(decision))
+                    .with("terminated", json!(vec![over; slot_count]))
+                    .with("truncated", json!(self.broken))
+                    .with_array(Array::new("observations", vec![slot_count, OBS_DIM], observations))
+                    .with_array(features)
+            }
+        }
+    }
+}
+
+fn parse_placements(value: Option<&Value>, slot_count: usize) -> Result<Vec<BagPlacement>, String> {
+    let parse_one = |value: &Value| -> Result<BagPlacement, String> {
+        let object = value.as_object().ok_or("a bag placement is an object")?;
+        let mut placement = BagPlacement::default();
+        for (key, field) in object {
+            let number = field.as_f64().filter(|v| v.is_finite()).ok_or(format!("bag '{key}' must be a finite number"))? as f32;
+            match key.as_str() {
+                "distance_m" if (0.3..=3.0).contains(&number) => placement.distance_m = number,
+                "height_m" if (0.6..=2.2).contains(&number) => placement.height_m = number,
+                "side_m" if (-1.5..=1.5).contains(&number) => placement.side_m = number,
+                "distance_m" | "height_m" | "side_m" => return Err(format!("bag '{key}' = {number} is out of range")),
+                _ => return Err(format!("unknown bag field '{key}' (distance_m, height_m, side_m)")),
+            }
+        }
+        Ok(placement)
+    };
+    match value {
+        None | Some(Value::Null) => Ok(vec![BagPlacement::default(); slot_count]),
+        Some(Value::Array(list)) if list.len() == slot_count => list.iter().map(parse_one).collect(),
+        Some(Value::Array(list)) => Err(format!("'bags' lists {} placements for {slot_count} slots", list.len())),
+        Some(one) => Ok(vec![parse_one(one)?; slot_count]),
+    }
+}

@@ -1,0 +1,235 @@
+## Builds the addon's character and sandbag scenes from the anthropometry below and saves them as
+## res://addons/punch_controller/scenes/punch_character.tscn and punch_sandbag.tscn.
+## Run: tools/godot --headless --path godot_project --script res://tools/build_scenes.gd
+##
+## Body data: de Leva (1996) segment parameters scaled to an 80 kg, 1.74 m male. Welded segments become one
+## rigid body (head + neck + upper trunk + middle trunk = torso; forearm + hand = forearm), whose centre of
+## mass and principal moments come from the parallel-axis theorem. Arm length convention: shoulder joint to
+## fist centre = 0.282 + 0.269 + 0.068 = 0.619 m (the paper's 0.84 m arm measures to the fingertips of a
+## longer reference person). Frame: the character faces +Z, +X is its left, +Y up; the pose is a guard.
+extends SceneTree
+
+const SCENE_DIR := "res://addons/punch_controller/scenes/"
+
+# Heights above the floor (m): hip joint centres, omphalion (waist joint), shoulder joint centres.
+const WAIST_Y := 1.056
+const SHOULDER_Y := 1.42
+const SHOULDER_HALF_WIDTH := 0.18
+# Segment lengths (m): shoulder-elbow, elbow-wrist; fist centre 0.068 beyond the wrist.
+const UPPER_ARM_LENGTH := 0.282
+const FOREARM_LENGTH := 0.269
+const FIST_FROM_WRIST := 0.068
+# Guard pose: upper arm 35 degrees forward of vertical, elbow bent 120 degrees.
+const UPPER_ARM_FORWARD_DEG := 35.0
+const ELBOW_FLEXION_DEG := 120.0
+
+const TORSO := {"mass": 31.38, "com_y": 1.3313, "inertia": Vector3(0.8672, 0.3167, 1.0310)}
+const UPPER_ARM := {"mass": 2.17, "com_from_shoulder": 0.163, "inertia": Vector3(0.01249, 0.00431, 0.01402)}
+const FOREARM := {"mass": 1.79, "com_from_elbow": 0.1816, "inertia": Vector3(0.02386, 0.00196, 0.02489)}
+const FIST_RADIUS := 0.045
+
+const BAG := {"mass": 35.0, "radius": 0.175, "height": 1.0, "rope_above_top": 0.5}
+
+var _skin := _material(Color(0.87, 0.68, 0.55))
+var _shirt := _material(Color(0.18, 0.32, 0.55))
+var _glove := _material(Color(0.75, 0.08, 0.08))
+
+
+func _initialize() -> void:
+	var ok := _save(_build_character(), "punch_character.tscn") and _save(_build_sandbag(), "punch_sandbag.tscn")
+	quit(0 if ok else 1)
+
+
+func _material(color: Color) -> StandardMaterial3D:
+	var material := StandardMaterial3D.new()
+	material.albedo_color = color
+	material.roughness = 0.8
+	return material
+
+
+func _save(root: Node, file_name: String) -> bool:
+	var packed := PackedScene.new()
+	var error := packed.pack(root)
+	if error == OK:
+		error = ResourceSaver.save(packed, SCENE_DIR + file_name)
+	root.free()
+	if error != OK:
+		printerr("could not save %s: %s" % [file_name, error_string(error)])
+		return false
+	print("saved ", SCENE_DIR + file_name)
+	return true
+
+
+## Makes `owner` the owner of every descendant of `node`, so that packing saves them.
+func _own(node: Node, owner: Node) -> void:
+	for child in node.get_children():
+		child.owner = owner
+		_own(child, owner)
+
+
+func _shape(parent: Node3D, name: String, shape: Shape3D, mesh: Mesh, material: Material, at: Transform3D) -> CollisionShape3D:
+	var collision := CollisionShape3D.new()
+	collision.name = name
+	collision.shape = shape
+	collision.transform = at
+	parent.add_child(collision)
+	var visual := MeshInstance3D.new()
+	visual.name = name + "Mesh"
+	visual.mesh = mesh
+	visual.material_override = material
+	visual.transform = at
+	parent.add_child(visual)
+	return collision
+
+
+func _box(size: Vector3) -> Array:
+	var shape := BoxShape3D.new()
+	shape.size = size
+	var mesh := BoxMesh.new()
+	mesh.size = size
+	return [shape, mesh]
+
+
+func _capsule(radius: float, height: float) -> Array:
+	var shape := CapsuleShape3D.new()
+	shape.radius = radius
+	shape.height = height
+	var mesh := CapsuleMesh.new()
+	mesh.radius = radius
+	mesh.height = height
+	return [shape, mesh]
+
+
+func _sphere(radius: float) -> Array:
+	var shape := SphereShape3D.new()
+	shape.radius = radius
+	var mesh := SphereMesh.new()
+	mesh.radius = radius
+	mesh.height = 2.0 * radius
+	return [shape, mesh]
+
+
+func _rigid_body(name: String, mass: float, inertia: Vector3, at: Transform3D) -> RigidBody3D:
+	var body := RigidBody3D.new()
+	body.name = name
+	body.mass = mass
+	body.inertia = inertia
+	body.center_of_mass_mode = RigidBody3D.CENTER_OF_MASS_MODE_CUSTOM
+	body.center_of_mass = Vector3.ZERO  # every body's origin is its centre of mass
+	body.can_sleep = false
+	body.transform = at
+	# Character bodies collide with nothing but what asks for them (the bag's mask).
+	body.collision_layer = 2
+	body.collision_mask = 0
+	return body
+
+
+func _joint(name: String, at: Vector3, parent: Node3D, child: Node3D, root: Node3D) -> void:
+	var joint := Generic6DOFJoint3D.new()
+	joint.name = name
+	joint.position = at  # identity basis: joint frames are aligned with the character frame at rest
+	root.add_child(joint)
+	joint.node_a = joint.get_path_to(parent)
+	joint.node_b = joint.get_path_to(child)
+
+
+func _build_character() -> Node3D:
+	var root: Node3D = ClassDB.instantiate("PunchCharacter")
+	root.name = "PunchCharacter"
+
+	var pelvis := StaticBody3D.new()
+	pelvis.name = "Pelvis"
+	pelvis.position = Vector3(0, 0.98, 0)
+	pelvis.collision_layer = 2
+	pelvis.collision_mask = 0
+	root.add_child(pelvis)
+	var pelvis_box := _box(Vector3(0.32, 0.15, 0.2))
+	_shape(pelvis, "PelvisShape", pelvis_box[0], pelvis_box[1], _shirt, Transform3D.IDENTITY)
+
+	var torso := _rigid_body("Torso", TORSO.mass, TORSO.inertia, Transform3D(Basis.IDENTITY, Vector3(0, TORSO.com_y, 0)))
+	root.add_child(torso)
+	var abdomen := _box(Vector3(0.30, 0.215, 0.20))
+	_shape(torso, "AbdomenShape", abdomen[0], abdomen[1], _shirt, Transform3D(Basis.IDENTITY, Vector3(0, 1.1635 - TORSO.com_y, 0)))
+	var chest := _box(Vector3(0.34, 0.171, 0.22))
+	_shape(torso, "ChestShape", chest[0], chest[1], _shirt, Transform3D(Basis.IDENTITY, Vector3(0, 1.3565 - TORSO.com_y, 0)))
+	var head := _sphere(0.1)
+	_shape(torso, "HeadShape", head[0], head[1], _skin, Transform3D(Basis.IDENTITY, Vector3(0, 1.58 - TORSO.com_y, 0)))
+	_joint("Waist", Vector3(0, WAIST_Y, 0), pelvis, torso, root)
+
+	var upper_angle := deg_to_rad(UPPER_ARM_FORWARD_DEG)
+	var forearm_angle := deg_to_rad(UPPER_ARM_FORWARD_DEG + ELBOW_FLEXION_DEG)
+	var upper_direction := Vector3(0, -cos(upper_angle), sin(upper_angle))
+	var forearm_direction := Vector3(0, -cos(forearm_angle), sin(forearm_angle))
+	for side in [["R", -1.0], ["L", 1.0]]:
+		var suffix: String = side[0]
+		var shoulder := Vector3(side[1] * SHOULDER_HALF_WIDTH, SHOULDER_Y, 0)
+		var elbow := shoulder + UPPER_ARM_LENGTH * upper_direction
+		# Each arm body's local +Y points along the bone toward its proximal joint.
+		var upper_basis := Basis(Vector3.RIGHT, -upper_angle)
+		var upper := _rigid_body("UpperArm" + suffix, UPPER_ARM.mass, UPPER_ARM.inertia,
+			Transform3D(upper_basis, shoulder + UPPER_ARM.com_from_shoulder * upper_direction))
+		root.add_child(upper)
+		var upper_capsule := _capsule(0.045, UPPER_ARM_LENGTH + 0.02)
+		_shape(upper, "UpperArmShape", upper_capsule[0], upper_capsule[1], _skin,
+			Transform3D(Basis.IDENTITY, Vector3(0, UPPER_ARM.com_from_shoulder - UPPER_ARM_LENGTH / 2.0, 0)))
+		_joint("Shoulder" + suffix, shoulder, torso, upper, root)
+
+		var forearm_basis := Basis(Vector3.RIGHT, -forearm_angle)
+		var forearm := _rigid_body("Forearm" + suffix, FOREARM.mass, FOREARM.inertia,
+			Transform3D(forearm_basis, elbow + FOREARM.com_from_elbow * forearm_direction))
+		root.add_child(forearm)
+		var forearm_capsule := _capsule(0.04, FOREARM_LENGTH)
+		_shape(forearm, "ForearmShape", forearm_capsule[0], forearm_capsule[1], _skin,
+			Transform3D(Basis.IDENTITY, Vector3(0, FOREARM.com_from_elbow - FOREARM_LENGTH / 2.0, 0)))
+		var fist_offset := Vector3(0, FOREARM.com_from_elbow - (FOREARM_LENGTH + FIST_FROM_WRIST), 0)
+		var fist := _sphere(FIST_RADIUS)
+		_shape(forearm, "FistShape", fist[0], fist[1], _glove, Transform3D(Basis.IDENTITY, fist_offset))
+		var marker := Marker3D.new()
+		marker.name = "Fist" + suffix
+		marker.position = fist_offset
+		forearm.add_child(marker)
+		_joint("Elbow" + suffix, elbow, upper, forearm, root)
+
+	_own(root, root)
+	return root
+
+
+func _build_sandbag() -> Node3D:
+	# The root's origin is the bag's centre of mass: placing the root places the bag.
+	var root := Node3D.new()
+	root.name = "PunchSandbag"
+	var bag := RigidBody3D.new()
+	bag.name = "Bag"
+	bag.mass = BAG.mass
+	bag.can_sleep = false
+	bag.max_contacts_reported = 8  # the trainer reads each fist's contact impulse on the bag
+	bag.collision_layer = 4
+	bag.collision_mask = 2  # the character's bodies
+	root.add_child(bag)
+	var cylinder := CylinderShape3D.new()
+	cylinder.radius = BAG.radius
+	cylinder.height = BAG.height
+	var mesh := CylinderMesh.new()
+	mesh.top_radius = BAG.radius
+	mesh.bottom_radius = BAG.radius
+	mesh.height = BAG.height
+	_shape(bag, "BagShape", cylinder, mesh, _material(Color(0.55, 0.12, 0.1)), Transform3D.IDENTITY)
+	var rope_length: float = BAG.rope_above_top
+	var rope_mesh := CylinderMesh.new()
+	rope_mesh.top_radius = 0.01
+	rope_mesh.bottom_radius = 0.01
+	rope_mesh.height = rope_length
+	var rope := MeshInstance3D.new()
+	rope.name = "RopeMesh"
+	rope.mesh = rope_mesh
+	rope.material_override = _material(Color(0.2, 0.2, 0.2))
+	rope.position = Vector3(0, BAG.height / 2.0 + rope_length / 2.0, 0)
+	bag.add_child(rope)
+	# The rope is modelled as a rigid link: a pin joint fixed to the world above the bag.
+	var hook := PinJoint3D.new()
+	hook.name = "Hook"
+	hook.position = Vector3(0, BAG.height / 2.0 + rope_length, 0)
+	root.add_child(hook)
+	hook.node_b = hook.get_path_to(bag)
+	_own(root, root)
+	return root

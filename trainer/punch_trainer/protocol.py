@@ -1,0 +1,97 @@
+"""Client side of the training-server wire format (docs/protocol.md): a JSON header and little-endian f32
+arrays, framed by two u32 lengths. The Rust side is punch_core::protocol."""
+
+from __future__ import annotations
+
+import json
+import socket
+import struct
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from punch_trainer.errors import PunchError
+
+PROTOCOL_VERSION = 1
+MAX_HEADER_BYTES = 64 * 1024
+MAX_PAYLOAD_BYTES = 256 * 1024 * 1024
+
+
+class ProtocolError(PunchError):
+    """The byte stream broke the wire format."""
+
+
+class ServerError(PunchError):
+    """The server answered a request with an error message."""
+
+
+class ServerTimeoutError(PunchError):
+    """The server did not answer in time."""
+
+
+class ServerClosedError(PunchError):
+    """The server closed the connection."""
+
+
+@dataclass
+class Message:
+    """A message: its header fields and its named float32 arrays."""
+
+    type: str
+    fields: dict = field(default_factory=dict)
+    arrays: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def encode(self) -> bytes:
+        arrays = {name: np.ascontiguousarray(value, dtype="<f4") for name, value in self.arrays.items()}
+        header = {"type": self.type, **self.fields,
+                  "arrays": [{"name": name, "shape": list(value.shape)} for name, value in arrays.items()]}
+        header_bytes = json.dumps(header, separators=(",", ":")).encode()
+        payload = b"".join(value.tobytes() for value in arrays.values())
+        return struct.pack("<II", len(header_bytes), len(payload)) + header_bytes + payload
+
+    @classmethod
+    def decode(cls, header_bytes: bytes, payload: bytes) -> Message:
+        try:
+            header = json.loads(header_bytes)
+        except (UnicodeDecodeError, json.JSONDecodeError) as error:
+            raise ProtocolError(f"header is not JSON: {error}") from None
+        if not isinstance(header, dict) or not isinstance(header.get("type"), str):
+            raise ProtocolError("header is not an object with a string 'type'")
+        arrays, offset = {}, 0
+        for descriptor in header.pop("arrays", []):
+            shape = tuple(int(d) for d in descriptor["shape"])
+            count = int(np.prod(shape, dtype=np.int64))
+            chunk = payload[offset:offset + 4 * count]
+            if len(chunk) != 4 * count:
+                raise ProtocolError(f"payload too short for array '{descriptor['name']}'")
+            arrays[descriptor["name"]] = np.frombuffer(chunk, dtype="<f4").reshape(shape)
+            offset += 4 * count
+        if offset != len(payload):
+            raise ProtocolError(f"payload has {len(payload)} bytes, arrays describe {offset}")
+        message_type = header.pop("type")
+        return cls(message_type, header, arrays)
+
+
+def _receive_exactly(sock: socket.socket, count: int) -> bytes:
+    chunks, remaining = [], count
+    while remaining:
+        try:
+            chunk = sock.recv(min(remaining, 1 << 20))
+        except TimeoutError:
+            raise ServerTimeoutError("the server did not answer in time") from None
+        if not chunk:
+            raise ServerClosedError("the server closed the connection")
+        chunks.append(chunk)
+        remaining -= len(chunk)
+    return b"".join(chunks)
+
+
+def receive(sock: socket.socket) -> Message:
+    """Reads one message; an `error` reply raises ServerError."""
+    header_length, payload_length = struct.unpack("<II", _receive_exactly(sock, 8))
+    if not 0 < header_length <= MAX_HEADER_BYTES or payload_length > MAX_PAYLOAD_BYTES:
+        raise ProtocolError(f"bad frame lengths {header_length}, {payload_length}")
+    message = Message.decode(_receive_exactly(sock, header_length), _receive_exactly(sock, payload_length))
+    if message.type == "error":
+        raise ServerError(message.fields.get("message", "unknown server error"))
+    return message

@@ -1,0 +1,162 @@
+"""A headless Godot training server process and the connection to it. The trainer starts and stops these
+itself: the server picks a free port and prints it, the client handshakes and checks versions, every wait
+has a timeout, and the process is killed by its own PID on close."""
+
+from __future__ import annotations
+
+import os
+import selectors
+import signal
+import socket
+import subprocess
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from punch_trainer.errors import GodotRunError, PunchError
+from punch_trainer.godot import GODOT_PROJECT, godot_command
+from punch_trainer.protocol import PROTOCOL_VERSION, Message, ServerError, receive
+
+SERVER_SCENE = "res://training/training_server.tscn"
+READY_PREFIX = "PUNCH_SERVER_READY "
+
+
+class ProtocolVersionError(PunchError):
+    """The server speaks another protocol version."""
+
+
+@dataclass(frozen=True)
+class ServerInfo:
+    """What the server said in its handshake."""
+
+    slot_count: int
+    decision_period: int
+    physics_hz: int
+    spec_hash: str
+    spec_version: int
+    extension_version: str
+    action_names: list[str]
+    observation_names: list[str]
+    feature_names: list[str]
+
+
+class TrainingServer:
+    """One Godot process running N characters. Use as a context manager, or call close()."""
+
+    def __init__(self, slot_count: int = 1, *, decision_period: int = 5, start_timeout_s: float = 60.0,
+                 reply_timeout_s: float = 120.0, idle_timeout_s: float = 120.0):
+        self._process: subprocess.Popen | None = None
+        self._socket: socket.socket | None = None
+        self.reply_timeout_s = reply_timeout_s
+        command = godot_command() + [
+            "--headless", "--fixed-fps", "60", "--path", str(GODOT_PROJECT), SERVER_SCENE, "--",
+            "--port=0", f"--slots={slot_count}", f"--decision-period={decision_period}", f"--idle-timeout-s={idle_timeout_s}",
+        ]
+        self._log: list[str] = []
+        self._process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                         text=True, errors="replace", start_new_session=True)
+        try:
+            port = self._wait_until_ready(start_timeout_s)
+            self._socket = socket.create_connection(("127.0.0.1", port), timeout=start_timeout_s)
+            self._socket.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            self._socket.settimeout(reply_timeout_s)
+            self.info = self._handshake()
+        except BaseException:
+            self.close()
+            raise
+
+    @property
+    def pid(self) -> int | None:
+        return self._process.pid if self._process else None
+
+    def _wait_until_ready(self, timeout_s: float) -> int:
+        assert self._process is not None and self._process.stdout is not None
+        selector = selectors.DefaultSelector()
+        selector.register(self._process.stdout, selectors.EVENT_READ)
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if not selector.select(timeout=max(0.0, deadline - time.monotonic())):
+                break
+            line = self._process.stdout.readline()
+            if not line:
+                raise GodotRunError(f"the training server exited before it was ready:\n{''.join(self._log[-30:])}", "".join(self._log))
+            self._log.append(line)
+            if line.startswith(READY_PREFIX):
+                fields = dict(item.split("=", 1) for item in line[len(READY_PREFIX):].split())
+                return int(fields["port"])
+        raise GodotRunError(f"the training server was not ready within {timeout_s:.0f} s:\n{''.join(self._log[-30:])}", "".join(self._log))
+
+    def _handshake(self) -> ServerInfo:
+        reply = self.request(Message("hello", {"protocol_version": PROTOCOL_VERSION}))
+        if reply.fields.get("protocol_version") != PROTOCOL_VERSION:
+            raise ProtocolVersionError(f"server speaks protocol {reply.fields.get('protocol_version')}, we speak {PROTOCOL_VERSION}")
+        f = reply.fields
+        return ServerInfo(f["slot_count"], f["decision_period"], f["physics_hz"], f["spec_hash"], f["spec_version"],
+                          f["extension_version"], f["action_names"], f["observation_names"], f["feature_names"])
+
+    def send(self, message: Message) -> None:
+        if self._socket is None:
+            raise PunchError("the training server is closed")
+        self._socket.sendall(message.encode())
+
+    def receive(self) -> Message:
+        if self._socket is None:
+            raise PunchError("the training server is closed")
+        return receive(self._socket)
+
+    def request(self, message: Message) -> Message:
+        self.send(message)
+        return self.receive()
+
+    def reset(self, frames: int = 50, bags: list[dict] | dict | None = None) -> Message:
+        fields = {"frames": frames}
+        if bags is not None:
+            fields["bags"] = bags
+        return self.request(Message("reset", fields))
+
+    def step(self, actions: np.ndarray) -> Message:
+        return self.request(Message("step", arrays={"actions": np.asarray(actions, dtype=np.float32)}))
+
+    def rollout(self, actions: np.ndarray, bags: list[dict] | dict | None = None) -> np.ndarray:
+        """Open loop: actions [N, decisions, 10] from the initial state; returns features [N, frames, F]."""
+        fields = {} if bags is None else {"bags": bags}
+        reply = self.request(Message("rollout", fields, {"actions": np.asarray(actions, dtype=np.float32)}))
+        return reply.arrays["features"]
+
+    def close(self) -> None:
+        """Says goodbye, then ends the process (killed by its PID if it does not exit). Idempotent."""
+        if self._socket is not None:
+            try:
+                self._socket.settimeout(2.0)
+                self.send(Message("close"))
+            except (OSError, PunchError):
+                pass
+            self._socket.close()
+            self._socket = None
+        if self._process is not None:
+            process, self._process = self._process, None
+            if process.poll() is None:
+                try:
+                    os.killpg(process.pid, signal.SIGTERM)
+                except ProcessLookupError:
+                    pass
+                try:
+                    process.wait(timeout=5)
+                except subprocess.TimeoutExpired:
+                    os.killpg(process.pid, signal.SIGKILL)
+                    process.wait(timeout=5)
+            if process.stdout:
+                process.stdout.close()
+
+    def __enter__(self) -> TrainingServer:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __del__(self) -> None:
+        self.close()
+
+
+__all__ = ["ServerError", "ServerInfo", "TrainingServer", "ProtocolVersionError"]
