@@ -118,9 +118,10 @@ func _rigid_body(name: String, mass: float, inertia: Vector3, at: Transform3D) -
 	body.center_of_mass = Vector3.ZERO  # every body's origin is its centre of mass
 	body.can_sleep = false
 	body.transform = at
-	# Character bodies collide with nothing but what asks for them (the bag's mask).
+	# Layer 2: the character; it collides with itself (except across a joint) and with the bag (layer 3).
+	# Masks must be two-sided: under Jolt, a body that does not mask the other acts as immovable to it.
 	body.collision_layer = 2
-	body.collision_mask = 0
+	body.collision_mask = 2 | 4
 	return body
 
 
@@ -141,7 +142,7 @@ func _build_character() -> Node3D:
 	pelvis.name = "Pelvis"
 	pelvis.position = Vector3(0, 0.98, 0)
 	pelvis.collision_layer = 2
-	pelvis.collision_mask = 0
+	pelvis.collision_mask = 2 | 4
 	root.add_child(pelvis)
 	var pelvis_box := _box(Vector3(0.32, 0.15, 0.2))
 	_shape(pelvis, "PelvisShape", pelvis_box[0], pelvis_box[1], _shirt, Transform3D.IDENTITY)
@@ -204,7 +205,7 @@ func _build_sandbag() -> Node3D:
 	bag.can_sleep = false
 	bag.max_contacts_reported = 8  # the trainer reads each fist's contact impulse on the bag
 	bag.collision_layer = 4
-	bag.collision_mask = 2  # the character's bodies
+	bag.collision_mask = 2 | 4  # the character's bodies (and other bags)
 	root.add_child(bag)
 	var cylinder := CylinderShape3D.new()
 	cylinder.radius = BAG.radius

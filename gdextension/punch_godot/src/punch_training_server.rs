@@ -238,8 +238,9 @@ impl ArenaWorld {
             .ok_or("the character scene's root is not a PunchCharacter")?;
         for child in character.get_children().iter_shared() {
             if let Ok(mut body) = child.try_cast::<godot::classes::CollisionObject3D>() {
+                // Two-sided masks: under Jolt a body that does not mask the other acts as immovable to it.
                 body.set_collision_layer(layer);
-                body.set_collision_mask(0);
+                body.set_collision_mask(layer);
             }
         }
         let mut sandbag = self.sandbag_scene.instantiate().and_then(|n| n.try_cast::<Node3D>().ok()).ok_or("the sandbag scene's root is not a Node3D")?;
