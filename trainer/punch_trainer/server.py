@@ -50,7 +50,9 @@ class TrainingServer:
         self._socket: socket.socket | None = None
         self.reply_timeout_s = reply_timeout_s
         command = godot_command() + [
-            "--headless", "--fixed-fps", "60", "--path", str(GODOT_PROJECT), SERVER_SCENE, "--",
+            # --fixed-fps: run frames back to back without waiting for the wall clock. The server checks the
+            # physics rate itself and blocks between commands, so this value only sets steps per frame.
+            "--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), SERVER_SCENE, "--",
             "--port=0", f"--slots={slot_count}", f"--decision-period={decision_period}", f"--idle-timeout-s={idle_timeout_s}",
         ]
         self._log: list[str] = []

@@ -81,12 +81,13 @@ pub const FEATURE_NAMES: [&str; FEATURE_COUNT] = [
     "speed_waist_flexion", "speed_waist_rotation",
     "speed_shoulder_r_flexion", "speed_shoulder_r_rotation", "speed_shoulder_r_abduction", "speed_elbow_r_extension",
     "speed_shoulder_l_flexion", "speed_shoulder_l_rotation", "speed_shoulder_l_abduction", "speed_elbow_l_extension",
+    "joint_gap_max_m",
     "exploit_flags",
 ];
-pub const FEATURE_COUNT: usize = 50;
+pub const FEATURE_COUNT: usize = 51;
 
 /// Units of each feature group, for the env card.
-pub const FEATURE_UNITS: &str = "pos m, vel m/s, impulse and momentum change N s, distance m, angle rad, speed rad/s, exploit_flags bit set";
+pub const FEATURE_UNITS: &str = "pos m, vel m/s, impulse and momentum change N s, distance and gap m, angle rad, speed rad/s, exploit_flags bit set";
 
 /// Index of a feature by name.
 pub fn feature_index(name: &str) -> Option<usize> {
@@ -154,7 +155,8 @@ impl Sensor {
         let rotations = self.joint_rotations(reading);
         let angles = dof_angles(&rotations);
         let speeds = self.joint_speeds(reading);
-        let flags = self.exploit_flags(reading, &fists);
+        let joint_gap = self.largest_joint_gap(reading);
+        let flags = self.exploit_flags(reading, &fists, joint_gap);
 
         let mut out = [0.0f32; FEATURE_COUNT];
         let mut cursor = 0;
@@ -175,7 +177,7 @@ impl Sensor {
         push(&[fists[0].0.distance(bag_position), fists[1].0.distance(bag_position)]);
         push(&angles);
         push(&speeds);
-        push(&[flags as f32]);
+        push(&[joint_gap, flags as f32]);
         debug_assert_eq!(cursor, FEATURE_COUNT);
         self.previous = Some(*reading);
         out
@@ -193,19 +195,27 @@ impl Sensor {
         })
     }
 
-    fn exploit_flags(&self, reading: &FrameReading, fists: &[(Vec3, Vec3); 2]) -> u32 {
+    /// Largest distance (m) between a joint's anchor as seen from its parent and from its child.
+    fn largest_joint_gap(&self, reading: &FrameReading) -> f32 {
+        JOINTS
+            .iter()
+            .zip(&self.geometry.joint_anchors)
+            .map(|(joint, (parent_anchor, child_anchor))| {
+                let parent = &reading.bodies[joint.parent.index()];
+                let child = &reading.bodies[joint.child.index()];
+                ((parent.position + parent.rotation * *parent_anchor) - (child.position + child.rotation * *child_anchor)).length()
+            })
+            .fold(0.0, f32::max)
+    }
+
+    fn exploit_flags(&self, reading: &FrameReading, fists: &[(Vec3, Vec3); 2], joint_gap: f32) -> u32 {
         let g = &self.geometry;
         let mut flags = 0;
         if fists.iter().any(|(_, velocity)| velocity.length() > guard::FIST_SPEED_LIMIT_MPS) {
             flags |= guard::FIST_TOO_FAST;
         }
-        for (joint, (parent_anchor, child_anchor)) in JOINTS.iter().zip(&g.joint_anchors) {
-            let parent = &reading.bodies[joint.parent.index()];
-            let child = &reading.bodies[joint.child.index()];
-            let gap = (parent.position + parent.rotation * *parent_anchor) - (child.position + child.rotation * *child_anchor);
-            if gap.length() > guard::JOINT_SEPARATION_LIMIT_M {
-                flags |= guard::JOINT_SEPARATED;
-            }
+        if joint_gap > guard::JOINT_SEPARATION_LIMIT_M {
+            flags |= guard::JOINT_SEPARATED;
         }
         let bag_rotation = reading.bag.rotation.inverse();
         for (position, _) in fists {

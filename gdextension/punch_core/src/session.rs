@@ -278,10 +278,14 @@ impl Session {
                 for last in &self.last_features {
                     observations.extend_from_slice(&observation(last, decision as u32, self.decisions_per_episode() as u32));
                 }
+                // Episodes have a fixed length that the observation shows (episode_phase), so reaching it
+                // terminates; a slot whose physics broke on the way (a joint came apart) ends truncated.
+                let terminated: Vec<bool> = self.broken.iter().map(|&broken| over && !broken).collect();
+                let truncated: Vec<bool> = self.broken.iter().map(|&broken| over && broken).collect();
                 Message::new("step_done")
                     .with("decision", json!(decision))
-                    .with("terminated", json!(vec![over; slot_count]))
-                    .with("truncated", json!(self.broken))
+                    .with("terminated", json!(terminated))
+                    .with("truncated", json!(truncated))
                     .with_array(Array::new("observations", vec![slot_count, OBS_DIM], observations))
                     .with_array(features)
             }

@@ -136,6 +136,15 @@ impl PunchCharacter {
         for (joint_index, joint) in joints.iter_mut().enumerate() {
             configure_joint(joint, joint_index);
         }
+        // The character's bodies never collide with each other: pushing an arm through the torso would
+        // fight the joint motors and pull joints apart.
+        for (i, body) in bodies.iter().enumerate() {
+            let mut body = body.clone();
+            body.add_collision_exception_with(&pelvis.clone().cast::<godot::classes::PhysicsBody3D>());
+            for other in &bodies[i + 1..] {
+                body.add_collision_exception_with(other);
+            }
+        }
         let root = self.base().get_global_transform();
         self.rig = Some(Rig {
             pelvis,
@@ -178,13 +187,18 @@ fn fist_radius(shape_node: &Gd<godot::classes::Node>) -> Option<f32> {
     Some(shape.try_cast::<godot::classes::SphereShape3D>().ok()?.get_radius())
 }
 
+/// How far the engine's hard joint limits lie beyond the range actions can target: a joint driven to its
+/// target at speed stops on its motor, not by slamming into a hard stop (which pulls joints apart).
+const HARD_LIMIT_MARGIN_RAD: f32 = 10.0 * std::f32::consts::PI / 180.0;
+
 /// Limits and motors of one joint from the DOF table. Actuated axes get a velocity motor with the DOF's
 /// torque limit and the DOF's range; other axes are locked. Godot's 6DOF angles are mirrored relative to
 /// the right-hand rule the core uses, so a range [lo, hi] is set as [-hi, -lo].
 fn configure_joint(joint: &mut Gd<Generic6DofJoint3D>, joint_index: usize) {
     for axis in [Axis::X, Axis::Y, Axis::Z] {
         let dof = joint_dofs(joint_index).find(|(_, dof)| dof.axis == axis).map(|(_, dof)| dof);
-        let (lower, upper, torque) = dof.map_or((0.0, 0.0, 0.0), |d| (-d.upper_rad, -d.lower_rad, d.max_torque_nm));
+        let margin = HARD_LIMIT_MARGIN_RAD;
+        let (lower, upper, torque) = dof.map_or((0.0, 0.0, 0.0), |d| (-d.upper_rad - margin, -d.lower_rad + margin, d.max_torque_nm));
         let mut set_param = |param: Param, value: f32| match axis {
             Axis::X => joint.set_param_x(param, value),
             Axis::Y => joint.set_param_y(param, value),

@@ -1,0 +1,148 @@
+"""The punching world as Gymnasium environments, over real headless Godot/Jolt training servers.
+
+Env card (full tables in docs/env.md)
+-------------------------------------
+- Action: 10 floats in [-1, 1], one per actuated DOF (waist 2, each shoulder 3, each elbow 1). 0 holds the
+  guard pose; +1 / -1 set the joint target to the upper / lower limit. Held for `decision_period` physics
+  frames (default 5 at 60 Hz).
+- Observation: 45 floats in the character's frame (+Z toward the bag, +X the character's left, +Y up):
+  both fists' position and velocity, each fist's contact impulse on the bag, bag position and velocity,
+  the 10 joint angles and speeds, and the episode phase (decision / decisions per episode).
+- Features: every physics frame's 50 features (`feature_names`) come in `info["features"]`, shape
+  [decision_period, 50]; rewards are computed from them in Python.
+- Episode: `frames` physics frames (50 or 100: 10 or 20 decisions), always from the same initial state.
+  At the last decision `terminated` is True, or `truncated` if the physics guard saw a joint come apart.
+- Reward: `reward_fn(features) -> float`, called on each decision's features; 0 when none is given.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import gymnasium as gym
+import numpy as np
+
+from punch_trainer.protocol import Message
+from punch_trainer.server import TrainingServer
+
+RewardFn = Callable[[np.ndarray], float]
+
+DEFAULT_BAG = {"distance_m": 0.72, "height_m": 1.35, "side_m": 0.0}
+
+
+def _bag_options(options: dict | None, rng: np.random.Generator, count: int, jitter_m: float) -> list[dict]:
+    """Bag placement for `count` slots: options["bag"] (one dict or a list) or the default, plus uniform
+    jitter of +-jitter_m on each coordinate drawn from the env's seeded generator."""
+    bags = (options or {}).get("bag", DEFAULT_BAG)
+    bags = [dict(DEFAULT_BAG, **bag) for bag in (bags if isinstance(bags, list) else [bags] * count)]
+    if len(bags) != count:
+        raise ValueError(f"options['bag'] lists {len(bags)} placements for {count} characters")
+    if jitter_m > 0:
+        for bag in bags:
+            for key in bag:
+                bag[key] = float(bag[key] + rng.uniform(-jitter_m, jitter_m))
+    return bags
+
+
+class PunchEnv(gym.Env):
+    """One punching character in its own headless Godot process (see the module docstring)."""
+
+    metadata = {"render_modes": []}
+
+    def __init__(self, *, frames: int = 50, decision_period: int = 5, reward_fn: RewardFn | None = None,
+                 bag_jitter_m: float = 0.0, server: TrainingServer | None = None):
+        self.server = server or TrainingServer(1, decision_period=decision_period)
+        info = self.server.info
+        if info.slot_count != 1:
+            raise ValueError("PunchEnv drives a one-slot server; use PunchVectorEnv for more")
+        self.frames = frames
+        self.reward_fn = reward_fn
+        self.bag_jitter_m = bag_jitter_m
+        self.feature_names = info.feature_names
+        self.spec_hash = info.spec_hash
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (len(info.observation_names),), np.float32)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (len(info.action_names),), np.float32)
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        bags = _bag_options(options, self.np_random, 1, self.bag_jitter_m)
+        reply = self.server.reset(self.frames, bags=bags)
+        return reply.arrays["observations"][0].copy(), {"features": reply.arrays["features"][0].copy(), "bag": bags[0]}
+
+    def step(self, action):
+        action = np.asarray(action, dtype=np.float32).reshape(1, -1)
+        reply = self.server.step(action)
+        features = reply.arrays["features"][0].copy()
+        reward = float(self.reward_fn(features)) if self.reward_fn else 0.0
+        return (reply.arrays["observations"][0].copy(), reward, bool(reply.fields["terminated"][0]),
+                bool(reply.fields["truncated"][0]), {"features": features})
+
+    def close(self):
+        self.server.close()
+
+
+class PunchVectorEnv(gym.vector.VectorEnv):
+    """K Godot processes x N characters each, stepped in lockstep (requests go to every process before any
+    reply is read, so processes simulate in parallel). Episodes of all characters start and end together;
+    after the last decision the next `step` resets every character (Gymnasium's next-step autoreset) and
+    returns the new first observations with zero reward."""
+
+    metadata = {"autoreset_mode": gym.vector.AutoresetMode.NEXT_STEP}
+
+    def __init__(self, processes: int = 1, characters_per_process: int = 16, *, frames: int = 50,
+                 decision_period: int = 5, reward_fn: RewardFn | None = None, bag_jitter_m: float = 0.0):
+        self.servers: list[TrainingServer] = []
+        try:
+            for _ in range(processes):
+                self.servers.append(TrainingServer(characters_per_process, decision_period=decision_period))
+        except BaseException:
+            self.close()
+            raise
+        info = self.servers[0].info
+        self.characters_per_process = characters_per_process
+        self.num_envs = processes * characters_per_process
+        self.frames = frames
+        self.reward_fn = reward_fn
+        self.bag_jitter_m = bag_jitter_m
+        self.feature_names = info.feature_names
+        self.single_observation_space = gym.spaces.Box(-np.inf, np.inf, (len(info.observation_names),), np.float32)
+        self.single_action_space = gym.spaces.Box(-1.0, 1.0, (len(info.action_names),), np.float32)
+        self.observation_space = gym.vector.utils.batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = gym.vector.utils.batch_space(self.single_action_space, self.num_envs)
+        self._needs_reset = True
+
+    def _gather(self, messages: list[Message]) -> list[Message]:
+        for server, message in zip(self.servers, messages, strict=True):
+            server.send(message)
+        return [server.receive() for server in self.servers]
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        if seed is not None:
+            self._np_random, self._np_random_seed = gym.utils.seeding.np_random(seed)
+        bags = _bag_options(options, self.np_random, self.num_envs, self.bag_jitter_m)
+        n = self.characters_per_process
+        replies = self._gather([Message("reset", {"frames": self.frames, "bags": bags[p * n:(p + 1) * n]})
+                                for p in range(len(self.servers))])
+        self._needs_reset = False
+        observations = np.concatenate([r.arrays["observations"] for r in replies])
+        return observations, {"features": np.concatenate([r.arrays["features"] for r in replies])}
+
+    def step(self, actions):
+        if self._needs_reset:
+            observations, info = self.reset()
+            zeros = np.zeros(self.num_envs, dtype=bool)
+            return observations, np.zeros(self.num_envs), zeros, zeros.copy(), info
+        actions = np.asarray(actions, dtype=np.float32).reshape(self.num_envs, -1)
+        n = self.characters_per_process
+        replies = self._gather([Message("step", arrays={"actions": actions[p * n:(p + 1) * n]})
+                                for p in range(len(self.servers))])
+        features = np.concatenate([r.arrays["features"] for r in replies])
+        terminated = np.concatenate([r.fields["terminated"] for r in replies]).astype(bool)
+        truncated = np.concatenate([r.fields["truncated"] for r in replies]).astype(bool)
+        rewards = np.array([self.reward_fn(f) for f in features]) if self.reward_fn else np.zeros(self.num_envs)
+        self._needs_reset = bool(np.all(terminated | truncated))
+        return np.concatenate([r.arrays["observations"] for r in replies]), rewards, terminated, truncated, {"features": features}
+
+    def close_extras(self, **kwargs):
+        for server in self.servers:
+            server.close()
