@@ -37,6 +37,8 @@ class ServerInfo:
     spec_version: int
     extension_version: str
     action_names: list[str]
+    action_lower_rad: list[float]
+    action_upper_rad: list[float]
     observation_names: list[str]
     feature_names: list[str]
 
@@ -59,7 +61,7 @@ class TrainingServer:
         self._process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                          text=True, errors="replace", start_new_session=True)
         try:
-            port = self._wait_until_ready(start_timeout_s)
+            port = self.port = self._wait_until_ready(start_timeout_s)
             self._socket = socket.create_connection(("127.0.0.1", port), timeout=start_timeout_s)
             self._socket.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             self._socket.settimeout(reply_timeout_s)
@@ -95,7 +97,8 @@ class TrainingServer:
             raise ProtocolVersionError(f"server speaks protocol {reply.fields.get('protocol_version')}, we speak {PROTOCOL_VERSION}")
         f = reply.fields
         return ServerInfo(f["slot_count"], f["decision_period"], f["physics_hz"], f["spec_hash"], f["spec_version"],
-                          f["extension_version"], f["action_names"], f["observation_names"], f["feature_names"])
+                          f["extension_version"], f["action_names"], f["action_lower_rad"], f["action_upper_rad"],
+                          f["observation_names"], f["feature_names"])
 
     def send(self, message: Message) -> None:
         if self._socket is None:

@@ -175,7 +175,8 @@ pub fn joint_target(joint: usize, targets: &[f32; DOF_COUNT]) -> Quat {
 /// Motor target velocities (rad/s, in Godot's 6DOF motor convention) that drive `joint_rotation` toward
 /// `target`: the desired relative angular velocity of the child, expressed in the child's joint frame, is
 /// gain * rotation vector of the remaining rotation, capped; Godot's 6DOF motor turns the child at *minus*
-/// its target velocity (verified against Jolt in tests/godot), hence the sign.
+/// its target velocity (measured under Jolt; tests/python/test_world.py checks every DOF reaches its
+/// target), hence the sign.
 pub fn motor_velocities(joint_rotation: Quat, target: Quat) -> Vec3 {
     let remaining = joint_rotation.inverse() * target;
     let desired = (POSITION_GAIN_PER_S * rotation_vector(remaining)).clamp_length_max(MAX_JOINT_SPEED_RAD_S);

@@ -11,6 +11,7 @@
 
 use std::io::ErrorKind;
 use std::net::{TcpListener, TcpStream};
+use std::os::fd::AsRawFd;
 use std::time::{Duration, Instant};
 
 use glam::Vec3;
@@ -19,13 +20,13 @@ use godot::classes::sub_viewport::UpdateMode;
 use godot::global::{godot_error, godot_print};
 use godot::obj::{Base, Gd, NewAlloc, Singleton, WithBaseField};
 use godot::prelude::{GodotClass, godot_api};
-use punch_core::character::PHYSICS_HZ;
+use punch_core::character::{Body, PHYSICS_HZ};
 use punch_core::protocol::{Message, ProtocolError, error_reply};
 use punch_core::sensing::{CharacterGeometry, FrameReading};
 use punch_core::session::{BagPlacement, Outcome, Session, World};
 
 use crate::convert::{body_state, vec3};
-use crate::punch_character::PunchCharacter;
+use crate::punch_character::{PunchCharacter, Rig};
 
 /// Slots per arena: collision layers are 32 bits, one per slot.
 const SLOTS_PER_ARENA: usize = 32;
@@ -59,10 +60,11 @@ pub struct PunchTrainingServer {
     sandbag_scene: Option<Gd<PackedScene>>,
 
     listener: Option<TcpListener>,
-    connection: Option<TcpStream>,
+    connections: Vec<TcpStream>,
     session: Option<Session>,
     world: Option<ArenaWorld>,
-    running: bool,
+    /// The client whose command is running, if one is.
+    running: Option<usize>,
     base: Base<Node>,
 }
 
@@ -79,12 +81,12 @@ impl INode for PunchTrainingServer {
         if self.world.is_none() {
             return;
         }
-        if self.running {
+        if let Some(client) = self.running {
             let (Some(session), Some(world)) = (self.session.as_mut(), self.world.as_mut()) else { return };
             match session.physics_frame(world) {
                 Some(reply) => {
-                    self.running = false;
-                    self.send(&reply);
+                    self.running = None;
+                    self.send(client, &reply);
                 }
                 None => return,
             }
@@ -135,74 +137,95 @@ impl PunchTrainingServer {
         Ok(())
     }
 
-    /// Answers messages until one starts a physics run, or quits when idle too long.
+    /// Answers messages from every client until one starts a physics run, or quits when idle too long.
     fn serve(&mut self) {
+        let mut last_activity = Instant::now();
         loop {
-            if self.connection.is_none() && !self.accept() {
-                godot_print!("PunchTrainingServer: idle for {} s, quitting", self.idle_timeout_s);
-                self.quit(0);
-                return;
-            }
-            let Some(connection) = self.connection.as_mut() else { continue };
-            let message = match Message::read_from(connection) {
+            self.accept_pending();
+            let Some(index) = self.wait_readable() else {
+                if last_activity.elapsed().as_secs_f32() > self.idle_timeout_s {
+                    godot_print!("PunchTrainingServer: no request for {} s, quitting", self.idle_timeout_s);
+                    self.quit(0);
+                    return;
+                }
+                continue;
+            };
+            last_activity = Instant::now();
+            let message = match Message::read_from(&mut self.connections[index]) {
                 Ok(message) => message,
                 Err(ProtocolError::Content(reason)) => {
-                    self.send(&error_reply(&reason));
+                    self.send(index, &error_reply(&reason));
                     continue;
                 }
                 Err(ProtocolError::Framing(reason)) => {
-                    // The stream cannot be resynchronised: say why and drop this client.
-                    self.send(&error_reply(&format!("{reason}; closing the connection")));
-                    self.connection = None;
+                    // This stream cannot be resynchronised: say why and drop this client only.
+                    self.send(index, &error_reply(&format!("{reason}; closing the connection")));
+                    self.connections.remove(index);
                     continue;
                 }
                 Err(ProtocolError::Closed | ProtocolError::Io(_)) => {
-                    self.connection = None;
+                    self.connections.remove(index);
                     continue;
                 }
             };
             let (Some(session), Some(world)) = (self.session.as_mut(), self.world.as_mut()) else { return };
             match session.handle(&message, world) {
-                Outcome::Reply(reply) => self.send(&reply),
+                Outcome::Reply(reply) => self.send(index, &reply),
                 Outcome::Running => {
-                    self.running = true;
+                    self.running = Some(index);
                     return;
                 }
                 Outcome::Close(reply) => {
-                    self.send(&reply);
-                    self.connection = None;
+                    self.send(index, &reply);
+                    self.connections.remove(index);
                 }
             }
         }
     }
 
-    /// Waits for a client up to the idle timeout. False when none came.
-    fn accept(&mut self) -> bool {
-        let Some(listener) = &self.listener else { return false };
-        let deadline = Instant::now() + Duration::from_secs_f32(self.idle_timeout_s.max(0.1));
-        while Instant::now() < deadline {
+    /// Takes every client waiting in the listen queue.
+    fn accept_pending(&mut self) {
+        let Some(listener) = &self.listener else { return };
+        loop {
             match listener.accept() {
                 Ok((stream, _)) => {
                     let timeout = Some(Duration::from_secs_f32(self.idle_timeout_s.max(0.1)));
-                    let configured = stream.set_nonblocking(false).is_ok()
-                        && stream.set_nodelay(true).is_ok()
-                        && stream.set_read_timeout(timeout).is_ok();
-                    if configured {
-                        self.connection = Some(stream);
-                        return true;
+                    if stream.set_nonblocking(false).is_ok() && stream.set_nodelay(true).is_ok() && stream.set_read_timeout(timeout).is_ok() {
+                        self.connections.push(stream);
                     }
                 }
-                Err(error) if error.kind() == ErrorKind::WouldBlock => std::thread::sleep(Duration::from_millis(2)),
-                Err(error) => godot_error!("PunchTrainingServer: accept failed: {error}"),
+                Err(error) if error.kind() == ErrorKind::WouldBlock => return,
+                Err(error) => {
+                    godot_error!("PunchTrainingServer: accept failed: {error}");
+                    return;
+                }
             }
         }
-        false
     }
 
-    fn send(&mut self, message: &Message) {
-        let Some(connection) = self.connection.as_mut() else { return };
+    /// Index of a client with bytes to read, waiting up to 20 ms (the listener is polled too, so a new
+    /// client is taken on the next round).
+    fn wait_readable(&self) -> Option<usize> {
+        let mut fds: Vec<libc::pollfd> = self
+            .connections
+            .iter()
+            .map(|c| libc::pollfd { fd: c.as_raw_fd(), events: libc::POLLIN, revents: 0 })
+            .collect();
+        if let Some(listener) = &self.listener {
+            fds.push(libc::pollfd { fd: listener.as_raw_fd(), events: libc::POLLIN, revents: 0 });
+        }
+        // SAFETY: `fds` is a valid array of pollfd for the duration of the call.
+        let ready = unsafe { libc::poll(fds.as_mut_ptr(), fds.len() as libc::nfds_t, 20) };
+        if ready <= 0 {
+            return None;
+        }
+        fds[..self.connections.len()].iter().position(|fd| fd.revents & (libc::POLLIN | libc::POLLHUP | libc::POLLERR) != 0)
+    }
+
+    fn send(&mut self, index: usize, message: &Message) {
+        let Some(connection) = self.connections.get_mut(index) else { return };
         if message.write_to(connection).is_err() {
-            self.connection = None;
+            self.connections.remove(index);
         }
     }
 
@@ -293,12 +316,8 @@ impl World for ArenaWorld {
         let nodes = &self.slots[slot];
         let character = nodes.character.bind();
         let Some(rig) = character.rig() else { return FrameReading::default() };
-        let forearms = [rig.bodies[2].instance_id().to_i64() as u64, rig.bodies[4].instance_id().to_i64() as u64];
-        FrameReading {
-            bodies: rig.read_bodies(),
-            bag: body_state(&nodes.bag),
-            fist_impulses: fist_impulses(&nodes.bag, forearms, rig.fist_shape_indices),
-        }
+        let (fist_impulses, character_impulse) = bag_contacts(&nodes.bag, rig);
+        FrameReading { bodies: rig.read_bodies(), bag: body_state(&nodes.bag), fist_impulses, character_impulse }
     }
 
     fn drive(&mut self, slot: usize, motor_velocities: &[Vec3; 5]) {
@@ -309,20 +328,31 @@ impl World for ArenaWorld {
     }
 }
 
-/// Impulse each fist applied to the bag in the last step, from the bag's reported contacts.
-fn fist_impulses(bag: &Gd<RigidBody3D>, forearm_ids: [u64; 2], fist_shapes: [i32; 2]) -> [Vec3; 2] {
-    let mut impulses = [Vec3::ZERO; 2];
-    let Some(state) = PhysicsServer3D::singleton().body_get_direct_state(bag.get_rid()) else { return impulses };
+/// Impulses applied to the bag in the last step, from the bag's reported contacts: by each fist, and by
+/// the whole character.
+fn bag_contacts(bag: &Gd<RigidBody3D>, rig: &Rig) -> ([Vec3; 2], Vec3) {
+    let mut fists = [Vec3::ZERO; 2];
+    let mut character = Vec3::ZERO;
+    let Some(state) = PhysicsServer3D::singleton().body_get_direct_state(bag.get_rid()) else { return (fists, character) };
+    let id = |body: &Gd<RigidBody3D>| body.instance_id().to_i64() as u64;
+    let forearms = [id(&rig.bodies[Body::ForearmR.index() - 1]), id(&rig.bodies[Body::ForearmL.index() - 1])];
+    let mut character_ids: Vec<u64> = rig.bodies.iter().map(id).collect();
+    character_ids.push(rig.pelvis.instance_id().to_i64() as u64);
     for contact in 0..state.get_contact_count() {
         let collider = state.get_contact_collider_id(contact);
+        if !character_ids.contains(&collider) {
+            continue;
+        }
+        let impulse = vec3(state.get_contact_impulse(contact));
+        character += impulse;
         let shape = state.get_contact_collider_shape(contact);
         for side in 0..2 {
-            if collider == forearm_ids[side] && shape == fist_shapes[side] {
-                impulses[side] += vec3(state.get_contact_impulse(contact));
+            if collider == forearms[side] && shape == rig.fist_shape_indices[side] {
+                fists[side] += impulse;
             }
         }
     }
-    impulses
+    (fists, character)
 }
 
 fn bag_size(bag: &Gd<RigidBody3D>) -> Option<(f32, f32)> {

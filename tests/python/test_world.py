@@ -1,0 +1,123 @@
+"""The punching world on real headless Godot/Jolt: rest, actuation, stability under hostile actions,
+contact sensing against the bag's momentum, and bitwise determinism across slots, N and processes."""
+
+import numpy as np
+import pytest
+
+from punch_trainer.server import TrainingServer
+
+pytestmark = pytest.mark.godot
+
+DECISIONS = 20  # 100 frames
+
+
+@pytest.fixture(scope="module")
+def server():
+    with TrainingServer(6) as server:
+        yield server
+
+
+def column(server, name):
+    return server.info.feature_names.index(name)
+
+
+def test_character_stands_still_at_rest(server):
+    features = server.rollout(np.zeros((6, DECISIONS, 10)))
+    start = server.reset().arrays["features"]
+    fists = [column(server, f"fist_{side}_pos_{axis}") for side in "rl" for axis in "xyz"]
+    angles = slice(column(server, "angle_waist_flexion"), column(server, "angle_elbow_l_extension") + 1)
+    assert np.abs(features[:, :, fists] - start[:, None, fists]).max() < 1e-3, "fists drift at rest"
+    assert np.abs(features[:, :, angles]).max() < 5e-3, "joints drift at rest"
+    assert features[:, :, column(server, "exploit_flags")].max() == 0
+
+
+def test_each_dof_moves_only_as_asked(server):
+    # Slot k drives DOF k to +0.5 (or -0.5); every other DOF is asked to hold.
+    actions = np.zeros((6, DECISIONS, 10))
+    dofs = [0, 1, 3, 5, 7, 9]
+    for slot, dof in enumerate(dofs):
+        actions[slot, :, dof] = 0.5 if slot % 2 == 0 else -0.5
+    features = server.rollout(actions)
+    first_angle = column(server, "angle_waist_flexion")
+    lower, upper = np.array(server.info.action_lower_rad), np.array(server.info.action_upper_rad)
+    for slot, dof in enumerate(dofs):
+        angles = features[slot, -1, first_angle:first_angle + 10]
+        action = actions[slot, 0, dof]
+        target = action * (upper[dof] if action > 0 else -lower[dof])
+        assert angles[dof] == pytest.approx(target, abs=0.05), f"DOF {server.info.action_names[dof]} missed its target"
+        others = np.delete(angles, dof)
+        assert np.abs(others).max() < 0.12, f"driving {server.info.action_names[dof]} moved other joints: {others}"
+
+
+def test_targets_are_reached():
+    with TrainingServer(1) as server:
+        actions = np.zeros((1, DECISIONS, 10))
+        actions[0, :, 5] = 1.0  # right elbow fully extended
+        features = server.rollout(actions)[0]
+    elbow = features[-1, column(server, "angle_elbow_r_extension")]
+    assert elbow == pytest.approx(np.deg2rad(118.0), abs=0.01)
+
+
+def test_hostile_actions_never_break_the_character(server):
+    rng = np.random.default_rng(7)
+    actions = np.empty((6, DECISIONS, 10))
+    flip = np.where(np.arange(DECISIONS)[:, None] % 2 == 0, 1.0, -1.0)
+    actions[0], actions[1] = flip, -flip
+    actions[2:] = rng.choice([-1.0, 1.0], size=(4, DECISIONS, 10))
+    features = server.rollout(actions)
+    assert np.isfinite(features).all()
+    # Ordinary motion keeps joints within a millimetre; only violent flipping stretches them transiently.
+    assert features[2:, :, column(server, "joint_gap_max_m")].mean() < 0.01
+    assert features[..., column(server, "joint_gap_max_m")].max() < 0.03, "a joint came apart"
+    flags = features[..., column(server, "exploit_flags")].astype(int)
+    assert (flags & 0b0010).max() == 0, "the guard saw a joint separate"
+    speeds = np.linalg.norm(features[..., column(server, "fist_r_vel_x"):column(server, "fist_r_vel_z") + 1], axis=-1)
+    assert speeds.max() < 15.0, "a fist moved faster than the drives can make it"
+
+
+def test_hit_is_seen_by_contacts_and_by_the_bag(server):
+    actions = np.zeros((6, DECISIONS // 2, 10))
+    actions[:, :, 5] = 1.0   # extend the right elbow
+    actions[:, :, 2] = -0.6  # raise the arm forward
+    actions[:, :, 3] = 0.3   # turn it toward the bag's centre
+    actions[:, :, 1] = 0.5   # turn the trunk left
+    features = server.rollout(actions)[0]
+    contact = features[:, column(server, "character_impulse_x"):column(server, "character_impulse_z") + 1]
+    bag = features[:, column(server, "bag_momentum_change_x"):column(server, "bag_momentum_change_z") + 1]
+    touching = np.flatnonzero(np.linalg.norm(contact, axis=1) > 1e-3)
+    moving = np.flatnonzero(np.linalg.norm(bag[:, [0, 2]], axis=1) > 0.5)
+    assert touching.size and moving.size, "the punch should reach the bag"
+    assert abs(int(touching[0]) - int(moving[0])) <= 1, "the bag must start moving when the contact is reported"
+    window = slice(touching[0], touching[0] + 3)
+    reported, delivered = contact[window][:, [0, 2]].sum(0), bag[window][:, [0, 2]].sum(0)
+    cosine = reported @ delivered / (np.linalg.norm(reported) * np.linalg.norm(delivered))
+    assert cosine > 0.9, f"contact impulse {reported} and bag momentum change {delivered} disagree in direction"
+    assert np.linalg.norm(features[:, column(server, "fist_r_impulse_x"):column(server, "fist_r_impulse_z") + 1]) > 0
+
+
+def test_features_are_bitwise_identical_whatever_the_slot_n_or_process():
+    rng = np.random.default_rng(11)
+    sequence = rng.uniform(-1, 1, size=(DECISIONS, 10)).astype(np.float32)
+
+    def run(slot_count, slot):
+        actions = rng.uniform(-1, 1, size=(slot_count, DECISIONS, 10)).astype(np.float32)
+        actions[slot] = sequence
+        with TrainingServer(slot_count) as server:
+            first = server.rollout(actions)[slot]
+            again = server.rollout(actions)[slot]
+        assert np.array_equal(first, again), "the same process repeated differently"
+        return first
+
+    reference = run(1, 0)
+    for slot_count, slot in [(5, 3), (40, 37)]:  # slot 37 lives in a second arena
+        assert np.array_equal(run(slot_count, slot), reference), f"slot {slot} of {slot_count} differs"
+    # A second process with the same N.
+    assert np.array_equal(run(1, 0), reference)
+
+
+def test_bag_position_is_configurable(server):
+    bags = [{"distance_m": 0.9, "height_m": 1.2, "side_m": 0.1 * k} for k in range(6)]
+    reply = server.reset(bags=bags)
+    positions = reply.arrays["features"][:, column(server, "bag_pos_x"):column(server, "bag_pos_z") + 1]
+    expected = np.array([[b["side_m"], b["height_m"], b["distance_m"]] for b in bags])
+    np.testing.assert_allclose(positions, expected, atol=1e-5)
