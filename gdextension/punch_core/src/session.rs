@@ -216,11 +216,13 @@ impl Session {
             decisions,
             features: Vec::with_capacity(slot_count * frames_total * FEATURE_COUNT),
         });
-        self.drive_all(world);
+        let readings: Vec<FrameReading> = (0..slot_count).map(|slot| world.read(slot)).collect();
+        self.drive_all(world, &readings);
     }
 
-    /// Open-loop actions for the decision that starts at the current frame, then motors for every slot.
-    fn drive_all(&mut self, world: &mut impl World) {
+    /// Open-loop actions for the decision that starts at the current frame, then motors for every slot,
+    /// from this frame's readings (each slot is read from the engine once per frame).
+    fn drive_all(&mut self, world: &mut impl World, readings: &[FrameReading]) {
         let Some(run) = &self.run else { return };
         if run.command == Command::Rollout && run.frames_done % self.decision_period == 0 {
             let decision = run.frames_done / self.decision_period;
@@ -230,8 +232,8 @@ impl Session {
                 let _ = controller.set_action(&run.actions[start..start + DOF_COUNT]);
             }
         }
-        for (slot, controller) in self.slots.iter().enumerate() {
-            world.drive(slot, &controller.motor_commands(&world.read(slot)));
+        for (slot, (controller, reading)) in self.slots.iter().zip(readings).enumerate() {
+            world.drive(slot, &controller.motor_commands(reading));
         }
     }
 
@@ -239,8 +241,9 @@ impl Session {
     /// drives the next one or returns the reply.
     pub fn physics_frame(&mut self, world: &mut impl World) -> Option<Message> {
         let run = self.run.as_mut()?;
-        for (slot, controller) in self.slots.iter_mut().enumerate() {
-            let features = controller.features(&world.read(slot));
+        let readings: Vec<FrameReading> = (0..self.slots.len()).map(|slot| world.read(slot)).collect();
+        for ((slot, controller), reading) in self.slots.iter_mut().enumerate().zip(&readings) {
+            let features = controller.features(reading);
             if features[FLAGS] as u32 & guard::JOINT_SEPARATED != 0 {
                 self.broken[slot] = true;
             }
@@ -250,7 +253,7 @@ impl Session {
         run.frames_done += 1;
         self.frame_index += 1;
         if run.frames_done < run.frames_total {
-            self.drive_all(world);
+            self.drive_all(world, &readings);
             return None;
         }
         let run = self.run.take()?;

@@ -4,11 +4,13 @@
 
 use glam::Vec3;
 use godot::classes::generic6_dof_joint_3d::{Flag, Param};
-use godot::classes::{Generic6DofJoint3D, INode3D, Node3D, RigidBody3D};
+use godot::builtin::{Rid, Vector3Axis};
+use godot::classes::physics_server_3d::G6dofJointAxisParam;
+use godot::classes::{Generic6DofJoint3D, INode3D, Node3D, PhysicsServer3D, RigidBody3D};
 use godot::global::godot_error;
-use godot::obj::{Base, Gd, WithBaseField};
+use godot::obj::{Base, Gd, Singleton, WithBaseField};
 use godot::prelude::{GodotClass, godot_api};
-use punch_core::character::{Axis, Body, DOFS, JOINTS, joint_dofs};
+use punch_core::character::{Axis, Body, JOINTS, joint_dofs};
 use punch_core::sensing::{BodyState, CharacterGeometry};
 
 use crate::convert::{body_state, quat, static_state, vec3};
@@ -31,9 +33,14 @@ pub struct Rig {
     pub pelvis: Gd<Node3D>,
     /// Rigid bodies in `Body::ALL` order without the pelvis.
     pub bodies: [Gd<RigidBody3D>; 5],
-    pub joints: [Gd<Generic6DofJoint3D>; 5],
+    /// The joints' physics-server RIDs: motors are driven through the server every frame, skipping the
+    /// node setters' bookkeeping.
+    pub joint_rids: [Rid; 5],
     /// Collision-shape index of each fist inside its forearm body (contacts report it).
     pub fist_shape_indices: [i32; 2],
+    /// Instance ids of the forearms [right, left] and of every body, to recognise contacts.
+    pub forearm_ids: [u64; 2],
+    pub body_ids: [u64; 6],
     pub geometry: CharacterGeometry,
 }
 
@@ -50,14 +57,15 @@ impl Rig {
 
     /// Sets each joint's motor target velocities (Godot's 6DOF convention), on actuated axes only.
     pub fn drive(&mut self, motor_velocities: &[Vec3; 5]) {
-        for (joint_index, (joint, velocity)) in self.joints.iter_mut().zip(motor_velocities).enumerate() {
+        let mut server = PhysicsServer3D::singleton();
+        for (joint_index, (rid, velocity)) in self.joint_rids.iter().zip(motor_velocities).enumerate() {
             for (_, dof) in joint_dofs(joint_index) {
-                let value = velocity[dof.axis.index()];
-                match dof.axis {
-                    Axis::X => joint.set_param_x(Param::ANGULAR_MOTOR_TARGET_VELOCITY, value),
-                    Axis::Y => joint.set_param_y(Param::ANGULAR_MOTOR_TARGET_VELOCITY, value),
-                    Axis::Z => joint.set_param_z(Param::ANGULAR_MOTOR_TARGET_VELOCITY, value),
-                }
+                let axis = match dof.axis {
+                    Axis::X => Vector3Axis::X,
+                    Axis::Y => Vector3Axis::Y,
+                    Axis::Z => Vector3Axis::Z,
+                };
+                server.generic_6dof_joint_set_param(*rid, axis, G6dofJointAxisParam::ANGULAR_MOTOR_TARGET_VELOCITY, velocity[dof.axis.index()]);
             }
         }
     }
@@ -146,11 +154,17 @@ impl PunchCharacter {
             }
         }
         let root = self.base().get_global_transform();
+        let id = |node: &Gd<Node3D>| node.instance_id().to_i64() as u64;
+        let body_ids: [u64; 6] = std::array::from_fn(|i| id(&body_node(Body::ALL[i])));
+        let forearm_ids = [body_ids[Body::ForearmR.index()], body_ids[Body::ForearmL.index()]];
+        let joint_rids = std::array::from_fn(|j| joints[j].get_rid());
         self.rig = Some(Rig {
             pelvis,
             bodies,
-            joints,
+            joint_rids,
             fist_shape_indices,
+            forearm_ids,
+            body_ids,
             geometry: CharacterGeometry {
                 rest_rotations,
                 fist_offsets,
@@ -194,31 +208,63 @@ const HARD_LIMIT_MARGIN_RAD: f32 = 10.0 * std::f32::consts::PI / 180.0;
 /// Limits and motors of one joint from the DOF table. Actuated axes get a velocity motor with the DOF's
 /// torque limit and the DOF's range; other axes are locked. Godot's 6DOF angles are mirrored relative to
 /// the right-hand rule the core uses, so a range [lo, hi] is set as [-hi, -lo].
-fn configure_joint(joint: &mut Gd<Generic6DofJoint3D>, joint_index: usize) {
+pub fn configure_joint(joint: &mut Gd<Generic6DofJoint3D>, joint_index: usize) {
     for axis in [Axis::X, Axis::Y, Axis::Z] {
         let dof = joint_dofs(joint_index).find(|(_, dof)| dof.axis == axis).map(|(_, dof)| dof);
         let margin = HARD_LIMIT_MARGIN_RAD;
         let (lower, upper, torque) = dof.map_or((0.0, 0.0, 0.0), |d| (-d.upper_rad - margin, -d.lower_rad + margin, d.max_torque_nm));
-        let mut set_param = |param: Param, value: f32| match axis {
-            Axis::X => joint.set_param_x(param, value),
-            Axis::Y => joint.set_param_y(param, value),
-            Axis::Z => joint.set_param_z(param, value),
-        };
-        set_param(Param::ANGULAR_LOWER_LIMIT, lower);
-        set_param(Param::ANGULAR_UPPER_LIMIT, upper);
-        set_param(Param::ANGULAR_MOTOR_FORCE_LIMIT, torque);
-        set_param(Param::ANGULAR_MOTOR_TARGET_VELOCITY, 0.0);
-        let mut set_flag = |flag: Flag, value: bool| match axis {
-            Axis::X => joint.set_flag_x(flag, value),
-            Axis::Y => joint.set_flag_y(flag, value),
-            Axis::Z => joint.set_flag_z(flag, value),
-        };
-        set_flag(Flag::ENABLE_ANGULAR_LIMIT, true);
-        set_flag(Flag::ENABLE_MOTOR, dof.is_some());
-        set_flag(Flag::ENABLE_ANGULAR_SPRING, false);
-        set_flag(Flag::ENABLE_LINEAR_LIMIT, true);
+        let params = [
+            (Param::ANGULAR_LOWER_LIMIT, lower),
+            (Param::ANGULAR_UPPER_LIMIT, upper),
+            (Param::ANGULAR_MOTOR_FORCE_LIMIT, torque),
+            (Param::ANGULAR_MOTOR_TARGET_VELOCITY, 0.0),
+        ];
+        let flags = [
+            (Flag::ENABLE_ANGULAR_LIMIT, true),
+            (Flag::ENABLE_MOTOR, dof.is_some()),
+            (Flag::ENABLE_ANGULAR_SPRING, false),
+            (Flag::ENABLE_LINEAR_LIMIT, true),
+        ];
+        // Only changed values are set: a limit change rebuilds the engine's constraint, and scenes whose
+        // joints are already configured (the training server's templates) then cost nothing.
+        for (param, value) in params {
+            let current = match axis {
+                Axis::X => joint.get_param_x(param),
+                Axis::Y => joint.get_param_y(param),
+                Axis::Z => joint.get_param_z(param),
+            };
+            if current != value {
+                match axis {
+                    Axis::X => joint.set_param_x(param, value),
+                    Axis::Y => joint.set_param_y(param, value),
+                    Axis::Z => joint.set_param_z(param, value),
+                }
+            }
+        }
+        for (flag, value) in flags {
+            let current = match axis {
+                Axis::X => joint.get_flag_x(flag),
+                Axis::Y => joint.get_flag_y(flag),
+                Axis::Z => joint.get_flag_z(flag),
+            };
+            if current != value {
+                match axis {
+                    Axis::X => joint.set_flag_x(flag, value),
+                    Axis::Y => joint.set_flag_y(flag, value),
+                    Axis::Z => joint.set_flag_z(flag, value),
+                }
+            }
+        }
     }
-    debug_assert!(DOFS.iter().any(|d| d.joint == joint_index));
+}
+
+/// Configures every joint of a character scene instance that is not in the tree yet.
+pub fn configure_joints(character: &Gd<godot::classes::Node>) {
+    for (joint_index, joint) in JOINTS.iter().enumerate() {
+        if let Some(mut joint) = character.get_node_or_null(joint.node_name).and_then(|n| n.try_cast::<Generic6DofJoint3D>().ok()) {
+            configure_joint(&mut joint, joint_index);
+        }
+    }
 }
 
 fn collect<T, const N: usize>(items: [Result<T, String>; N]) -> Result<[T; N], String> {

@@ -18,15 +18,15 @@ use glam::Vec3;
 use godot::classes::{CylinderShape3D, Engine, INode, Node, Node3D, Os, PackedScene, PhysicsServer3D, RigidBody3D, SubViewport};
 use godot::classes::sub_viewport::UpdateMode;
 use godot::global::{godot_error, godot_print};
-use godot::obj::{Base, Gd, NewAlloc, Singleton, WithBaseField};
+use godot::obj::{Base, Gd, NewAlloc, NewGd, Singleton, WithBaseField};
 use godot::prelude::{GodotClass, godot_api};
-use punch_core::character::{Body, PHYSICS_HZ};
+use punch_core::character::PHYSICS_HZ;
 use punch_core::protocol::{Message, ProtocolError, error_reply};
 use punch_core::sensing::{CharacterGeometry, FrameReading};
 use punch_core::session::{BagPlacement, Outcome, Session, World};
 
 use crate::convert::{body_state, vec3};
-use crate::punch_character::{PunchCharacter, Rig};
+use crate::punch_character::{PunchCharacter, Rig, configure_joints};
 
 /// Slots per arena: collision layers are 32 bits, one per slot.
 const SLOTS_PER_ARENA: usize = 32;
@@ -127,8 +127,8 @@ impl PunchTrainingServer {
             arenas: Vec::new(),
             slots: Vec::new(),
             slot_count: self.slot_count as usize,
-            character_scene,
-            sandbag_scene,
+            character_scene: headless_template(&character_scene)?,
+            sandbag_scene: headless_template(&sandbag_scene)?,
         };
         world.reset(&vec![BagPlacement::default(); self.slot_count as usize])?;
         self.world = Some(world);
@@ -334,25 +334,49 @@ fn bag_contacts(bag: &Gd<RigidBody3D>, rig: &Rig) -> ([Vec3; 2], Vec3) {
     let mut fists = [Vec3::ZERO; 2];
     let mut character = Vec3::ZERO;
     let Some(state) = PhysicsServer3D::singleton().body_get_direct_state(bag.get_rid()) else { return (fists, character) };
-    let id = |body: &Gd<RigidBody3D>| body.instance_id().to_i64() as u64;
-    let forearms = [id(&rig.bodies[Body::ForearmR.index() - 1]), id(&rig.bodies[Body::ForearmL.index() - 1])];
-    let mut character_ids: Vec<u64> = rig.bodies.iter().map(id).collect();
-    character_ids.push(rig.pelvis.instance_id().to_i64() as u64);
     for contact in 0..state.get_contact_count() {
         let collider = state.get_contact_collider_id(contact);
-        if !character_ids.contains(&collider) {
+        if !rig.body_ids.contains(&collider) {
             continue;
         }
         let impulse = vec3(state.get_contact_impulse(contact));
         character += impulse;
         let shape = state.get_contact_collider_shape(contact);
         for side in 0..2 {
-            if collider == forearms[side] && shape == rig.fist_shape_indices[side] {
+            if collider == rig.forearm_ids[side] && shape == rig.fist_shape_indices[side] {
                 fists[side] += impulse;
             }
         }
     }
     (fists, character)
+}
+
+/// The scene without its meshes, packed once: the headless server never draws, resets instance it for
+/// every slot, and every moving body would otherwise push transform updates to its meshes each frame.
+fn headless_template(scene: &Gd<PackedScene>) -> Result<Gd<PackedScene>, String> {
+    let mut root = scene.instantiate().ok_or("a scene could not be instantiated")?;
+    strip_visuals(&mut root);
+    configure_joints(&root);
+    let mut template = PackedScene::new_gd();
+    let packed = template.pack(&root);
+    root.free();
+    if packed != godot::global::Error::OK {
+        return Err(format!("could not pack a headless copy of a scene: {packed:?}"));
+    }
+    Ok(template)
+}
+
+/// Frees the meshes under `node`: the headless server never draws, and every moving body would otherwise
+/// push transform updates to its meshes each frame.
+fn strip_visuals(node: &mut Gd<Node>) {
+    for mut child in node.get_children().iter_shared() {
+        if child.is_class("VisualInstance3D") {
+            node.remove_child(&child);
+            child.free();
+        } else {
+            strip_visuals(&mut child);
+        }
+    }
 }
 
 fn bag_size(bag: &Gd<RigidBody3D>) -> Option<(f32, f32)> {
