@@ -26,6 +26,9 @@ class EnvThroughput:
     characters_per_process: int
     mode: str  # "open loop" (rollout) or "closed loop" (reset + step per decision)
     character_frames_per_s: float
+    # Open loop only: the two parts of an episode's cost.
+    reset_ms: float | None = None
+    steady_character_frames_per_s: float | None = None
 
 
 def machine_description() -> str:
@@ -63,7 +66,17 @@ def bench_env(characters=(1, 16, 64), processes=(1, 2), frames: int = 50, episod
             for _ in range(episodes):
                 _gather(servers, [rollout] * k)
             elapsed = time.perf_counter() - start
-            results.append(EnvThroughput(k, n, "open loop", k * n * frames * episodes / elapsed))
+            # Split an episode's cost: resets alone, and the per-frame rate from a much longer rollout.
+            start = time.perf_counter()
+            for _ in range(episodes):
+                _gather(servers, [Message("reset", {"frames": frames})] * k)
+            reset_s = (time.perf_counter() - start) / episodes
+            long = Message("rollout", arrays={"actions": np.tile(actions, (1, 8, 1))})
+            start = time.perf_counter()
+            _gather(servers, [long] * k)
+            long_s = time.perf_counter() - start
+            steady = k * n * (8 * frames - frames) / max(long_s - elapsed / episodes, 1e-9)
+            results.append(EnvThroughput(k, n, "open loop", k * n * frames * episodes / elapsed, 1000 * reset_s, steady))
 
             start = time.perf_counter()
             for _ in range(episodes):
@@ -80,9 +93,12 @@ def bench_env(characters=(1, 16, 64), processes=(1, 2), frames: int = 50, episod
 
 
 def env_table(results: list[EnvThroughput]) -> str:
-    lines = ["| processes K | characters per process N | mode | character-frames/s |", "|---|---|---|---|"]
+    lines = ["| processes K | characters per process N | mode | character-frames/s | reset (ms) | per-frame rate without resets |",
+             "|---|---|---|---|---|---|"]
     for r in results:
-        lines.append(f"| {r.processes} | {r.characters_per_process} | {r.mode} | {r.character_frames_per_s:,.0f} |")
+        reset = f"{r.reset_ms:.1f}" if r.reset_ms is not None else ""
+        steady = f"{r.steady_character_frames_per_s:,.0f}" if r.steady_character_frames_per_s is not None else ""
+        lines.append(f"| {r.processes} | {r.characters_per_process} | {r.mode} | {r.character_frames_per_s:,.0f} | {reset} | {steady} |")
     return "\n".join(lines)
 
 
