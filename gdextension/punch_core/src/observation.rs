@@ -2,41 +2,38 @@
 //! server's handshake, the exported ONNX metadata, and `PunchController` when it loads a model.
 
 use crate::character::{DOFS, DOF_COUNT, MAX_JOINT_SPEED_RAD_S, PHYSICS_HZ, POSITION_GAIN_PER_S};
-use crate::sensing::{FEATURE_COUNT, FEATURE_NAMES, feature_index};
+use crate::sensing::{FEATURE_COUNT, FEATURE_NAMES};
 
 /// Bumped whenever the observation, action or feature layout or meaning changes.
 pub const OBS_SPEC_VERSION: u32 = 1;
 
-/// Features copied into the observation, in order (all in the character's frame).
-const OBSERVED_FEATURES: [&str; 44] = [
-    "fist_r_pos_x", "fist_r_pos_y", "fist_r_pos_z", "fist_r_vel_x", "fist_r_vel_y", "fist_r_vel_z",
-    "fist_l_pos_x", "fist_l_pos_y", "fist_l_pos_z", "fist_l_vel_x", "fist_l_vel_y", "fist_l_vel_z",
-    "fist_r_impulse_x", "fist_r_impulse_y", "fist_r_impulse_z",
-    "fist_l_impulse_x", "fist_l_impulse_y", "fist_l_impulse_z",
-    "bag_pos_x", "bag_pos_y", "bag_pos_z", "bag_vel_x", "bag_vel_y", "bag_vel_z",
-    "angle_waist_flexion", "angle_waist_rotation",
-    "angle_shoulder_r_flexion", "angle_shoulder_r_rotation", "angle_shoulder_r_abduction", "angle_elbow_r_extension",
-    "angle_shoulder_l_flexion", "angle_shoulder_l_rotation", "angle_shoulder_l_abduction", "angle_elbow_l_extension",
-    "speed_waist_flexion", "speed_waist_rotation",
-    "speed_shoulder_r_flexion", "speed_shoulder_r_rotation", "speed_shoulder_r_abduction", "speed_elbow_r_extension",
-    "speed_shoulder_l_flexion", "speed_shoulder_l_rotation", "speed_shoulder_l_abduction", "speed_elbow_l_extension",
-];
+/// Whether the policy sees a feature: all of them except the diagnostics and the reward-only quantities
+/// (the whole character's contact impulse, the bag's momentum change, fist-bag distances, the joint gap and
+/// the guard flags).
+fn observed(name: &str) -> bool {
+    !(name.starts_with("character_impulse")
+        || name.starts_with("bag_momentum_change")
+        || name.ends_with("_bag_distance")
+        || name == "joint_gap_max_m"
+        || name == "exploit_flags")
+}
 
-/// Size of the observation: the observed features plus the episode phase.
-pub const OBS_DIM: usize = OBSERVED_FEATURES.len() + 1;
+/// Size of the observation: the observed features (in feature order, all in the character's frame) plus
+/// the episode phase. A test checks it against `observed`.
+pub const OBS_DIM: usize = 45;
 
 /// Names of the observation entries, in order. "bag" is the target: a sandbag, or any node in a game.
 pub fn observation_names() -> Vec<&'static str> {
-    OBSERVED_FEATURES.iter().copied().chain(["episode_phase"]).collect()
+    FEATURE_NAMES.iter().copied().filter(|name| observed(name)).chain(["episode_phase"]).collect()
 }
 
-/// The observation at a decision: the last frame's features plus the episode phase
+/// The observation at a decision: the last frame's observed features plus the episode phase
 /// (decision index / decisions per episode, 0 at the first decision).
 pub fn observation(features: &[f32; FEATURE_COUNT], decision_index: u32, decisions_per_episode: u32) -> [f32; OBS_DIM] {
     let mut out = [0.0; OBS_DIM];
-    for (slot, name) in out.iter_mut().zip(OBSERVED_FEATURES) {
-        // The names are checked against FEATURE_NAMES by a test.
-        *slot = feature_index(name).map_or(f32::NAN, |i| features[i]);
+    let observed_values = FEATURE_NAMES.iter().zip(features).filter(|(name, _)| observed(name)).map(|(_, value)| *value);
+    for (slot, value) in out.iter_mut().zip(observed_values) {
+        *slot = value;
     }
     out[OBS_DIM - 1] = decision_index as f32 / decisions_per_episode.max(1) as f32;
     out
@@ -79,11 +76,12 @@ mod tests {
     use super::*;
 
     #[test]
-    fn every_observed_feature_exists() {
-        for name in OBSERVED_FEATURES {
-            assert!(feature_index(name).is_some(), "{name} is not a feature");
-        }
+    fn observation_size_matches_the_observed_features() {
+        assert_eq!(observation_names().len(), OBS_DIM);
+        assert_eq!(FEATURE_NAMES.iter().filter(|name| observed(name)).count() + 1, OBS_DIM);
     }
+
+    use crate::sensing::feature_index;
 
     #[test]
     fn observation_copies_features_and_phase() {
