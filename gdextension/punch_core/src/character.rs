@@ -70,6 +70,8 @@ impl Axis {
     pub const fn index(self) -> usize {
         self as usize
     }
+
+    pub const ALL: [Axis; 3] = [Axis::X, Axis::Y, Axis::Z];
 }
 
 /// One joint: a Generic6DOFJoint3D node between a parent and a child body.
@@ -126,6 +128,34 @@ pub const DOFS: [DofSpec; DOF_COUNT] = [
 /// Which axes of a joint are actuated (the others are locked by the constraint).
 pub fn joint_dofs(joint: usize) -> impl Iterator<Item = (usize, &'static DofSpec)> {
     DOFS.iter().enumerate().filter(move |(_, dof)| dof.joint == joint)
+}
+
+/// How far the engine's hard joint limits lie beyond the range actions can target: a joint driven to its
+/// target at speed stops on its motor, not by slamming into a hard stop (which pulls joints apart).
+pub const HARD_LIMIT_MARGIN_RAD: f32 = deg(10.0);
+
+/// How the engine must set up one axis of a joint, in Godot's Generic6DOFJoint3D convention, whose angles
+/// are mirrored relative to the right-hand rule used here (a range [lo, hi] becomes [-hi, -lo]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EngineAxis {
+    pub lower_rad: f32,
+    pub upper_rad: f32,
+    pub max_torque_nm: f32,
+    /// Actuated axes have a velocity motor; the others are locked (lower == upper == 0).
+    pub motor: bool,
+}
+
+/// Engine settings of `axis` of joint `joint` (index into `JOINTS`).
+pub fn engine_axis(joint: usize, axis: Axis) -> EngineAxis {
+    match joint_dofs(joint).find(|(_, dof)| dof.axis == axis) {
+        Some((_, dof)) => EngineAxis {
+            lower_rad: -dof.upper_rad - HARD_LIMIT_MARGIN_RAD,
+            upper_rad: -dof.lower_rad + HARD_LIMIT_MARGIN_RAD,
+            max_torque_nm: dof.max_torque_nm,
+            motor: true,
+        },
+        None => EngineAxis { lower_rad: 0.0, upper_rad: 0.0, max_torque_nm: 0.0, motor: false },
+    }
 }
 
 /// Joint-angle targets (rad) for an action in [-1, 1]^10: 0 holds the guard pose, +1 and -1 reach the
@@ -248,6 +278,15 @@ mod tests {
             }
             assert!(rotation_vector(rotation.inverse() * target).length() < 1e-3, "joint {joint} did not converge");
         }
+    }
+
+    #[test]
+    fn engine_limits_are_mirrored_and_wider_than_the_action_range() {
+        let elbow = engine_axis(2, Axis::X);
+        assert!(elbow.motor);
+        assert!((elbow.lower_rad - (-deg(118.0) - HARD_LIMIT_MARGIN_RAD)).abs() < 1e-6);
+        assert!((elbow.upper_rad - (deg(25.0) + HARD_LIMIT_MARGIN_RAD)).abs() < 1e-6);
+        assert_eq!(engine_axis(2, Axis::Y), EngineAxis { lower_rad: 0.0, upper_rad: 0.0, max_torque_nm: 0.0, motor: false });
     }
 
     #[test]

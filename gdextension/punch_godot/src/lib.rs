@@ -6,6 +6,7 @@ mod punch_character;
 mod punch_policy;
 mod punch_runtime;
 mod punch_training_server;
+mod training_world;
 
 use godot::prelude::{ExtensionLibrary, gdextension};
 
