@@ -15,7 +15,10 @@ pub struct CharacterController {
 
 impl CharacterController {
     pub fn new(geometry: CharacterGeometry) -> Self {
-        Self { sensor: Sensor::new(geometry), targets: [0.0; DOF_COUNT] }
+        Self {
+            sensor: Sensor::new(geometry),
+            targets: [0.0; DOF_COUNT],
+        }
     }
 
     /// Back to the guard pose targets, with no frame history.
@@ -26,8 +29,11 @@ impl CharacterController {
 
     /// Takes a new action in [-1, 1]^10 (values outside are clamped; wrong length or NaN is an error).
     pub fn set_action(&mut self, action: &[f32]) -> CoreResult<()> {
-        self.targets = targets_from_action(action)
-            .ok_or_else(|| CoreError::BadInput(format!("an action is {DOF_COUNT} finite values, got {action:?}")))?;
+        self.targets = targets_from_action(action).ok_or_else(|| {
+            CoreError::BadInput(format!(
+                "an action is {DOF_COUNT} finite values, got {action:?}"
+            ))
+        })?;
         Ok(())
     }
 
@@ -38,7 +44,9 @@ impl CharacterController {
     /// Motor target velocities for each joint (`JOINTS` order), in Godot's 6DOF motor convention.
     pub fn motor_commands(&self, reading: &FrameReading) -> [Vec3; 5] {
         let rotations = self.sensor.joint_rotations(reading);
-        std::array::from_fn(|joint| motor_velocities(rotations[joint], joint_target(joint, &self.targets)))
+        std::array::from_fn(|joint| {
+            motor_velocities(rotations[joint], joint_target(joint, &self.targets))
+        })
     }
 
     /// Features of the frame just simulated.

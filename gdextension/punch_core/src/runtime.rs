@@ -22,7 +22,9 @@ static RUNTIME: OnceLock<Runtime> = OnceLock::new();
 /// Finds `libonnxruntime.so*` in `dir`. When several versions are present the highest version wins (compared
 /// numerically: 1.31 > 1.9), so a stale copy never shadows the one the build just installed.
 pub fn find_library_in(dir: &Path) -> CoreResult<PathBuf> {
-    let missing = || CoreError::RuntimeLibraryMissing { dir: dir.to_path_buf() };
+    let missing = || CoreError::RuntimeLibraryMissing {
+        dir: dir.to_path_buf(),
+    };
     let entries = std::fs::read_dir(dir).map_err(|_| missing())?;
     let mut candidates: Vec<PathBuf> = entries
         .filter_map(|entry| entry.ok().map(|e| e.path()))
@@ -38,8 +40,14 @@ pub fn find_library_in(dir: &Path) -> CoreResult<PathBuf> {
 
 /// The numeric parts after `.so` in a library name: `libonnxruntime.so.1.31.1` -> [1, 31, 1].
 fn version_key(path: &Path) -> Vec<u64> {
-    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or_default();
-    name.trim_start_matches(LIBRARY_PREFIX).split('.').filter_map(|part| part.parse().ok()).collect()
+    let name = path
+        .file_name()
+        .and_then(|n| n.to_str())
+        .unwrap_or_default();
+    name.trim_start_matches(LIBRARY_PREFIX)
+        .split('.')
+        .filter_map(|part| part.parse().ok())
+        .collect()
 }
 
 /// Loads ONNX Runtime from `library_path` (made absolute first: ort resolves relative paths against the
@@ -52,7 +60,10 @@ pub fn init(library_path: &Path) -> CoreResult<()> {
         path: library_path.to_path_buf(),
         reason: e.to_string(),
     })?;
-    let load_error = |reason: String| CoreError::RuntimeLoad { path: library_path.clone(), reason };
+    let load_error = |reason: String| CoreError::RuntimeLoad {
+        path: library_path.clone(),
+        reason,
+    };
     if !library_path.is_file() {
         return Err(load_error("no such file".into()));
     }
@@ -63,7 +74,11 @@ pub fn init(library_path: &Path) -> CoreResult<()> {
         .build()
         .map_err(|e| load_error(e.to_string()))?;
     // A racing thread may have won; its runtime is equivalent, so losing the race is fine.
-    let _ = RUNTIME.set(Runtime { environment, library_path, version });
+    let _ = RUNTIME.set(Runtime {
+        environment,
+        library_path,
+        version,
+    });
     Ok(())
 }
 
@@ -86,7 +101,10 @@ pub fn library_path() -> Option<&'static Path> {
 }
 
 pub(crate) fn environment() -> CoreResult<&'static ort::environment::Environment> {
-    RUNTIME.get().map(|r| &r.environment).ok_or(CoreError::RuntimeNotInitialised)
+    RUNTIME
+        .get()
+        .map(|r| &r.environment)
+        .ok_or(CoreError::RuntimeNotInitialised)
 }
 
 /// Asks the library itself for its version (`OrtGetApiBase()->GetVersionString()`), so the figure we report
@@ -105,7 +123,9 @@ fn read_version(library_path: &Path) -> Result<String, String> {
         if base.is_null() {
             return Err("OrtGetApiBase returned null".into());
         }
-        CStr::from_ptr(((*base).GetVersionString)()).to_string_lossy().into_owned()
+        CStr::from_ptr(((*base).GetVersionString)())
+            .to_string_lossy()
+            .into_owned()
     };
     Ok(version)
 }

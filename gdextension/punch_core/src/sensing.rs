@@ -72,20 +72,58 @@ pub const GRAVITY_MPS2: f32 = 9.8;
 
 /// Names of the per-frame features, in order.
 pub const FEATURE_NAMES: [&str; FEATURE_COUNT] = [
-    "fist_r_pos_x", "fist_r_pos_y", "fist_r_pos_z", "fist_r_vel_x", "fist_r_vel_y", "fist_r_vel_z",
-    "fist_l_pos_x", "fist_l_pos_y", "fist_l_pos_z", "fist_l_vel_x", "fist_l_vel_y", "fist_l_vel_z",
-    "fist_r_impulse_x", "fist_r_impulse_y", "fist_r_impulse_z",
-    "fist_l_impulse_x", "fist_l_impulse_y", "fist_l_impulse_z",
-    "character_impulse_x", "character_impulse_y", "character_impulse_z",
-    "bag_pos_x", "bag_pos_y", "bag_pos_z", "bag_vel_x", "bag_vel_y", "bag_vel_z",
-    "bag_momentum_change_x", "bag_momentum_change_y", "bag_momentum_change_z",
-    "fist_r_bag_distance", "fist_l_bag_distance",
-    "angle_waist_flexion", "angle_waist_rotation",
-    "angle_shoulder_r_flexion", "angle_shoulder_r_rotation", "angle_shoulder_r_abduction", "angle_elbow_r_extension",
-    "angle_shoulder_l_flexion", "angle_shoulder_l_rotation", "angle_shoulder_l_abduction", "angle_elbow_l_extension",
-    "speed_waist_flexion", "speed_waist_rotation",
-    "speed_shoulder_r_flexion", "speed_shoulder_r_rotation", "speed_shoulder_r_abduction", "speed_elbow_r_extension",
-    "speed_shoulder_l_flexion", "speed_shoulder_l_rotation", "speed_shoulder_l_abduction", "speed_elbow_l_extension",
+    "fist_r_pos_x",
+    "fist_r_pos_y",
+    "fist_r_pos_z",
+    "fist_r_vel_x",
+    "fist_r_vel_y",
+    "fist_r_vel_z",
+    "fist_l_pos_x",
+    "fist_l_pos_y",
+    "fist_l_pos_z",
+    "fist_l_vel_x",
+    "fist_l_vel_y",
+    "fist_l_vel_z",
+    "fist_r_impulse_x",
+    "fist_r_impulse_y",
+    "fist_r_impulse_z",
+    "fist_l_impulse_x",
+    "fist_l_impulse_y",
+    "fist_l_impulse_z",
+    "character_impulse_x",
+    "character_impulse_y",
+    "character_impulse_z",
+    "bag_pos_x",
+    "bag_pos_y",
+    "bag_pos_z",
+    "bag_vel_x",
+    "bag_vel_y",
+    "bag_vel_z",
+    "bag_momentum_change_x",
+    "bag_momentum_change_y",
+    "bag_momentum_change_z",
+    "fist_r_bag_distance",
+    "fist_l_bag_distance",
+    "angle_waist_flexion",
+    "angle_waist_rotation",
+    "angle_shoulder_r_flexion",
+    "angle_shoulder_r_rotation",
+    "angle_shoulder_r_abduction",
+    "angle_elbow_r_extension",
+    "angle_shoulder_l_flexion",
+    "angle_shoulder_l_rotation",
+    "angle_shoulder_l_abduction",
+    "angle_elbow_l_extension",
+    "speed_waist_flexion",
+    "speed_waist_rotation",
+    "speed_shoulder_r_flexion",
+    "speed_shoulder_r_rotation",
+    "speed_shoulder_r_abduction",
+    "speed_elbow_r_extension",
+    "speed_shoulder_l_flexion",
+    "speed_shoulder_l_rotation",
+    "speed_shoulder_l_abduction",
+    "speed_elbow_l_extension",
     "joint_gap_max_m",
     "exploit_flags",
 ];
@@ -109,7 +147,10 @@ pub struct Sensor {
 
 impl Sensor {
     pub fn new(geometry: CharacterGeometry) -> Self {
-        Self { geometry, previous: None }
+        Self {
+            geometry,
+            previous: None,
+        }
     }
 
     pub fn geometry(&self) -> &CharacterGeometry {
@@ -126,7 +167,12 @@ impl Sensor {
         let rest = &self.geometry.rest_rotations;
         std::array::from_fn(|j| {
             let (p, c) = (JOINTS[j].parent.index(), JOINTS[j].child.index());
-            joint_rotation(reading.bodies[p].rotation, rest[p], reading.bodies[c].rotation, rest[c])
+            joint_rotation(
+                reading.bodies[p].rotation,
+                rest[p],
+                reading.bodies[c].rotation,
+                rest[c],
+            )
         })
     }
 
@@ -135,7 +181,10 @@ impl Sensor {
         std::array::from_fn(|side| {
             let body = &reading.bodies[[Body::ForearmR, Body::ForearmL][side].index()];
             let arm = body.rotation * self.geometry.fist_offsets[side];
-            (body.position + arm, body.linear_velocity + body.angular_velocity.cross(arm))
+            (
+                body.position + arm,
+                body.linear_velocity + body.angular_velocity.cross(arm),
+            )
         })
     }
 
@@ -180,7 +229,10 @@ impl Sensor {
         push(&local_point(bag_position).to_array());
         push(&local_vector(reading.bag.linear_velocity).to_array());
         push(&local_vector(bag_momentum_change).to_array());
-        push(&[fists[0].0.distance(bag_position), fists[1].0.distance(bag_position)]);
+        push(&[
+            fists[0].0.distance(bag_position),
+            fists[1].0.distance(bag_position),
+        ]);
         push(&angles);
         push(&speeds);
         push(&[joint_gap, flags as f32]);
@@ -209,15 +261,25 @@ impl Sensor {
             .map(|(joint, (parent_anchor, child_anchor))| {
                 let parent = &reading.bodies[joint.parent.index()];
                 let child = &reading.bodies[joint.child.index()];
-                ((parent.position + parent.rotation * *parent_anchor) - (child.position + child.rotation * *child_anchor)).length()
+                ((parent.position + parent.rotation * *parent_anchor)
+                    - (child.position + child.rotation * *child_anchor))
+                    .length()
             })
             .fold(0.0, f32::max)
     }
 
-    fn exploit_flags(&self, reading: &FrameReading, fists: &[(Vec3, Vec3); 2], joint_gap: f32) -> u32 {
+    fn exploit_flags(
+        &self,
+        reading: &FrameReading,
+        fists: &[(Vec3, Vec3); 2],
+        joint_gap: f32,
+    ) -> u32 {
         let g = &self.geometry;
         let mut flags = 0;
-        if fists.iter().any(|(_, velocity)| velocity.length() > guard::FIST_SPEED_LIMIT_MPS) {
+        if fists
+            .iter()
+            .any(|(_, velocity)| velocity.length() > guard::FIST_SPEED_LIMIT_MPS)
+        {
             flags |= guard::FIST_TOO_FAST;
         }
         if joint_gap > guard::JOINT_SEPARATION_LIMIT_M {
@@ -234,11 +296,19 @@ impl Sensor {
             }
         }
         if let Some(previous) = &self.previous {
-            let touching = reading.fist_impulses.iter().any(|i| i.length() > guard::CONTACT_IMPULSE_EPSILON);
+            let touching = reading
+                .fist_impulses
+                .iter()
+                .any(|i| i.length() > guard::CONTACT_IMPULSE_EPSILON);
             let jumped = |now: &BodyState, before: &BodyState| {
-                (now.linear_velocity - before.linear_velocity).length() > guard::VELOCITY_JUMP_LIMIT_MPS
+                (now.linear_velocity - before.linear_velocity).length()
+                    > guard::VELOCITY_JUMP_LIMIT_MPS
             };
-            let body_jump = reading.bodies.iter().zip(&previous.bodies).any(|(now, before)| jumped(now, before));
+            let body_jump = reading
+                .bodies
+                .iter()
+                .zip(&previous.bodies)
+                .any(|(now, before)| jumped(now, before));
             if !touching && (body_jump || jumped(&reading.bag, &previous.bag)) {
                 flags |= guard::VELOCITY_JUMP;
             }
@@ -281,7 +351,11 @@ mod tests {
         names.sort();
         names.dedup();
         assert_eq!(names.len(), FEATURE_COUNT);
-        assert_eq!(feature_index("exploit_flags"), Some(FEATURE_COUNT - 1), "the session reads flags from the end");
+        assert_eq!(
+            feature_index("exploit_flags"),
+            Some(FEATURE_COUNT - 1),
+            "the session reads flags from the end"
+        );
     }
 
     #[test]
@@ -289,7 +363,12 @@ mod tests {
         let mut sensor = Sensor::new(rest_geometry());
         let features = sensor.features(&reading_at_rest());
         for (name, value) in FEATURE_NAMES.iter().zip(features) {
-            if name.contains("vel") || name.contains("impulse") || name.starts_with("angle") || name.starts_with("speed") || *name == "exploit_flags" {
+            if name.contains("vel")
+                || name.contains("impulse")
+                || name.starts_with("angle")
+                || name.starts_with("speed")
+                || *name == "exploit_flags"
+            {
                 assert_eq!(value, 0.0, "{name}");
             }
         }
@@ -342,17 +421,28 @@ mod tests {
         fast.bodies[Body::ForearmR.index()].linear_velocity = Vec3::new(0.0, 0.0, 20.0);
         let flags = sensor.features(&fast)[flags_index] as u32;
         assert_ne!(flags & guard::FIST_TOO_FAST, 0);
-        assert_ne!(flags & guard::VELOCITY_JUMP, 0, "20 m/s in one frame with no contact");
+        assert_ne!(
+            flags & guard::VELOCITY_JUMP,
+            0,
+            "20 m/s in one frame with no contact"
+        );
 
         sensor.reset();
         let mut separated = reading;
         separated.bodies[Body::ForearmL.index()].position = Vec3::new(0.0, 0.0, 0.1);
-        assert_ne!(sensor.features(&separated)[flags_index] as u32 & guard::JOINT_SEPARATED, 0);
+        assert_ne!(
+            sensor.features(&separated)[flags_index] as u32 & guard::JOINT_SEPARATED,
+            0
+        );
 
         sensor.reset();
         // Right fist centre 5 cm inside the bag's axis region.
-        reading.bodies[Body::ForearmR.index()].position = reading.bag.position + Vec3::new(0.0, 0.155, -0.05);
-        assert_ne!(sensor.features(&reading)[flags_index] as u32 & guard::PENETRATION, 0);
+        reading.bodies[Body::ForearmR.index()].position =
+            reading.bag.position + Vec3::new(0.0, 0.155, -0.05);
+        assert_ne!(
+            sensor.features(&reading)[flags_index] as u32 & guard::PENETRATION,
+            0
+        );
     }
 
     #[test]
@@ -364,6 +454,9 @@ mod tests {
         sensor.features(&reading);
         reading.bodies[Body::ForearmR.index()].linear_velocity = Vec3::ZERO;
         reading.fist_impulses[0] = Vec3::new(0.0, 0.0, 15.0);
-        assert_eq!(sensor.features(&reading)[flags_index] as u32 & guard::VELOCITY_JUMP, 0);
+        assert_eq!(
+            sensor.features(&reading)[flags_index] as u32 & guard::VELOCITY_JUMP,
+            0
+        );
     }
 }

@@ -22,8 +22,6 @@ use punch_core::session::{BagPlacement, Outcome, Session, World};
 
 use crate::training_world::TrainingWorld;
 
-
-
 /// The headless training server the Python trainer starts and drives (see docs/protocol.md). Command-line
 /// arguments after `--` override the exported values: `--port=`, `--slots=`, `--decision-period=`,
 /// `--idle-timeout-s=`.
@@ -75,7 +73,9 @@ impl INode for PunchTrainingServer {
             return;
         }
         if let Some(client) = self.running {
-            let (Some(session), Some(world)) = (self.session.as_mut(), self.world.as_mut()) else { return };
+            let (Some(session), Some(world)) = (self.session.as_mut(), self.world.as_mut()) else {
+                return;
+            };
             match session.physics_frame(world) {
                 Some(reply) => {
                     self.running = None;
@@ -92,8 +92,14 @@ impl PunchTrainingServer {
     fn start(&mut self) -> Result<(), String> {
         for argument in Os::singleton().get_cmdline_user_args().as_slice() {
             let argument = argument.to_string();
-            let Some((key, value)) = argument.trim_start_matches("--").split_once('=') else { continue };
-            let number = || value.parse::<f64>().map_err(|_| format!("--{key}={value}: not a number"));
+            let Some((key, value)) = argument.trim_start_matches("--").split_once('=') else {
+                continue;
+            };
+            let number = || {
+                value
+                    .parse::<f64>()
+                    .map_err(|_| format!("--{key}={value}: not a number"))
+            };
             match key {
                 "port" => self.port = number()? as i32,
                 "slots" => self.slot_count = number()? as i32,
@@ -104,22 +110,39 @@ impl PunchTrainingServer {
         }
         let ticks = Engine::singleton().get_physics_ticks_per_second();
         if ticks != PHYSICS_HZ as i32 {
-            return Err(format!("physics runs at {ticks} Hz; the punch spec needs {PHYSICS_HZ} Hz"));
+            return Err(format!(
+                "physics runs at {ticks} Hz; the punch spec needs {PHYSICS_HZ} Hz"
+            ));
         }
-        if !(1..=4096).contains(&self.slot_count) || !(1..=60).contains(&self.decision_period) || !(0..=65535).contains(&self.port) {
-            return Err(format!("bad settings: slots {} (1..=4096), decision period {} (1..=60), port {}", self.slot_count, self.decision_period, self.port));
+        if !(1..=4096).contains(&self.slot_count)
+            || !(1..=60).contains(&self.decision_period)
+            || !(0..=65535).contains(&self.port)
+        {
+            return Err(format!(
+                "bad settings: slots {} (1..=4096), decision period {} (1..=60), port {}",
+                self.slot_count, self.decision_period, self.port
+            ));
         }
-        let character_scene = self.character_scene.clone().ok_or("no character_scene set")?;
+        let character_scene = self
+            .character_scene
+            .clone()
+            .ok_or("no character_scene set")?;
         let sandbag_scene = self.sandbag_scene.clone().ok_or("no sandbag_scene set")?;
-        let listener = TcpListener::bind(("127.0.0.1", self.port as u16)).map_err(|e| format!("cannot listen on port {}: {e}", self.port))?;
+        let listener = TcpListener::bind(("127.0.0.1", self.port as u16))
+            .map_err(|e| format!("cannot listen on port {}: {e}", self.port))?;
         let port = listener.local_addr().map_err(|e| e.to_string())?.port();
         listener.set_nonblocking(true).map_err(|e| e.to_string())?;
         self.listener = Some(listener);
-        let mut world = TrainingWorld::new(&character_scene, &sandbag_scene, self.slot_count as usize)?;
+        let mut world =
+            TrainingWorld::new(&character_scene, &sandbag_scene, self.slot_count as usize)?;
         world.reset(&vec![BagPlacement::default(); self.slot_count as usize])?;
         self.world = Some(world);
         self.session = Some(Session::new(self.decision_period as usize));
-        godot_print!("PUNCH_SERVER_READY port={port} slots={} decision_period={}", self.slot_count, self.decision_period);
+        godot_print!(
+            "PUNCH_SERVER_READY port={port} slots={} decision_period={}",
+            self.slot_count,
+            self.decision_period
+        );
         Ok(())
     }
 
@@ -130,7 +153,10 @@ impl PunchTrainingServer {
             self.accept_pending();
             let Some(index) = self.wait_readable() else {
                 if last_activity.elapsed().as_secs_f32() > self.idle_timeout_s {
-                    godot_print!("PunchTrainingServer: no request for {} s, quitting", self.idle_timeout_s);
+                    godot_print!(
+                        "PunchTrainingServer: no request for {} s, quitting",
+                        self.idle_timeout_s
+                    );
                     self.quit(0);
                     return;
                 }
@@ -145,7 +171,10 @@ impl PunchTrainingServer {
                 }
                 Err(ProtocolError::Framing(reason)) => {
                     // This stream cannot be resynchronised: say why and drop this client only.
-                    self.send(index, &error_reply(&format!("{reason}; closing the connection")));
+                    self.send(
+                        index,
+                        &error_reply(&format!("{reason}; closing the connection")),
+                    );
                     self.connections.remove(index);
                     continue;
                 }
@@ -154,7 +183,9 @@ impl PunchTrainingServer {
                     continue;
                 }
             };
-            let (Some(session), Some(world)) = (self.session.as_mut(), self.world.as_mut()) else { return };
+            let (Some(session), Some(world)) = (self.session.as_mut(), self.world.as_mut()) else {
+                return;
+            };
             match session.handle(&message, world) {
                 Outcome::Reply(reply) => self.send(index, &reply),
                 Outcome::Running => {
@@ -171,12 +202,17 @@ impl PunchTrainingServer {
 
     /// Takes every client waiting in the listen queue.
     fn accept_pending(&mut self) {
-        let Some(listener) = &self.listener else { return };
+        let Some(listener) = &self.listener else {
+            return;
+        };
         loop {
             match listener.accept() {
                 Ok((stream, _)) => {
                     let timeout = Some(Duration::from_secs_f32(self.idle_timeout_s.max(0.1)));
-                    if stream.set_nonblocking(false).is_ok() && stream.set_nodelay(true).is_ok() && stream.set_read_timeout(timeout).is_ok() {
+                    if stream.set_nonblocking(false).is_ok()
+                        && stream.set_nodelay(true).is_ok()
+                        && stream.set_read_timeout(timeout).is_ok()
+                    {
                         self.connections.push(stream);
                     }
                 }
@@ -195,21 +231,33 @@ impl PunchTrainingServer {
         let mut fds: Vec<libc::pollfd> = self
             .connections
             .iter()
-            .map(|c| libc::pollfd { fd: c.as_raw_fd(), events: libc::POLLIN, revents: 0 })
+            .map(|c| libc::pollfd {
+                fd: c.as_raw_fd(),
+                events: libc::POLLIN,
+                revents: 0,
+            })
             .collect();
         if let Some(listener) = &self.listener {
-            fds.push(libc::pollfd { fd: listener.as_raw_fd(), events: libc::POLLIN, revents: 0 });
+            fds.push(libc::pollfd {
+                fd: listener.as_raw_fd(),
+                events: libc::POLLIN,
+                revents: 0,
+            });
         }
         // SAFETY: `fds` is a valid array of pollfd for the duration of the call.
         let ready = unsafe { libc::poll(fds.as_mut_ptr(), fds.len() as libc::nfds_t, 20) };
         if ready <= 0 {
             return None;
         }
-        fds[..self.connections.len()].iter().position(|fd| fd.revents & (libc::POLLIN | libc::POLLHUP | libc::POLLERR) != 0)
+        fds[..self.connections.len()]
+            .iter()
+            .position(|fd| fd.revents & (libc::POLLIN | libc::POLLHUP | libc::POLLERR) != 0)
     }
 
     fn send(&mut self, index: usize, message: &Message) {
-        let Some(connection) = self.connections.get_mut(index) else { return };
+        let Some(connection) = self.connections.get_mut(index) else {
+            return;
+        };
         if message.write_to(connection).is_err() {
             self.connections.remove(index);
         }
