@@ -121,3 +121,18 @@ def test_bag_position_is_configurable(server):
     positions = reply.arrays["features"][:, column(server, "bag_pos_x"):column(server, "bag_pos_z") + 1]
     expected = np.array([[b["side_m"], b["height_m"], b["distance_m"]] for b in bags])
     np.testing.assert_allclose(positions, expected, atol=1e-5)
+
+
+def test_smoothing_is_the_papers_weighted_moving_average(server):
+    rng = np.random.default_rng(5)
+    raw = rng.uniform(-1.5, 1.5, size=(6, 10, 10)).astype(np.float32)
+    window = 3
+    executed = server.rollout_reply(raw, smoothing_window=window).arrays["executed_actions"]
+    clipped = np.clip(raw, -1, 1)
+    expected = np.empty_like(clipped)
+    for t in range(10):
+        history = clipped[:, max(0, t - window + 1):t + 1]
+        weights = np.arange(1, history.shape[1] + 1, dtype=np.float32)
+        expected[:, t] = np.tensordot(history, weights, axes=([1], [0])) / weights.sum()
+    np.testing.assert_allclose(executed, expected, atol=1e-6)
+    assert np.array_equal(server.rollout_reply(raw).arrays["executed_actions"], clipped)

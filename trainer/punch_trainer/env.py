@@ -4,7 +4,8 @@ Env card (full tables in docs/env.md)
 -------------------------------------
 - Action: 10 floats in [-1, 1], one per actuated DOF (waist 2, each shoulder 3, each elbow 1). 0 holds the
   guard pose; +1 / -1 set the joint target to the upper / lower limit. Held for `decision_period` physics
-  frames (default 5 at 60 Hz).
+  frames (default 5 at 120 Hz). With `smoothing_window` n > 1 the executed action is the linearly weighted
+  average of the last n actions (the paper's Eq. 1); `info["executed_action"]` shows it.
 - Observation: 45 floats in the character's frame (+Z toward the bag, +X the character's left, +Y up):
   both fists' position and velocity, each fist's contact impulse on the bag, bag position and velocity,
   the 10 joint angles and speeds, and the episode phase (decision / decisions per episode).
@@ -49,13 +50,14 @@ class PunchEnv(gym.Env):
 
     metadata = {"render_modes": []}
 
-    def __init__(self, *, frames: int = 50, decision_period: int = 5, reward_fn: RewardFn | None = None,
-                 bag_jitter_m: float = 0.0, server: TrainingServer | None = None):
+    def __init__(self, *, frames: int = 50, decision_period: int = 5, smoothing_window: int = 1,
+                 reward_fn: RewardFn | None = None, bag_jitter_m: float = 0.0, server: TrainingServer | None = None):
         self.server = server or TrainingServer(1, decision_period=decision_period)
         info = self.server.info
         if info.slot_count != 1:
             raise ValueError("PunchEnv drives a one-slot server; use PunchVectorEnv for more")
         self.frames = frames
+        self.smoothing_window = smoothing_window
         self.reward_fn = reward_fn
         self.bag_jitter_m = bag_jitter_m
         self.feature_names = info.feature_names
@@ -66,7 +68,7 @@ class PunchEnv(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
         bags = _bag_options(options, self.np_random, 1, self.bag_jitter_m)
-        reply = self.server.reset(self.frames, bags=bags)
+        reply = self.server.reset(self.frames, bags=bags, smoothing_window=self.smoothing_window)
         return reply.arrays["observations"][0].copy(), {"features": reply.arrays["features"][0].copy(), "bag": bags[0]}
 
     def step(self, action):
@@ -74,8 +76,9 @@ class PunchEnv(gym.Env):
         reply = self.server.step(action)
         features = reply.arrays["features"][0].copy()
         reward = float(self.reward_fn(features)) if self.reward_fn else 0.0
+        info = {"features": features, "executed_action": reply.arrays["executed_actions"][0, 0].copy()}
         return (reply.arrays["observations"][0].copy(), reward, bool(reply.fields["terminated"][0]),
-                bool(reply.fields["truncated"][0]), {"features": features})
+                bool(reply.fields["truncated"][0]), info)
 
     def close(self):
         self.server.close()

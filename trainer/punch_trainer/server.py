@@ -114,8 +114,8 @@ class TrainingServer:
         self.send(message)
         return self.receive()
 
-    def reset(self, frames: int = 50, bags: list[dict] | dict | None = None) -> Message:
-        fields = {"frames": frames}
+    def reset(self, frames: int = 50, bags: list[dict] | dict | None = None, smoothing_window: int = 1) -> Message:
+        fields = {"frames": frames, "smoothing_window": smoothing_window}
         if bags is not None:
             fields["bags"] = bags
         return self.request(Message("reset", fields))
@@ -123,11 +123,17 @@ class TrainingServer:
     def step(self, actions: np.ndarray) -> Message:
         return self.request(Message("step", arrays={"actions": np.asarray(actions, dtype=np.float32)}))
 
-    def rollout(self, actions: np.ndarray, bags: list[dict] | dict | None = None) -> np.ndarray:
-        """Open loop: actions [N, decisions, 10] from the initial state; returns features [N, frames, F]."""
-        fields = {} if bags is None else {"bags": bags}
-        reply = self.request(Message("rollout", fields, {"actions": np.asarray(actions, dtype=np.float32)}))
-        return reply.arrays["features"]
+    def rollout_reply(self, actions: np.ndarray, bags: list[dict] | dict | None = None, smoothing_window: int = 1) -> Message:
+        """Open loop: raw actions [N, decisions, 10] from the initial state. The reply holds `features`
+        [N, frames, F] and `executed_actions` [N, decisions, 10] (after smoothing)."""
+        fields = {"smoothing_window": smoothing_window}
+        if bags is not None:
+            fields["bags"] = bags
+        return self.request(Message("rollout", fields, {"actions": np.asarray(actions, dtype=np.float32)}))
+
+    def rollout(self, actions: np.ndarray, bags: list[dict] | dict | None = None, smoothing_window: int = 1) -> np.ndarray:
+        """Open loop; returns only the features [N, frames, F]."""
+        return self.rollout_reply(actions, bags, smoothing_window).arrays["features"]
 
     def close(self) -> None:
         """Says goodbye, then ends the process (killed by its PID if it does not exit). Idempotent."""

@@ -39,14 +39,8 @@ pub enum Body {
 }
 
 impl Body {
-    pub const ALL: [Body; 6] = [
-        Body::Pelvis,
-        Body::Torso,
-        Body::UpperArmR,
-        Body::ForearmR,
-        Body::UpperArmL,
-        Body::ForearmL,
-    ];
+    pub const ALL: [Body; 6] =
+        [Body::Pelvis, Body::Torso, Body::UpperArmR, Body::ForearmR, Body::UpperArmL, Body::ForearmL];
 
     /// Node name of the body in the character scene.
     pub const fn node_name(self) -> &'static str {
@@ -91,31 +85,11 @@ pub struct JointSpec {
 
 /// The joints, in the order every per-joint array uses.
 pub const JOINTS: [JointSpec; 5] = [
-    JointSpec {
-        node_name: "Waist",
-        parent: Body::Pelvis,
-        child: Body::Torso,
-    },
-    JointSpec {
-        node_name: "ShoulderR",
-        parent: Body::Torso,
-        child: Body::UpperArmR,
-    },
-    JointSpec {
-        node_name: "ElbowR",
-        parent: Body::UpperArmR,
-        child: Body::ForearmR,
-    },
-    JointSpec {
-        node_name: "ShoulderL",
-        parent: Body::Torso,
-        child: Body::UpperArmL,
-    },
-    JointSpec {
-        node_name: "ElbowL",
-        parent: Body::UpperArmL,
-        child: Body::ForearmL,
-    },
+    JointSpec { node_name: "Waist", parent: Body::Pelvis, child: Body::Torso },
+    JointSpec { node_name: "ShoulderR", parent: Body::Torso, child: Body::UpperArmR },
+    JointSpec { node_name: "ElbowR", parent: Body::UpperArmR, child: Body::ForearmR },
+    JointSpec { node_name: "ShoulderL", parent: Body::Torso, child: Body::UpperArmL },
+    JointSpec { node_name: "ElbowL", parent: Body::UpperArmL, child: Body::ForearmL },
 ];
 
 /// One actuated degree of freedom: a joint axis with limits relative to the rest (guard) pose and a torque
@@ -234,9 +208,7 @@ pub const DOFS: [DofSpec; DOF_COUNT] = [
 
 /// Which axes of a joint are actuated (the others are locked by the constraint).
 pub fn joint_dofs(joint: usize) -> impl Iterator<Item = (usize, &'static DofSpec)> {
-    DOFS.iter()
-        .enumerate()
-        .filter(move |(_, dof)| dof.joint == joint)
+    DOFS.iter().enumerate().filter(move |(_, dof)| dof.joint == joint)
 }
 
 /// How far the engine's hard joint limits lie beyond the range actions can target: a joint driven to its
@@ -263,12 +235,7 @@ pub fn engine_axis(joint: usize, axis: Axis) -> EngineAxis {
             max_torque_nm: dof.max_torque_nm,
             motor: true,
         },
-        None => EngineAxis {
-            lower_rad: 0.0,
-            upper_rad: 0.0,
-            max_torque_nm: 0.0,
-            motor: false,
-        },
+        None => EngineAxis { lower_rad: 0.0, upper_rad: 0.0, max_torque_nm: 0.0, motor: false },
     }
 }
 
@@ -282,11 +249,7 @@ pub fn targets_from_action(action: &[f32]) -> Option<[f32; DOF_COUNT]> {
     let mut targets = [0.0; DOF_COUNT];
     for ((target, &a), dof) in targets.iter_mut().zip(action).zip(&DOFS) {
         let a = a.clamp(-1.0, 1.0);
-        *target = if a >= 0.0 {
-            a * dof.upper_rad
-        } else {
-            -a * dof.lower_rad
-        };
+        *target = if a >= 0.0 { a * dof.upper_rad } else { -a * dof.lower_rad };
     }
     Some(targets)
 }
@@ -307,11 +270,7 @@ pub fn joint_rotation(
 
 /// Rotation vector (axis * angle, rad) of a unit quaternion, with the angle in [0, pi].
 pub fn rotation_vector(rotation: Quat) -> Vec3 {
-    let rotation = if rotation.w < 0.0 {
-        -rotation
-    } else {
-        rotation
-    };
+    let rotation = if rotation.w < 0.0 { -rotation } else { rotation };
     let sin_half = Vec3::new(rotation.x, rotation.y, rotation.z).length();
     if sin_half < 1e-7 {
         return 2.0 * Vec3::new(rotation.x, rotation.y, rotation.z);
@@ -336,8 +295,7 @@ pub fn joint_target(joint: usize, targets: &[f32; DOF_COUNT]) -> Quat {
 /// target), hence the sign.
 pub fn motor_velocities(joint_rotation: Quat, target: Quat) -> Vec3 {
     let remaining = joint_rotation.inverse() * target;
-    let desired =
-        (POSITION_GAIN_PER_S * rotation_vector(remaining)).clamp_length_max(MAX_JOINT_SPEED_RAD_S);
+    let desired = (POSITION_GAIN_PER_S * rotation_vector(remaining)).clamp_length_max(MAX_JOINT_SPEED_RAD_S);
     -desired
 }
 
@@ -353,10 +311,7 @@ mod tests {
 
     #[test]
     fn zero_action_holds_the_guard_pose() {
-        assert_eq!(
-            targets_from_action(&[0.0; DOF_COUNT]),
-            Some([0.0; DOF_COUNT])
-        );
+        assert_eq!(targets_from_action(&[0.0; DOF_COUNT]), Some([0.0; DOF_COUNT]));
     }
 
     #[test]
@@ -366,11 +321,7 @@ mod tests {
         for (i, dof) in DOFS.iter().enumerate() {
             assert_eq!(upper[i], dof.upper_rad);
             assert_eq!(lower[i], dof.lower_rad);
-            assert!(
-                dof.lower_rad < 0.0 && dof.upper_rad > 0.0,
-                "{} must contain the guard pose",
-                dof.name
-            );
+            assert!(dof.lower_rad < 0.0 && dof.upper_rad > 0.0, "{} must contain the guard pose", dof.name);
         }
     }
 
@@ -384,12 +335,7 @@ mod tests {
 
     #[test]
     fn rotation_vector_inverts_from_scaled_axis() {
-        for vector in [
-            Vec3::new(0.3, -0.2, 0.1),
-            Vec3::new(0.0, 2.5, 0.0),
-            Vec3::new(-1.0, 0.4, 1.2),
-            Vec3::ZERO,
-        ] {
+        for vector in [Vec3::new(0.3, -0.2, 0.1), Vec3::new(0.0, 2.5, 0.0), Vec3::new(-1.0, 0.4, 1.2), Vec3::ZERO] {
             let back = rotation_vector(Quat::from_scaled_axis(vector));
             assert!((back - vector).length() < 1e-5, "{vector} -> {back}");
         }
@@ -414,14 +360,9 @@ mod tests {
             let mut rotation = Quat::IDENTITY;
             for _ in 0..120 {
                 let child_frame_velocity = -motor_velocities(rotation, target);
-                rotation = (rotation
-                    * Quat::from_scaled_axis(child_frame_velocity / PHYSICS_HZ as f32))
-                .normalize();
+                rotation = (rotation * Quat::from_scaled_axis(child_frame_velocity / PHYSICS_HZ as f32)).normalize();
             }
-            assert!(
-                rotation_vector(rotation.inverse() * target).length() < 1e-3,
-                "joint {joint} did not converge"
-            );
+            assert!(rotation_vector(rotation.inverse() * target).length() < 1e-3, "joint {joint} did not converge");
         }
     }
 
@@ -433,27 +374,19 @@ mod tests {
         assert!((elbow.upper_rad - (deg(25.0) + HARD_LIMIT_MARGIN_RAD)).abs() < 1e-6);
         assert_eq!(
             engine_axis(2, Axis::Y),
-            EngineAxis {
-                lower_rad: 0.0,
-                upper_rad: 0.0,
-                max_torque_nm: 0.0,
-                motor: false
-            }
+            EngineAxis { lower_rad: 0.0, upper_rad: 0.0, max_torque_nm: 0.0, motor: false }
         );
     }
 
     #[test]
     fn commanded_speed_is_capped() {
         let far = Quat::from_rotation_x(3.0);
-        assert!(
-            (motor_velocities(Quat::IDENTITY, far).length() - MAX_JOINT_SPEED_RAD_S).abs() < 1e-4
-        );
+        assert!((motor_velocities(Quat::IDENTITY, far).length() - MAX_JOINT_SPEED_RAD_S).abs() < 1e-4);
     }
 
     #[test]
     fn dof_angles_read_back_targets() {
-        let targets = targets_from_action(&[0.3, -0.2, 0.4, -0.1, 0.2, 0.6, -0.5, 0.1, 0.3, -0.4])
-            .expect("valid");
+        let targets = targets_from_action(&[0.3, -0.2, 0.4, -0.1, 0.2, 0.6, -0.5, 0.1, 0.3, -0.4]).expect("valid");
         let rotations: [Quat; 5] = std::array::from_fn(|joint| joint_target(joint, &targets));
         let angles = dof_angles(&rotations);
         for i in 0..DOF_COUNT {

@@ -1,40 +1,45 @@
-//! One character's controller: holds the current joint targets, turns engine readings into features, and
-//! computes the joint motor commands. The training server and `PunchController` both run this.
+//! One character's controller: smooths the agent's actions, holds the joint targets, turns engine readings
+//! into features, and computes the joint motor commands. The training server and `PunchController` both run
+//! this.
 
 use glam::Vec3;
 
 use crate::character::{DOF_COUNT, JOINTS, joint_target, motor_velocities, targets_from_action};
 use crate::error::{CoreError, CoreResult};
 use crate::sensing::{CharacterGeometry, FEATURE_COUNT, FrameReading, Sensor};
+use crate::smoothing::Smoother;
 
 #[derive(Debug, Clone)]
 pub struct CharacterController {
     sensor: Sensor,
+    smoother: Smoother,
     targets: [f32; DOF_COUNT],
 }
 
 impl CharacterController {
-    pub fn new(geometry: CharacterGeometry) -> Self {
-        Self {
-            sensor: Sensor::new(geometry),
-            targets: [0.0; DOF_COUNT],
-        }
+    /// A controller whose actions are smoothed over the last `smoothing_window` actions (1: off).
+    pub fn new(geometry: CharacterGeometry, smoothing_window: usize) -> Self {
+        Self { sensor: Sensor::new(geometry), smoother: Smoother::new(smoothing_window), targets: [0.0; DOF_COUNT] }
     }
 
-    /// Back to the guard pose targets, with no frame history.
+    /// Back to the guard pose targets, with no frame or action history.
     pub fn reset(&mut self) {
         self.sensor.reset();
+        self.smoother.reset();
         self.targets = [0.0; DOF_COUNT];
     }
 
-    /// Takes a new action in [-1, 1]^10 (values outside are clamped; wrong length or NaN is an error).
-    pub fn set_action(&mut self, action: &[f32]) -> CoreResult<()> {
-        self.targets = targets_from_action(action).ok_or_else(|| {
-            CoreError::BadInput(format!(
-                "an action is {DOF_COUNT} finite values, got {action:?}"
-            ))
-        })?;
-        Ok(())
+    /// Takes a raw action in [-1, 1]^10 (values outside are clamped; a wrong length or NaN is an error),
+    /// smooths it, and returns the action actually executed.
+    pub fn set_action(&mut self, action: &[f32]) -> CoreResult<[f32; DOF_COUNT]> {
+        let bad = || CoreError::BadInput(format!("an action is {DOF_COUNT} finite values, got {action:?}"));
+        let raw: [f32; DOF_COUNT] = action.try_into().map_err(|_| bad())?;
+        if raw.iter().any(|v| !v.is_finite()) {
+            return Err(bad());
+        }
+        let executed = self.smoother.push(&raw.map(|v| v.clamp(-1.0, 1.0)));
+        self.targets = targets_from_action(&executed).ok_or_else(bad)?;
+        Ok(executed)
     }
 
     pub fn targets(&self) -> &[f32; DOF_COUNT] {
@@ -44,9 +49,7 @@ impl CharacterController {
     /// Motor target velocities for each joint (`JOINTS` order), in Godot's 6DOF motor convention.
     pub fn motor_commands(&self, reading: &FrameReading) -> [Vec3; 5] {
         let rotations = self.sensor.joint_rotations(reading);
-        std::array::from_fn(|joint| {
-            motor_velocities(rotations[joint], joint_target(joint, &self.targets))
-        })
+        std::array::from_fn(|joint| motor_velocities(rotations[joint], joint_target(joint, &self.targets)))
     }
 
     /// Features of the frame just simulated.

@@ -13,6 +13,7 @@ pub mod protocol;
 pub mod runtime;
 pub mod sensing;
 pub mod session;
+pub mod smoothing;
 
 pub use error::CoreError;
 pub use policy::{Policy, Tensor};

@@ -24,27 +24,15 @@ pub const OBS_DIM: usize = 45;
 
 /// Names of the observation entries, in order. "bag" is the target: a sandbag, or any node in a game.
 pub fn observation_names() -> Vec<&'static str> {
-    FEATURE_NAMES
-        .iter()
-        .copied()
-        .filter(|name| observed(name))
-        .chain(["episode_phase"])
-        .collect()
+    FEATURE_NAMES.iter().copied().filter(|name| observed(name)).chain(["episode_phase"]).collect()
 }
 
 /// The observation at a decision: the last frame's observed features plus the episode phase
 /// (decision index / decisions per episode, 0 at the first decision).
-pub fn observation(
-    features: &[f32; FEATURE_COUNT],
-    decision_index: u32,
-    decisions_per_episode: u32,
-) -> [f32; OBS_DIM] {
+pub fn observation(features: &[f32; FEATURE_COUNT], decision_index: u32, decisions_per_episode: u32) -> [f32; OBS_DIM] {
     let mut out = [0.0; OBS_DIM];
-    let observed_values = FEATURE_NAMES
-        .iter()
-        .zip(features)
-        .filter(|(name, _)| observed(name))
-        .map(|(_, value)| *value);
+    let observed_values =
+        FEATURE_NAMES.iter().zip(features).filter(|(name, _)| observed(name)).map(|(_, value)| *value);
     for (slot, value) in out.iter_mut().zip(observed_values) {
         *slot = value;
     }
@@ -65,10 +53,7 @@ pub fn spec_text(decision_period: u32) -> String {
     }
     text.push_str(&format!("\naction {DOF_COUNT}:"));
     for dof in &DOFS {
-        text.push_str(&format!(
-            " {}[{:.6},{:.6}]@{}",
-            dof.name, dof.lower_rad, dof.upper_rad, dof.max_torque_nm
-        ));
+        text.push_str(&format!(" {}[{:.6},{:.6}]@{}", dof.name, dof.lower_rad, dof.upper_rad, dof.max_torque_nm));
     }
     text.push_str(&format!("\nfeatures {FEATURE_COUNT}:"));
     for name in FEATURE_NAMES {
@@ -83,9 +68,7 @@ pub fn spec_text(decision_period: u32) -> String {
 pub fn spec_hash(decision_period: u32) -> String {
     let hash = spec_text(decision_period)
         .bytes()
-        .fold(0xcbf2_9ce4_8422_2325u64, |hash, byte| {
-            (hash ^ byte as u64).wrapping_mul(0x0000_0100_0000_01b3)
-        });
+        .fold(0xcbf2_9ce4_8422_2325u64, |hash, byte| (hash ^ byte as u64).wrapping_mul(0x0000_0100_0000_01b3));
     format!("{hash:016x}")
 }
 
@@ -96,10 +79,7 @@ mod tests {
     #[test]
     fn observation_size_matches_the_observed_features() {
         assert_eq!(observation_names().len(), OBS_DIM);
-        assert_eq!(
-            FEATURE_NAMES.iter().filter(|name| observed(name)).count() + 1,
-            OBS_DIM
-        );
+        assert_eq!(FEATURE_NAMES.iter().filter(|name| observed(name)).count() + 1, OBS_DIM);
     }
 
     use crate::sensing::feature_index;
@@ -108,14 +88,8 @@ mod tests {
     fn observation_copies_features_and_phase() {
         let features: [f32; FEATURE_COUNT] = std::array::from_fn(|i| i as f32);
         let obs = observation(&features, 3, 10);
-        assert_eq!(
-            obs[0],
-            feature_index("fist_r_pos_x").expect("feature") as f32
-        );
-        assert_eq!(
-            obs[OBS_DIM - 2],
-            feature_index("speed_elbow_l_extension").expect("feature") as f32
-        );
+        assert_eq!(obs[0], feature_index("fist_r_pos_x").expect("feature") as f32);
+        assert_eq!(obs[OBS_DIM - 2], feature_index("speed_elbow_l_extension").expect("feature") as f32);
         assert!((obs[OBS_DIM - 1] - 0.3).abs() < 1e-7);
         assert!(obs.iter().all(|v| v.is_finite()));
     }

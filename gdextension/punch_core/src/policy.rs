@@ -49,17 +49,14 @@ impl Policy {
             .map_err(invalid)?;
 
         let [input] = session.inputs() else {
-            return Err(CoreError::NotAPolicy(format!(
-                "expected 1 input, found {}",
-                session.inputs().len()
-            )));
+            return Err(CoreError::NotAPolicy(format!("expected 1 input, found {}", session.inputs().len())));
         };
         let input_width = match input.dtype() {
-            ValueType::Tensor {
-                ty: ort::value::TensorElementType::Float32,
-                shape,
-                ..
-            } if shape.len() == 2 && shape[1] > 0 => shape[1] as usize,
+            ValueType::Tensor { ty: ort::value::TensorElementType::Float32, shape, .. }
+                if shape.len() == 2 && shape[1] > 0 =>
+            {
+                shape[1] as usize
+            }
             other => {
                 return Err(CoreError::NotAPolicy(format!(
                     "input '{}' must be float32 of shape [batch, n], found {other}",
@@ -68,17 +65,8 @@ impl Policy {
             }
         };
         let input_name = input.name().to_string();
-        let output_names = session
-            .outputs()
-            .iter()
-            .map(|o| o.name().to_string())
-            .collect();
-        Ok(Self {
-            session,
-            input_name,
-            input_width,
-            output_names,
-        })
+        let output_names = session.outputs().iter().map(|o| o.name().to_string()).collect();
+        Ok(Self { session, input_name, input_width, output_names })
     }
 
     /// Width n of the input `[batch, n]`.
@@ -116,35 +104,21 @@ impl Policy {
             )));
         }
         if let Some(index) = input.iter().position(|v| !v.is_finite()) {
-            return Err(CoreError::BadInput(format!(
-                "value {index} is not finite ({})",
-                input[index]
-            )));
+            return Err(CoreError::BadInput(format!("value {index} is not finite ({})", input[index])));
         }
         let failed = |e: ort::Error| CoreError::Inference(e.to_string());
-        let tensor =
-            TensorRef::from_array_view(([batch, self.input_width], input)).map_err(failed)?;
-        let outputs = self
-            .session
-            .run(ort::inputs![self.input_name.as_str() => tensor])
-            .map_err(failed)?;
+        let tensor = TensorRef::from_array_view(([batch, self.input_width], input)).map_err(failed)?;
+        let outputs = self.session.run(ort::inputs![self.input_name.as_str() => tensor]).map_err(failed)?;
         let mut result = Vec::with_capacity(self.output_names.len());
         for name in &self.output_names {
-            let (shape, data) = outputs[name.as_str()]
-                .try_extract_tensor::<f32>()
-                .map_err(failed)?;
+            let (shape, data) = outputs[name.as_str()].try_extract_tensor::<f32>().map_err(failed)?;
             let width = data.len() / batch;
             if shape.first().copied() != Some(batch as i64) || width * batch != data.len() {
                 return Err(CoreError::Inference(format!(
                     "output '{name}' has shape {shape:?}, expected [{batch}, k]"
                 )));
             }
-            result.push(Tensor {
-                name: name.clone(),
-                batch,
-                width,
-                data: data.to_vec(),
-            });
+            result.push(Tensor { name: name.clone(), batch, width, data: data.to_vec() });
         }
         Ok(result)
     }

@@ -27,11 +27,7 @@ pub struct Array {
 impl Array {
     pub fn new(name: &str, shape: Vec<usize>, data: Vec<f32>) -> Self {
         debug_assert_eq!(shape.iter().product::<usize>(), data.len());
-        Self {
-            name: name.to_string(),
-            shape,
-            data,
-        }
+        Self { name: name.to_string(), shape, data }
     }
 }
 
@@ -60,10 +56,7 @@ impl Message {
     pub fn new(message_type: &str) -> Self {
         let mut header = Map::new();
         header.insert("type".into(), Value::String(message_type.into()));
-        Self {
-            header,
-            arrays: Vec::new(),
-        }
+        Self { header, arrays: Vec::new() }
     }
 
     /// Sets a header field (builder style).
@@ -79,10 +72,7 @@ impl Message {
 
     /// The message `type` ("" when absent).
     pub fn message_type(&self) -> &str {
-        self.header
-            .get("type")
-            .and_then(Value::as_str)
-            .unwrap_or("")
+        self.header.get("type").and_then(Value::as_str).unwrap_or("")
     }
 
     /// The array called `name` with exactly `shape`, or a Content error saying what was wrong.
@@ -99,9 +89,7 @@ impl Message {
             )));
         }
         if let Some(index) = array.data.iter().position(|v| !v.is_finite()) {
-            return Err(ProtocolError::Content(format!(
-                "array '{name}' has a non-finite value at {index}"
-            )));
+            return Err(ProtocolError::Content(format!("array '{name}' has a non-finite value at {index}")));
         }
         Ok(array)
     }
@@ -109,11 +97,7 @@ impl Message {
     /// Encodes the message into one buffer.
     pub fn encode(&self) -> Vec<u8> {
         let mut header = self.header.clone();
-        let descriptors: Vec<Value> = self
-            .arrays
-            .iter()
-            .map(|a| json!({"name": a.name, "shape": a.shape}))
-            .collect();
+        let descriptors: Vec<Value> = self.arrays.iter().map(|a| json!({"name": a.name, "shape": a.shape})).collect();
         header.insert("arrays".into(), Value::Array(descriptors));
         let header_bytes = Value::Object(header).to_string().into_bytes();
         let payload_len: usize = self.arrays.iter().map(|a| a.data.len() * 4).sum();
@@ -138,14 +122,10 @@ impl Message {
     pub fn read_from(reader: &mut impl Read) -> Result<Self, ProtocolError> {
         let mut lengths = [0u8; 8];
         read_exact_or_closed(reader, &mut lengths)?;
-        let header_len =
-            u32::from_le_bytes([lengths[0], lengths[1], lengths[2], lengths[3]]) as usize;
-        let payload_len =
-            u32::from_le_bytes([lengths[4], lengths[5], lengths[6], lengths[7]]) as usize;
+        let header_len = u32::from_le_bytes([lengths[0], lengths[1], lengths[2], lengths[3]]) as usize;
+        let payload_len = u32::from_le_bytes([lengths[4], lengths[5], lengths[6], lengths[7]]) as usize;
         if header_len == 0 || header_len > MAX_HEADER_BYTES {
-            return Err(ProtocolError::Framing(format!(
-                "header length {header_len} outside 1..={MAX_HEADER_BYTES}"
-            )));
+            return Err(ProtocolError::Framing(format!("header length {header_len} outside 1..={MAX_HEADER_BYTES}")));
         }
         if payload_len > MAX_PAYLOAD_BYTES || payload_len % 4 != 0 {
             return Err(ProtocolError::Framing(format!(
@@ -162,8 +142,7 @@ impl Message {
     /// Decodes a header and payload (already framed). Every inconsistency is a Content error.
     pub fn decode_parts(header: &[u8], payload: &[u8]) -> Result<Self, ProtocolError> {
         let content = ProtocolError::Content;
-        let value: Value = serde_json::from_slice(header)
-            .map_err(|e| content(format!("header is not JSON: {e}")))?;
+        let value: Value = serde_json::from_slice(header).map_err(|e| content(format!("header is not JSON: {e}")))?;
         let Value::Object(mut header) = value else {
             return Err(content("header is not a JSON object".into()));
         };
@@ -178,10 +157,8 @@ impl Message {
         let mut arrays = Vec::with_capacity(descriptors.len().min(16));
         let mut offset = 0usize;
         for descriptor in descriptors {
-            let name = descriptor
-                .get("name")
-                .and_then(Value::as_str)
-                .ok_or_else(|| content("array without a name".into()))?;
+            let name =
+                descriptor.get("name").and_then(Value::as_str).ok_or_else(|| content("array without a name".into()))?;
             let shape: Vec<usize> = descriptor
                 .get("shape")
                 .and_then(Value::as_array)
@@ -189,39 +166,21 @@ impl Message {
                 .iter()
                 .map(|d| d.as_u64().map(|d| d as usize))
                 .collect::<Option<_>>()
-                .ok_or_else(|| {
-                    content(format!(
-                        "array '{name}' shape must be non-negative integers"
-                    ))
-                })?;
+                .ok_or_else(|| content(format!("array '{name}' shape must be non-negative integers")))?;
             let count = shape
                 .iter()
                 .try_fold(1usize, |acc, &d| acc.checked_mul(d))
                 .filter(|&n| n <= payload.len() / 4)
-                .ok_or_else(|| {
-                    content(format!(
-                        "array '{name}' shape {shape:?} is larger than the payload"
-                    ))
-                })?;
+                .ok_or_else(|| content(format!("array '{name}' shape {shape:?} is larger than the payload")))?;
             let bytes = payload
                 .get(offset..offset + count * 4)
                 .ok_or_else(|| content(format!("payload too short for array '{name}'")))?;
-            let data = bytes
-                .chunks_exact(4)
-                .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-                .collect();
+            let data = bytes.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
             offset += count * 4;
-            arrays.push(Array {
-                name: name.to_string(),
-                shape,
-                data,
-            });
+            arrays.push(Array { name: name.to_string(), shape, data });
         }
         if offset != payload.len() {
-            return Err(content(format!(
-                "payload has {} bytes, arrays describe {offset}",
-                payload.len()
-            )));
+            return Err(content(format!("payload has {} bytes, arrays describe {offset}", payload.len())));
         }
         Ok(Self { header, arrays })
     }
@@ -238,9 +197,7 @@ fn read_exact_or_closed(reader: &mut impl Read, buffer: &mut [u8]) -> Result<(),
         match reader.read(&mut buffer[filled..]) {
             Ok(0) if filled == 0 => return Err(ProtocolError::Closed),
             Ok(0) => {
-                return Err(ProtocolError::Framing(
-                    "connection closed inside a message".into(),
-                ));
+                return Err(ProtocolError::Framing("connection closed inside a message".into()));
             }
             Ok(n) => filled += n,
             Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
@@ -265,11 +222,7 @@ mod tests {
     fn sample() -> Message {
         Message::new("step")
             .with("slot_count", json!(2))
-            .with_array(Array::new(
-                "actions",
-                vec![2, 3],
-                vec![0.5, -1.0, 0.25, 1.0, 0.0, -0.5],
-            ))
+            .with_array(Array::new("actions", vec![2, 3], vec![0.5, -1.0, 0.25, 1.0, 0.0, -0.5]))
             .with_array(Array::new("empty", vec![0, 3], vec![]))
     }
 
@@ -279,28 +232,16 @@ mod tests {
         let decoded = Message::read_from(&mut bytes.as_slice()).expect("decodes");
         assert_eq!(decoded, sample());
         assert_eq!(decoded.message_type(), "step");
-        assert_eq!(
-            decoded.array("actions", &[2, 3]).expect("array").data[1],
-            -1.0
-        );
+        assert_eq!(decoded.array("actions", &[2, 3]).expect("array").data[1], -1.0);
     }
 
     #[test]
     fn wrong_shapes_and_non_finite_values_are_content_errors() {
         let message = sample();
-        assert!(matches!(
-            message.array("actions", &[3, 2]),
-            Err(ProtocolError::Content(_))
-        ));
-        assert!(matches!(
-            message.array("missing", &[1]),
-            Err(ProtocolError::Content(_))
-        ));
+        assert!(matches!(message.array("actions", &[3, 2]), Err(ProtocolError::Content(_))));
+        assert!(matches!(message.array("missing", &[1]), Err(ProtocolError::Content(_))));
         let nan = Message::new("step").with_array(Array::new("actions", vec![1], vec![f32::NAN]));
-        assert!(matches!(
-            nan.array("actions", &[1]),
-            Err(ProtocolError::Content(_))
-        ));
+        assert!(matches!(nan.array("actions", &[1]), Err(ProtocolError::Content(_))));
     }
 
     #[test]
@@ -308,34 +249,19 @@ mod tests {
         let mut bytes = Vec::new();
         bytes.extend_from_slice(&u32::MAX.to_le_bytes());
         bytes.extend_from_slice(&0u32.to_le_bytes());
-        assert!(matches!(
-            Message::read_from(&mut bytes.as_slice()),
-            Err(ProtocolError::Framing(_))
-        ));
+        assert!(matches!(Message::read_from(&mut bytes.as_slice()), Err(ProtocolError::Framing(_))));
         let mut bytes = Vec::new();
         bytes.extend_from_slice(&10u32.to_le_bytes());
         bytes.extend_from_slice(&u32::MAX.to_le_bytes());
-        assert!(matches!(
-            Message::read_from(&mut bytes.as_slice()),
-            Err(ProtocolError::Framing(_))
-        ));
+        assert!(matches!(Message::read_from(&mut bytes.as_slice()), Err(ProtocolError::Framing(_))));
     }
 
     #[test]
     fn truncated_and_empty_streams() {
-        assert!(matches!(
-            Message::read_from(&mut [].as_slice()),
-            Err(ProtocolError::Closed)
-        ));
+        assert!(matches!(Message::read_from(&mut [].as_slice()), Err(ProtocolError::Closed)));
         let bytes = sample().encode();
         for cut in [3, 8, 20, bytes.len() - 1] {
-            assert!(
-                matches!(
-                    Message::read_from(&mut &bytes[..cut]),
-                    Err(ProtocolError::Framing(_))
-                ),
-                "cut at {cut}"
-            );
+            assert!(matches!(Message::read_from(&mut &bytes[..cut]), Err(ProtocolError::Framing(_))), "cut at {cut}");
         }
     }
 
@@ -350,19 +276,10 @@ mod tests {
             br#"{"type":"x","arrays":[{"name":"a","shape":[-1]}]}"#,
             br#"{"type":"x","arrays":[{"name":"a","shape":[4294967295,4294967295,16]}]}"#,
         ] {
-            assert!(
-                matches!(
-                    Message::decode_parts(header, &[]),
-                    Err(ProtocolError::Content(_))
-                ),
-                "{header:?}"
-            );
+            assert!(matches!(Message::decode_parts(header, &[]), Err(ProtocolError::Content(_))), "{header:?}");
         }
         // Payload longer than the arrays describe.
-        assert!(matches!(
-            Message::decode_parts(br#"{"type":"x"}"#, &[0; 4]),
-            Err(ProtocolError::Content(_))
-        ));
+        assert!(matches!(Message::decode_parts(br#"{"type":"x"}"#, &[0; 4]), Err(ProtocolError::Content(_))));
     }
 
     #[test]

@@ -22,16 +22,12 @@ static RUNTIME: OnceLock<Runtime> = OnceLock::new();
 /// Finds `libonnxruntime.so*` in `dir`. When several versions are present the highest version wins (compared
 /// numerically: 1.31 > 1.9), so a stale copy never shadows the one the build just installed.
 pub fn find_library_in(dir: &Path) -> CoreResult<PathBuf> {
-    let missing = || CoreError::RuntimeLibraryMissing {
-        dir: dir.to_path_buf(),
-    };
+    let missing = || CoreError::RuntimeLibraryMissing { dir: dir.to_path_buf() };
     let entries = std::fs::read_dir(dir).map_err(|_| missing())?;
     let mut candidates: Vec<PathBuf> = entries
         .filter_map(|entry| entry.ok().map(|e| e.path()))
         .filter(|path| {
-            path.file_name()
-                .and_then(|name| name.to_str())
-                .is_some_and(|name| name.starts_with(LIBRARY_PREFIX))
+            path.file_name().and_then(|name| name.to_str()).is_some_and(|name| name.starts_with(LIBRARY_PREFIX))
         })
         .collect();
     candidates.sort_by_key(|path| version_key(path));
@@ -40,14 +36,8 @@ pub fn find_library_in(dir: &Path) -> CoreResult<PathBuf> {
 
 /// The numeric parts after `.so` in a library name: `libonnxruntime.so.1.31.1` -> [1, 31, 1].
 fn version_key(path: &Path) -> Vec<u64> {
-    let name = path
-        .file_name()
-        .and_then(|n| n.to_str())
-        .unwrap_or_default();
-    name.trim_start_matches(LIBRARY_PREFIX)
-        .split('.')
-        .filter_map(|part| part.parse().ok())
-        .collect()
+    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or_default();
+    name.trim_start_matches(LIBRARY_PREFIX).split('.').filter_map(|part| part.parse().ok()).collect()
 }
 
 /// Loads ONNX Runtime from `library_path` (made absolute first: ort resolves relative paths against the
@@ -56,14 +46,9 @@ pub fn init(library_path: &Path) -> CoreResult<()> {
     if RUNTIME.get().is_some() {
         return Ok(());
     }
-    let library_path = std::path::absolute(library_path).map_err(|e| CoreError::RuntimeLoad {
-        path: library_path.to_path_buf(),
-        reason: e.to_string(),
-    })?;
-    let load_error = |reason: String| CoreError::RuntimeLoad {
-        path: library_path.clone(),
-        reason,
-    };
+    let library_path = std::path::absolute(library_path)
+        .map_err(|e| CoreError::RuntimeLoad { path: library_path.to_path_buf(), reason: e.to_string() })?;
+    let load_error = |reason: String| CoreError::RuntimeLoad { path: library_path.clone(), reason };
     if !library_path.is_file() {
         return Err(load_error("no such file".into()));
     }
@@ -74,11 +59,7 @@ pub fn init(library_path: &Path) -> CoreResult<()> {
         .build()
         .map_err(|e| load_error(e.to_string()))?;
     // A racing thread may have won; its runtime is equivalent, so losing the race is fine.
-    let _ = RUNTIME.set(Runtime {
-        environment,
-        library_path,
-        version,
-    });
+    let _ = RUNTIME.set(Runtime { environment, library_path, version });
     Ok(())
 }
 
@@ -101,10 +82,7 @@ pub fn library_path() -> Option<&'static Path> {
 }
 
 pub(crate) fn environment() -> CoreResult<&'static ort::environment::Environment> {
-    RUNTIME
-        .get()
-        .map(|r| &r.environment)
-        .ok_or(CoreError::RuntimeNotInitialised)
+    RUNTIME.get().map(|r| &r.environment).ok_or(CoreError::RuntimeNotInitialised)
 }
 
 /// Asks the library itself for its version (`OrtGetApiBase()->GetVersionString()`), so the figure we report
@@ -113,19 +91,16 @@ fn read_version(library_path: &Path) -> Result<String, String> {
     // SAFETY: loading ONNX Runtime runs no initialisers with preconditions; ort loads the same file next.
     let library = unsafe { libloading::Library::new(library_path) }.map_err(|e| e.to_string())?;
     // SAFETY: OrtGetApiBase has this signature in every ONNX Runtime release.
-    let get_api_base = unsafe {
-        library.get::<unsafe extern "C" fn() -> *const ort::sys::OrtApiBase>(b"OrtGetApiBase")
-    }
-    .map_err(|_| "the library does not export OrtGetApiBase (not ONNX Runtime?)".to_string())?;
+    let get_api_base =
+        unsafe { library.get::<unsafe extern "C" fn() -> *const ort::sys::OrtApiBase>(b"OrtGetApiBase") }
+            .map_err(|_| "the library does not export OrtGetApiBase (not ONNX Runtime?)".to_string())?;
     // SAFETY: the API base is a static table inside the library, valid while the library is loaded.
     let version = unsafe {
         let base = get_api_base();
         if base.is_null() {
             return Err("OrtGetApiBase returned null".into());
         }
-        CStr::from_ptr(((*base).GetVersionString)())
-            .to_string_lossy()
-            .into_owned()
+        CStr::from_ptr(((*base).GetVersionString)()).to_string_lossy().into_owned()
     };
     Ok(version)
 }

@@ -147,10 +147,7 @@ pub struct Sensor {
 
 impl Sensor {
     pub fn new(geometry: CharacterGeometry) -> Self {
-        Self {
-            geometry,
-            previous: None,
-        }
+        Self { geometry, previous: None }
     }
 
     pub fn geometry(&self) -> &CharacterGeometry {
@@ -167,12 +164,7 @@ impl Sensor {
         let rest = &self.geometry.rest_rotations;
         std::array::from_fn(|j| {
             let (p, c) = (JOINTS[j].parent.index(), JOINTS[j].child.index());
-            joint_rotation(
-                reading.bodies[p].rotation,
-                rest[p],
-                reading.bodies[c].rotation,
-                rest[c],
-            )
+            joint_rotation(reading.bodies[p].rotation, rest[p], reading.bodies[c].rotation, rest[c])
         })
     }
 
@@ -181,10 +173,7 @@ impl Sensor {
         std::array::from_fn(|side| {
             let body = &reading.bodies[[Body::ForearmR, Body::ForearmL][side].index()];
             let arm = body.rotation * self.geometry.fist_offsets[side];
-            (
-                body.position + arm,
-                body.linear_velocity + body.angular_velocity.cross(arm),
-            )
+            (body.position + arm, body.linear_velocity + body.angular_velocity.cross(arm))
         })
     }
 
@@ -229,10 +218,7 @@ impl Sensor {
         push(&local_point(bag_position).to_array());
         push(&local_vector(reading.bag.linear_velocity).to_array());
         push(&local_vector(bag_momentum_change).to_array());
-        push(&[
-            fists[0].0.distance(bag_position),
-            fists[1].0.distance(bag_position),
-        ]);
+        push(&[fists[0].0.distance(bag_position), fists[1].0.distance(bag_position)]);
         push(&angles);
         push(&speeds);
         push(&[joint_gap, flags as f32]);
@@ -268,18 +254,10 @@ impl Sensor {
             .fold(0.0, f32::max)
     }
 
-    fn exploit_flags(
-        &self,
-        reading: &FrameReading,
-        fists: &[(Vec3, Vec3); 2],
-        joint_gap: f32,
-    ) -> u32 {
+    fn exploit_flags(&self, reading: &FrameReading, fists: &[(Vec3, Vec3); 2], joint_gap: f32) -> u32 {
         let g = &self.geometry;
         let mut flags = 0;
-        if fists
-            .iter()
-            .any(|(_, velocity)| velocity.length() > guard::FIST_SPEED_LIMIT_MPS)
-        {
+        if fists.iter().any(|(_, velocity)| velocity.length() > guard::FIST_SPEED_LIMIT_MPS) {
             flags |= guard::FIST_TOO_FAST;
         }
         if joint_gap > guard::JOINT_SEPARATION_LIMIT_M {
@@ -296,19 +274,11 @@ impl Sensor {
             }
         }
         if let Some(previous) = &self.previous {
-            let touching = reading
-                .fist_impulses
-                .iter()
-                .any(|i| i.length() > guard::CONTACT_IMPULSE_EPSILON);
+            let touching = reading.fist_impulses.iter().any(|i| i.length() > guard::CONTACT_IMPULSE_EPSILON);
             let jumped = |now: &BodyState, before: &BodyState| {
-                (now.linear_velocity - before.linear_velocity).length()
-                    > guard::VELOCITY_JUMP_LIMIT_MPS
+                (now.linear_velocity - before.linear_velocity).length() > guard::VELOCITY_JUMP_LIMIT_MPS
             };
-            let body_jump = reading
-                .bodies
-                .iter()
-                .zip(&previous.bodies)
-                .any(|(now, before)| jumped(now, before));
+            let body_jump = reading.bodies.iter().zip(&previous.bodies).any(|(now, before)| jumped(now, before));
             if !touching && (body_jump || jumped(&reading.bag, &previous.bag)) {
                 flags |= guard::VELOCITY_JUMP;
             }
@@ -351,11 +321,7 @@ mod tests {
         names.sort();
         names.dedup();
         assert_eq!(names.len(), FEATURE_COUNT);
-        assert_eq!(
-            feature_index("exploit_flags"),
-            Some(FEATURE_COUNT - 1),
-            "the session reads flags from the end"
-        );
+        assert_eq!(feature_index("exploit_flags"), Some(FEATURE_COUNT - 1), "the session reads flags from the end");
     }
 
     #[test]
@@ -421,28 +387,17 @@ mod tests {
         fast.bodies[Body::ForearmR.index()].linear_velocity = Vec3::new(0.0, 0.0, 20.0);
         let flags = sensor.features(&fast)[flags_index] as u32;
         assert_ne!(flags & guard::FIST_TOO_FAST, 0);
-        assert_ne!(
-            flags & guard::VELOCITY_JUMP,
-            0,
-            "20 m/s in one frame with no contact"
-        );
+        assert_ne!(flags & guard::VELOCITY_JUMP, 0, "20 m/s in one frame with no contact");
 
         sensor.reset();
         let mut separated = reading;
         separated.bodies[Body::ForearmL.index()].position = Vec3::new(0.0, 0.0, 0.1);
-        assert_ne!(
-            sensor.features(&separated)[flags_index] as u32 & guard::JOINT_SEPARATED,
-            0
-        );
+        assert_ne!(sensor.features(&separated)[flags_index] as u32 & guard::JOINT_SEPARATED, 0);
 
         sensor.reset();
         // Right fist centre 5 cm inside the bag's axis region.
-        reading.bodies[Body::ForearmR.index()].position =
-            reading.bag.position + Vec3::new(0.0, 0.155, -0.05);
-        assert_ne!(
-            sensor.features(&reading)[flags_index] as u32 & guard::PENETRATION,
-            0
-        );
+        reading.bodies[Body::ForearmR.index()].position = reading.bag.position + Vec3::new(0.0, 0.155, -0.05);
+        assert_ne!(sensor.features(&reading)[flags_index] as u32 & guard::PENETRATION, 0);
     }
 
     #[test]
@@ -454,9 +409,6 @@ mod tests {
         sensor.features(&reading);
         reading.bodies[Body::ForearmR.index()].linear_velocity = Vec3::ZERO;
         reading.fist_impulses[0] = Vec3::new(0.0, 0.0, 15.0);
-        assert_eq!(
-            sensor.features(&reading)[flags_index] as u32 & guard::VELOCITY_JUMP,
-            0
-        );
+        assert_eq!(sensor.features(&reading)[flags_index] as u32 & guard::VELOCITY_JUMP, 0);
     }
 }

@@ -21,11 +21,7 @@ pub struct BagPlacement {
 
 impl Default for BagPlacement {
     fn default() -> Self {
-        Self {
-            distance_m: 0.72,
-            height_m: 1.35,
-            side_m: 0.0,
-        }
+        Self { distance_m: 0.72, height_m: 1.35, side_m: 0.0 }
     }
 }
 
@@ -73,6 +69,8 @@ struct Run {
     actions: Vec<f32>,
     decisions: usize,
     features: Vec<f32>,
+    /// Actions as executed after smoothing, [slot][decision][dof].
+    executed: Vec<f32>,
 }
 
 /// Episode state shared by all slots (they always run in lockstep).
@@ -118,18 +116,9 @@ impl Session {
             .with("slot_count", json!(slot_count))
             .with("physics_hz", json!(PHYSICS_HZ))
             .with("decision_period", json!(self.decision_period))
-            .with(
-                "action_names",
-                json!(DOFS.iter().map(|d| d.name).collect::<Vec<_>>()),
-            )
-            .with(
-                "action_lower_rad",
-                json!(DOFS.iter().map(|d| d.lower_rad).collect::<Vec<_>>()),
-            )
-            .with(
-                "action_upper_rad",
-                json!(DOFS.iter().map(|d| d.upper_rad).collect::<Vec<_>>()),
-            )
+            .with("action_names", json!(DOFS.iter().map(|d| d.name).collect::<Vec<_>>()))
+            .with("action_lower_rad", json!(DOFS.iter().map(|d| d.lower_rad).collect::<Vec<_>>()))
+            .with("action_upper_rad", json!(DOFS.iter().map(|d| d.upper_rad).collect::<Vec<_>>()))
             .with("observation_names", json!(observation_names()))
             .with("feature_names", json!(FEATURE_NAMES.to_vec()))
     }
@@ -137,30 +126,22 @@ impl Session {
     /// Handles one message. Bad requests get an error reply and change nothing.
     pub fn handle(&mut self, message: &Message, world: &mut impl World) -> Outcome {
         let result = match message.message_type() {
-            "hello" => self
-                .check_hello(message)
-                .map(|()| Outcome::Reply(self.hello(world.slot_count()))),
+            "hello" => self.check_hello(message).map(|()| Outcome::Reply(self.hello(world.slot_count()))),
             "reset" => self.reset(message, world).map(Outcome::Reply),
             "step" => self.start_step(message, world),
             "rollout" => self.start_rollout(message, world),
             "close" => Ok(Outcome::Close(Message::new("bye"))),
-            other => Err(format!(
-                "unknown message type '{other}' (expected hello, reset, step, rollout or close)"
-            )),
+            other => Err(format!("unknown message type '{other}' (expected hello, reset, step, rollout or close)")),
         };
         result.unwrap_or_else(|error| Outcome::Reply(error_reply(&error)))
     }
 
     fn check_hello(&self, message: &Message) -> Result<(), String> {
-        match message
-            .header
-            .get("protocol_version")
-            .and_then(Value::as_u64)
-        {
+        match message.header.get("protocol_version").and_then(Value::as_u64) {
             Some(version) if version == PROTOCOL_VERSION as u64 => Ok(()),
-            Some(version) => Err(format!(
-                "protocol version {version} is not supported; this server speaks {PROTOCOL_VERSION}"
-            )),
+            Some(version) => {
+                Err(format!("protocol version {version} is not supported; this server speaks {PROTOCOL_VERSION}"))
+            }
             None => Err("hello needs an integer 'protocol_version'".into()),
         }
     }
@@ -169,11 +150,10 @@ impl Session {
         let slot_count = world.slot_count();
         let frames = match message.header.get("frames") {
             None => 50,
-            Some(value) => value
-                .as_u64()
-                .filter(|&f| f > 0 && f <= 10_000)
-                .ok_or("'frames' must be an integer in 1..=10000")?
-                as usize,
+            Some(value) => {
+                value.as_u64().filter(|&f| f > 0 && f <= 10_000).ok_or("'frames' must be an integer in 1..=10000")?
+                    as usize
+            }
         };
         if frames % self.decision_period != 0 {
             return Err(format!(
@@ -181,41 +161,33 @@ impl Session {
                 self.decision_period
             ));
         }
+        let smoothing_window = match message.header.get("smoothing_window") {
+            None => 1,
+            Some(value) => value
+                .as_u64()
+                .filter(|&n| (1..=50).contains(&n))
+                .ok_or("'smoothing_window' must be an integer in 1..=50")? as usize,
+        };
         let placements = parse_placements(message.header.get("bags"), slot_count)?;
         world.reset(&placements)?;
         self.frames_per_episode = frames;
         self.frame_index = 0;
-        self.slots = (0..slot_count)
-            .map(|slot| CharacterController::new(world.geometry(slot)))
-            .collect();
+        self.slots =
+            (0..slot_count).map(|slot| CharacterController::new(world.geometry(slot), smoothing_window)).collect();
         self.broken = vec![false; slot_count];
-        self.last_features = (0..slot_count)
-            .map(|slot| self.slots[slot].features(&world.read(slot)))
-            .collect();
+        self.last_features = (0..slot_count).map(|slot| self.slots[slot].features(&world.read(slot))).collect();
         self.episode_started = true;
         let mut features = Vec::with_capacity(slot_count * FEATURE_COUNT);
         let mut observations = Vec::with_capacity(slot_count * OBS_DIM);
         for last in &self.last_features {
             features.extend_from_slice(last);
-            observations.extend_from_slice(&observation(
-                last,
-                0,
-                self.decisions_per_episode() as u32,
-            ));
+            observations.extend_from_slice(&observation(last, 0, self.decisions_per_episode() as u32));
         }
         Ok(Message::new("reset_done")
             .with("frames", json!(frames))
             .with("decisions", json!(self.decisions_per_episode()))
-            .with_array(Array::new(
-                "observations",
-                vec![slot_count, OBS_DIM],
-                observations,
-            ))
-            .with_array(Array::new(
-                "features",
-                vec![slot_count, FEATURE_COUNT],
-                features,
-            )))
+            .with_array(Array::new("observations", vec![slot_count, OBS_DIM], observations))
+            .with_array(Array::new("features", vec![slot_count, FEATURE_COUNT], features)))
     }
 
     fn decisions_per_episode(&self) -> usize {
@@ -230,52 +202,31 @@ impl Session {
             return Err("the episode is over: send reset".into());
         }
         let slot_count = self.slots.len();
-        let actions = message
-            .array("actions", &[slot_count, DOF_COUNT])
-            .map_err(|e| e.to_string())?;
-        for (slot, action) in self
-            .slots
-            .iter_mut()
-            .zip(actions.data.chunks_exact(DOF_COUNT))
-        {
-            slot.set_action(action).map_err(|e| e.to_string())?;
+        let actions = message.array("actions", &[slot_count, DOF_COUNT]).map_err(|e| e.to_string())?;
+        let mut executed = Vec::with_capacity(slot_count * DOF_COUNT);
+        for (slot, action) in self.slots.iter_mut().zip(actions.data.chunks_exact(DOF_COUNT)) {
+            executed.extend_from_slice(&slot.set_action(action).map_err(|e| e.to_string())?);
         }
         self.begin(Command::Step, self.decision_period, Vec::new(), 1, world);
+        if let Some(run) = self.run.as_mut() {
+            run.executed = executed;
+        }
         Ok(Outcome::Running)
     }
 
-    fn start_rollout(
-        &mut self,
-        message: &Message,
-        world: &mut impl World,
-    ) -> Result<Outcome, String> {
+    fn start_rollout(&mut self, message: &Message, world: &mut impl World) -> Result<Outcome, String> {
         let slot_count = world.slot_count();
-        let decisions = message
-            .arrays
-            .iter()
-            .find(|a| a.name == "actions")
-            .and_then(|a| a.shape.get(1).copied())
-            .unwrap_or(0);
-        let actions = message
-            .array("actions", &[slot_count, decisions, DOF_COUNT])
-            .map_err(|e| e.to_string())?
-            .data
-            .clone();
+        let decisions =
+            message.arrays.iter().find(|a| a.name == "actions").and_then(|a| a.shape.get(1).copied()).unwrap_or(0);
+        let actions =
+            message.array("actions", &[slot_count, decisions, DOF_COUNT]).map_err(|e| e.to_string())?.data.clone();
         if decisions == 0 {
             return Err("a rollout needs at least one decision".into());
         }
         let mut reset = message.clone();
-        reset
-            .header
-            .insert("frames".into(), json!(decisions * self.decision_period));
+        reset.header.insert("frames".into(), json!(decisions * self.decision_period));
         self.reset(&reset, world)?;
-        self.begin(
-            Command::Rollout,
-            decisions * self.decision_period,
-            actions,
-            decisions,
-            world,
-        );
+        self.begin(Command::Rollout, decisions * self.decision_period, actions, decisions, world);
         Ok(Outcome::Running)
     }
 
@@ -295,6 +246,7 @@ impl Session {
             actions,
             decisions,
             features: Vec::with_capacity(slot_count * frames_total * FEATURE_COUNT),
+            executed: vec![0.0; slot_count * decisions * DOF_COUNT],
         });
         let readings: Vec<FrameReading> = (0..slot_count).map(|slot| world.read(slot)).collect();
         self.drive_all(world, &readings);
@@ -303,13 +255,15 @@ impl Session {
     /// Open-loop actions for the decision that starts at the current frame, then motors for every slot,
     /// from this frame's readings (each slot is read from the engine once per frame).
     fn drive_all(&mut self, world: &mut impl World, readings: &[FrameReading]) {
-        let Some(run) = &self.run else { return };
+        let Some(run) = self.run.as_mut() else { return };
         if run.command == Command::Rollout && run.frames_done % self.decision_period == 0 {
             let decision = run.frames_done / self.decision_period;
             for (slot, controller) in self.slots.iter_mut().enumerate() {
                 let start = (slot * run.decisions + decision) * DOF_COUNT;
-                // Validated as finite when the message arrived.
-                let _ = controller.set_action(&run.actions[start..start + DOF_COUNT]);
+                // Validated as finite when the message arrived, so this cannot fail.
+                if let Ok(executed) = controller.set_action(&run.actions[start..start + DOF_COUNT]) {
+                    run.executed[start..start + DOF_COUNT].copy_from_slice(&executed);
+                }
             }
         }
         for (slot, (controller, reading)) in self.slots.iter().zip(readings).enumerate() {
@@ -321,8 +275,7 @@ impl Session {
     /// drives the next one or returns the reply.
     pub fn physics_frame(&mut self, world: &mut impl World) -> Option<Message> {
         let run = self.run.as_mut()?;
-        let readings: Vec<FrameReading> =
-            (0..self.slots.len()).map(|slot| world.read(slot)).collect();
+        let readings: Vec<FrameReading> = (0..self.slots.len()).map(|slot| world.read(slot)).collect();
         for ((slot, controller), reading) in self.slots.iter_mut().enumerate().zip(&readings) {
             let features = controller.features(reading);
             if features[FLAGS] as u32 & guard::JOINT_SEPARATED != 0 {
@@ -349,17 +302,13 @@ impl Session {
             for slot in 0..slot_count {
                 let from = (frame * slot_count + slot) * FEATURE_COUNT;
                 let to = (slot * run.frames_total + frame) * FEATURE_COUNT;
-                features[to..to + FEATURE_COUNT]
-                    .copy_from_slice(&run.features[from..from + FEATURE_COUNT]);
+                features[to..to + FEATURE_COUNT].copy_from_slice(&run.features[from..from + FEATURE_COUNT]);
             }
         }
-        let features = Array::new(
-            "features",
-            vec![slot_count, run.frames_total, FEATURE_COUNT],
-            features,
-        );
+        let features = Array::new("features", vec![slot_count, run.frames_total, FEATURE_COUNT], features);
+        let executed = Array::new("executed_actions", vec![slot_count, run.decisions, DOF_COUNT], run.executed);
         match run.command {
-            Command::Rollout => Message::new("rollout_done").with_array(features),
+            Command::Rollout => Message::new("rollout_done").with_array(features).with_array(executed),
             Command::Step => {
                 let decision = self.frame_index / self.decision_period;
                 let over = self.frame_index >= self.frames_per_episode;
@@ -373,20 +322,15 @@ impl Session {
                 }
                 // Episodes have a fixed length that the observation shows (episode_phase), so reaching it
                 // terminates; a slot whose physics broke on the way (a joint came apart) ends truncated.
-                let terminated: Vec<bool> =
-                    self.broken.iter().map(|&broken| over && !broken).collect();
-                let truncated: Vec<bool> =
-                    self.broken.iter().map(|&broken| over && broken).collect();
+                let terminated: Vec<bool> = self.broken.iter().map(|&broken| over && !broken).collect();
+                let truncated: Vec<bool> = self.broken.iter().map(|&broken| over && broken).collect();
                 Message::new("step_done")
                     .with("decision", json!(decision))
                     .with("terminated", json!(terminated))
                     .with("truncated", json!(truncated))
-                    .with_array(Array::new(
-                        "observations",
-                        vec![slot_count, OBS_DIM],
-                        observations,
-                    ))
+                    .with_array(Array::new("observations", vec![slot_count, OBS_DIM], observations))
                     .with_array(features)
+                    .with_array(executed)
             }
         }
     }
@@ -397,11 +341,8 @@ fn parse_placements(value: Option<&Value>, slot_count: usize) -> Result<Vec<BagP
         let object = value.as_object().ok_or("a bag placement is an object")?;
         let mut placement = BagPlacement::default();
         for (key, field) in object {
-            let number = field
-                .as_f64()
-                .filter(|v| v.is_finite())
-                .ok_or(format!("bag '{key}' must be a finite number"))?
-                as f32;
+            let number =
+                field.as_f64().filter(|v| v.is_finite()).ok_or(format!("bag '{key}' must be a finite number"))? as f32;
             match key.as_str() {
                 "distance_m" if (0.3..=3.0).contains(&number) => placement.distance_m = number,
                 "height_m" if (0.6..=2.2).contains(&number) => placement.height_m = number,
@@ -410,9 +351,7 @@ fn parse_placements(value: Option<&Value>, slot_count: usize) -> Result<Vec<BagP
                     return Err(format!("bag '{key}' = {number} is out of range"));
                 }
                 _ => {
-                    return Err(format!(
-                        "unknown bag field '{key}' (distance_m, height_m, side_m)"
-                    ));
+                    return Err(format!("unknown bag field '{key}' (distance_m, height_m, side_m)"));
                 }
             }
         }
@@ -420,13 +359,8 @@ fn parse_placements(value: Option<&Value>, slot_count: usize) -> Result<Vec<BagP
     };
     match value {
         None | Some(Value::Null) => Ok(vec![BagPlacement::default(); slot_count]),
-        Some(Value::Array(list)) if list.len() == slot_count => {
-            list.iter().map(parse_one).collect()
-        }
-        Some(Value::Array(list)) => Err(format!(
-            "'bags' lists {} placements for {slot_count} slots",
-            list.len()
-        )),
+        Some(Value::Array(list)) if list.len() == slot_count => list.iter().map(parse_one).collect(),
+        Some(Value::Array(list)) => Err(format!("'bags' lists {} placements for {slot_count} slots", list.len())),
         Some(one) => Ok(vec![parse_one(one)?; slot_count]),
     }
 }

@@ -9,21 +9,14 @@ use punch_core::{CoreError, Policy, runtime};
 
 #[test]
 fn bad_runtime_locations_give_clear_errors() {
-    let scratch =
-        std::env::temp_dir().join(format!("punch_core_runtime_errors_{}", std::process::id()));
+    let scratch = std::env::temp_dir().join(format!("punch_core_runtime_errors_{}", std::process::id()));
     std::fs::create_dir_all(&scratch).expect("scratch dir");
 
     // Nothing loaded yet: using a policy says so.
-    assert!(matches!(
-        Policy::from_bytes(b"x"),
-        Err(CoreError::RuntimeNotInitialised)
-    ));
+    assert!(matches!(Policy::from_bytes(b"x"), Err(CoreError::RuntimeNotInitialised)));
 
     // A folder without the library.
-    assert!(matches!(
-        runtime::init_from_dir(&scratch),
-        Err(CoreError::RuntimeLibraryMissing { .. })
-    ));
+    assert!(matches!(runtime::init_from_dir(&scratch), Err(CoreError::RuntimeLibraryMissing { .. })));
     // A missing folder.
     assert!(matches!(
         runtime::init_from_dir(Path::new("/nonexistent/punch")),
@@ -34,13 +27,9 @@ fn bad_runtime_locations_give_clear_errors() {
     std::fs::write(&fake, b"not a library").expect("write fake");
     let error = runtime::init_from_dir(&scratch).expect_err("a text file is not ONNX Runtime");
     assert!(matches!(error, CoreError::RuntimeLoad { .. }), "{error}");
-    assert!(
-        error.to_string().contains("libonnxruntime.so.1.99.0"),
-        "{error}"
-    );
+    assert!(error.to_string().contains("libonnxruntime.so.1.99.0"), "{error}");
     // A real shared library that is not ONNX Runtime.
-    let error = runtime::init(Path::new("/lib/x86_64-linux-gnu/libm.so.6"))
-        .expect_err("libm is not ONNX Runtime");
+    let error = runtime::init(Path::new("/lib/x86_64-linux-gnu/libm.so.6")).expect_err("libm is not ONNX Runtime");
     assert!(error.to_string().contains("OrtGetApiBase"), "{error}");
     assert!(runtime::version().is_none());
 
@@ -54,18 +43,10 @@ fn bad_runtime_locations_give_clear_errors() {
 fn find_library_prefers_the_highest_version() {
     let scratch = std::env::temp_dir().join(format!("punch_core_find_{}", std::process::id()));
     std::fs::create_dir_all(&scratch).expect("scratch dir");
-    for name in [
-        "libonnxruntime.so.1.9.0",
-        "libonnxruntime.so.1.31.1",
-        "libonnxruntime.so.1.4.2",
-        "libother.so",
-    ] {
+    for name in ["libonnxruntime.so.1.9.0", "libonnxruntime.so.1.31.1", "libonnxruntime.so.1.4.2", "libother.so"] {
         std::fs::write(scratch.join(name), b"").expect("write");
     }
     let found = runtime::find_library_in(&scratch).expect("found");
-    assert_eq!(
-        found.file_name().and_then(|n| n.to_str()),
-        Some("libonnxruntime.so.1.31.1")
-    );
+    assert_eq!(found.file_name().and_then(|n| n.to_str()), Some("libonnxruntime.so.1.31.1"));
     std::fs::remove_dir_all(&scratch).ok();
 }

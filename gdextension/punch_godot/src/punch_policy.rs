@@ -1,8 +1,6 @@
 //! `PunchPolicy`: an ONNX policy loaded through Godot's file system and run batched through ONNX Runtime.
 
-use godot::builtin::{
-    GString, PackedByteArray, PackedFloat32Array, PackedStringArray, VarDictionary,
-};
+use godot::builtin::{GString, PackedByteArray, PackedFloat32Array, PackedStringArray, VarDictionary};
 use godot::classes::{FileAccess, IRefCounted, RefCounted};
 use godot::global::{Error, godot_error};
 use godot::prelude::{Base, GodotClass, godot_api};
@@ -82,24 +80,14 @@ impl PunchPolicy {
     /// Names of the model's outputs in graph order (empty when nothing is loaded).
     #[func]
     fn get_output_names(&self) -> PackedStringArray {
-        let names = self
-            .policy
-            .as_ref()
-            .map(|p| p.output_names())
-            .unwrap_or_default();
-        names
-            .iter()
-            .map(|name| GString::from(name.as_str()))
-            .collect()
+        let names = self.policy.as_ref().map(|p| p.output_names()).unwrap_or_default();
+        names.iter().map(|name| GString::from(name.as_str())).collect()
     }
 
     /// The model's custom metadata entry `key`, or "" when absent or nothing is loaded.
     #[func]
     fn get_metadata(&self, key: GString) -> GString {
-        let value = self
-            .policy
-            .as_ref()
-            .and_then(|p| p.metadata(&key.to_string()));
+        let value = self.policy.as_ref().and_then(|p| p.metadata(&key.to_string()));
         GString::from(value.unwrap_or_default().as_str())
     }
 
@@ -116,10 +104,7 @@ impl PunchPolicy {
         match policy.run(input.as_slice(), batch.max(0) as usize) {
             Ok(tensors) => {
                 for tensor in tensors {
-                    outputs.set(
-                        tensor.name.as_str(),
-                        &PackedFloat32Array::from(tensor.data.as_slice()),
-                    );
+                    outputs.set(tensor.name.as_str(), &PackedFloat32Array::from(tensor.data.as_slice()));
                 }
             }
             Err(error) => godot_error!("PunchPolicy: {error}"),

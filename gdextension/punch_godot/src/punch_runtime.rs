@@ -24,9 +24,7 @@ impl PunchRuntime {
         versions.set("godot_api", "4.6");
         let loaded = ensure_onnx_runtime();
         versions.set("onnxruntime", punch_core::runtime::version().unwrap_or(""));
-        let library = punch_core::runtime::library_path()
-            .map(|p| p.display().to_string())
-            .unwrap_or_default();
+        let library = punch_core::runtime::library_path().map(|p| p.display().to_string()).unwrap_or_default();
         versions.set("onnxruntime_library", &GString::from(library.as_str()));
         versions.set("onnxruntime_loaded", loaded);
         versions
@@ -40,17 +38,13 @@ pub fn ensure_onnx_runtime() -> bool {
         return true;
     }
     let Some(dir) = own_library_dir() else {
-        godot_error!(
-            "PunchController: could not determine where the extension library was loaded from"
-        );
+        godot_error!("PunchController: could not determine where the extension library was loaded from");
         return false;
     };
     match punch_core::runtime::init_from_dir(&dir) {
         Ok(()) => true,
         Err(error) => {
-            godot_error!(
-                "PunchController: {error}. Rebuild the addon (scons) so that bin/ holds ONNX Runtime."
-            );
+            godot_error!("PunchController: {error}. Rebuild the addon (scons) so that bin/ holds ONNX Runtime.");
             false
         }
     }
@@ -67,9 +61,5 @@ fn own_library_dir() -> Option<PathBuf> {
     }
     // SAFETY: dli_fname is a NUL-terminated path owned by the dynamic loader.
     let path = unsafe { CStr::from_ptr(info.dli_fname) }.to_str().ok()?;
-    Path::new(path)
-        .canonicalize()
-        .ok()?
-        .parent()
-        .map(Path::to_path_buf)
+    Path::new(path).canonicalize().ok()?.parent().map(Path::to_path_buf)
 }

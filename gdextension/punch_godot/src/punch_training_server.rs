@@ -95,11 +95,7 @@ impl PunchTrainingServer {
             let Some((key, value)) = argument.trim_start_matches("--").split_once('=') else {
                 continue;
             };
-            let number = || {
-                value
-                    .parse::<f64>()
-                    .map_err(|_| format!("--{key}={value}: not a number"))
-            };
+            let number = || value.parse::<f64>().map_err(|_| format!("--{key}={value}: not a number"));
             match key {
                 "port" => self.port = number()? as i32,
                 "slots" => self.slot_count = number()? as i32,
@@ -110,9 +106,7 @@ impl PunchTrainingServer {
         }
         let ticks = Engine::singleton().get_physics_ticks_per_second();
         if ticks != PHYSICS_HZ as i32 {
-            return Err(format!(
-                "physics runs at {ticks} Hz; the punch spec needs {PHYSICS_HZ} Hz"
-            ));
+            return Err(format!("physics runs at {ticks} Hz; the punch spec needs {PHYSICS_HZ} Hz"));
         }
         if !(1..=4096).contains(&self.slot_count)
             || !(1..=60).contains(&self.decision_period)
@@ -123,18 +117,14 @@ impl PunchTrainingServer {
                 self.slot_count, self.decision_period, self.port
             ));
         }
-        let character_scene = self
-            .character_scene
-            .clone()
-            .ok_or("no character_scene set")?;
+        let character_scene = self.character_scene.clone().ok_or("no character_scene set")?;
         let sandbag_scene = self.sandbag_scene.clone().ok_or("no sandbag_scene set")?;
         let listener = TcpListener::bind(("127.0.0.1", self.port as u16))
             .map_err(|e| format!("cannot listen on port {}: {e}", self.port))?;
         let port = listener.local_addr().map_err(|e| e.to_string())?.port();
         listener.set_nonblocking(true).map_err(|e| e.to_string())?;
         self.listener = Some(listener);
-        let mut world =
-            TrainingWorld::new(&character_scene, &sandbag_scene, self.slot_count as usize)?;
+        let mut world = TrainingWorld::new(&character_scene, &sandbag_scene, self.slot_count as usize)?;
         world.reset(&vec![BagPlacement::default(); self.slot_count as usize])?;
         self.world = Some(world);
         self.session = Some(Session::new(self.decision_period as usize));
@@ -153,10 +143,7 @@ impl PunchTrainingServer {
             self.accept_pending();
             let Some(index) = self.wait_readable() else {
                 if last_activity.elapsed().as_secs_f32() > self.idle_timeout_s {
-                    godot_print!(
-                        "PunchTrainingServer: no request for {} s, quitting",
-                        self.idle_timeout_s
-                    );
+                    godot_print!("PunchTrainingServer: no request for {} s, quitting", self.idle_timeout_s);
                     self.quit(0);
                     return;
                 }
@@ -171,10 +158,7 @@ impl PunchTrainingServer {
                 }
                 Err(ProtocolError::Framing(reason)) => {
                     // This stream cannot be resynchronised: say why and drop this client only.
-                    self.send(
-                        index,
-                        &error_reply(&format!("{reason}; closing the connection")),
-                    );
+                    self.send(index, &error_reply(&format!("{reason}; closing the connection")));
                     self.connections.remove(index);
                     continue;
                 }
@@ -231,18 +215,10 @@ impl PunchTrainingServer {
         let mut fds: Vec<libc::pollfd> = self
             .connections
             .iter()
-            .map(|c| libc::pollfd {
-                fd: c.as_raw_fd(),
-                events: libc::POLLIN,
-                revents: 0,
-            })
+            .map(|c| libc::pollfd { fd: c.as_raw_fd(), events: libc::POLLIN, revents: 0 })
             .collect();
         if let Some(listener) = &self.listener {
-            fds.push(libc::pollfd {
-                fd: listener.as_raw_fd(),
-                events: libc::POLLIN,
-                revents: 0,
-            });
+            fds.push(libc::pollfd { fd: listener.as_raw_fd(), events: libc::POLLIN, revents: 0 });
         }
         // SAFETY: `fds` is a valid array of pollfd for the duration of the call.
         let ready = unsafe { libc::poll(fds.as_mut_ptr(), fds.len() as libc::nfds_t, 20) };

@@ -19,8 +19,7 @@ use godot::classes::physics_server_3d::{
 };
 use godot::classes::{
     CollisionShape3D, CylinderShape3D, Generic6DofJoint3D, Marker3D, Node, Node3D, PackedScene,
-    PhysicsDirectBodyState3D, PhysicsServer3D, PinJoint3D, RigidBody3D, Shape3D, SphereShape3D,
-    World3D,
+    PhysicsDirectBodyState3D, PhysicsServer3D, PinJoint3D, RigidBody3D, Shape3D, SphereShape3D, World3D,
 };
 use godot::meta::ToGodot;
 use godot::obj::{Gd, NewGd, Singleton};
@@ -51,9 +50,8 @@ impl BodyTemplate {
         let mut shapes = Vec::new();
         for child in body.get_children().iter_shared() {
             if let Ok(collision) = child.try_cast::<CollisionShape3D>() {
-                let shape = collision
-                    .get_shape()
-                    .ok_or_else(|| format!("a shape of '{}' is empty", body.get_name()))?;
+                let shape =
+                    collision.get_shape().ok_or_else(|| format!("a shape of '{}' is empty", body.get_name()))?;
                 shapes.push((shape, collision.get_transform()));
             }
         }
@@ -65,38 +63,18 @@ impl BodyTemplate {
             inertia: rigid.as_ref().map_or(Vector3::ZERO, |r| r.get_inertia()),
             custom_center_of_mass: rigid
                 .as_ref()
-                .filter(|r| {
-                    r.get_center_of_mass_mode()
-                        == godot::classes::rigid_body_3d::CenterOfMassMode::CUSTOM
-                })
+                .filter(|r| r.get_center_of_mass_mode() == godot::classes::rigid_body_3d::CenterOfMassMode::CUSTOM)
                 .map(|r| r.get_center_of_mass()),
             shapes,
         })
     }
 
     /// Creates the body in `space`, placed by `offset` (applied after the template transform).
-    fn create(
-        &self,
-        server: &mut Gd<PhysicsServer3D>,
-        space: Rid,
-        offset: Vector3,
-        layer: u32,
-        mask: u32,
-    ) -> Rid {
+    fn create(&self, server: &mut Gd<PhysicsServer3D>, space: Rid, offset: Vector3, layer: u32, mask: u32) -> Rid {
         let body = server.body_create();
-        server.body_set_mode(
-            body,
-            if self.dynamic {
-                BodyMode::RIGID
-            } else {
-                BodyMode::STATIC
-            },
-        );
+        server.body_set_mode(body, if self.dynamic { BodyMode::RIGID } else { BodyMode::STATIC });
         for (shape, transform) in &self.shapes {
-            server
-                .body_add_shape_ex(body, shape.get_rid())
-                .transform(*transform)
-                .done();
+            server.body_add_shape_ex(body, shape.get_rid()).transform(*transform).done();
         }
         if self.dynamic {
             server.body_set_param(body, BodyParameter::MASS, &self.mass_kg.to_variant());
@@ -160,14 +138,9 @@ impl CharacterTemplate {
     }
 
     fn read_nodes(root: &Gd<Node3D>) -> Result<Self, String> {
-        let body_nodes: Vec<Gd<Node3D>> = Body::ALL
-            .iter()
-            .map(|b| child_3d(root, b.node_name()))
-            .collect::<Result<_, _>>()?;
-        let bodies: Vec<BodyTemplate> = body_nodes
-            .iter()
-            .map(BodyTemplate::read)
-            .collect::<Result<_, _>>()?;
+        let body_nodes: Vec<Gd<Node3D>> =
+            Body::ALL.iter().map(|b| child_3d(root, b.node_name())).collect::<Result<_, _>>()?;
+        let bodies: Vec<BodyTemplate> = body_nodes.iter().map(BodyTemplate::read).collect::<Result<_, _>>()?;
         let mut joint_frames = Vec::new();
         let mut joint_anchors = [(Vec3::ZERO, Vec3::ZERO); 5];
         for (j, joint) in JOINTS.iter().enumerate() {
@@ -185,12 +158,8 @@ impl CharacterTemplate {
         let mut fist_offsets = [Vec3::ZERO; 2];
         let mut fist_shape_indices = [0; 2];
         let mut fist_radius_m = 0.045;
-        for (side, (forearm, marker)) in [
-            (Body::ForearmR, "ForearmR/FistR"),
-            (Body::ForearmL, "ForearmL/FistL"),
-        ]
-        .into_iter()
-        .enumerate()
+        for (side, (forearm, marker)) in
+            [(Body::ForearmR, "ForearmR/FistR"), (Body::ForearmL, "ForearmL/FistL")].into_iter().enumerate()
         {
             let marker = root
                 .get_node_or_null(marker)
@@ -209,9 +178,7 @@ impl CharacterTemplate {
             }
         }
         let geometry = CharacterGeometry {
-            rest_rotations: std::array::from_fn(|i| {
-                quat(bodies[i].transform.basis.get_quaternion())
-            }),
+            rest_rotations: std::array::from_fn(|i| quat(bodies[i].transform.basis.get_quaternion())),
             fist_offsets,
             fist_radius_m,
             joint_anchors,
@@ -221,12 +188,7 @@ impl CharacterTemplate {
             root_rotation: glam::Quat::IDENTITY,
             root_position: Vec3::ZERO,
         };
-        Ok(Self {
-            bodies,
-            joint_frames,
-            fist_shape_indices,
-            geometry,
-        })
+        Ok(Self { bodies, joint_frames, fist_shape_indices, geometry })
     }
 }
 
@@ -298,13 +260,7 @@ impl TrainingWorld {
     fn free_all(&mut self) {
         let mut server = PhysicsServer3D::singleton();
         for slot in self.slots.drain(..) {
-            for rid in slot
-                .joints
-                .into_iter()
-                .chain([slot.pin])
-                .chain(slot.bodies)
-                .chain([slot.bag])
-            {
+            for rid in slot.joints.into_iter().chain([slot.pin]).chain(slot.bodies).chain([slot.bag]) {
                 server.free_rid(rid);
             }
         }
@@ -312,26 +268,14 @@ impl TrainingWorld {
         self.arenas.clear();
     }
 
-    fn build_slot(
-        &self,
-        server: &mut Gd<PhysicsServer3D>,
-        space: Rid,
-        slot: usize,
-        placement: &BagPlacement,
-    ) -> Slot {
+    fn build_slot(&self, server: &mut Gd<PhysicsServer3D>, space: Rid, slot: usize, placement: &BagPlacement) -> Slot {
         // The character's bodies are on one layer and mask only its bag's layer, and the bag the other way
         // round: the character never collides with itself, the bag with all of it, and masks stay two-sided
         // (under Jolt a body that does not mask the other acts as immovable to it).
         let character_layer = 1u32 << (2 * (slot % SLOTS_PER_ARENA));
         let bag_layer = character_layer << 1;
         let bodies: [Rid; 6] = std::array::from_fn(|i| {
-            self.character.bodies[i].create(
-                server,
-                space,
-                Vector3::ZERO,
-                character_layer,
-                bag_layer,
-            )
+            self.character.bodies[i].create(server, space, Vector3::ZERO, character_layer, bag_layer)
         });
         let joints: [Rid; 5] = std::array::from_fn(|j| {
             let joint = server.joint_create();
@@ -348,39 +292,19 @@ impl TrainingWorld {
             joint
         });
         let offset = Vector3::new(placement.side_m, placement.height_m, placement.distance_m);
-        let bag = self
-            .bag
-            .body
-            .create(server, space, offset, bag_layer, character_layer);
+        let bag = self.bag.body.create(server, space, offset, bag_layer, character_layer);
         server.body_set_max_contacts_reported(bag, BAG_MAX_CONTACTS);
         let pin = server.joint_create();
-        server.joint_make_pin(
-            pin,
-            bag,
-            self.bag.pin_local,
-            Rid::Invalid,
-            self.bag.pin_from_root + offset,
-        );
+        server.joint_make_pin(pin, bag, self.bag.pin_local, Rid::Invalid, self.bag.pin_from_root + offset);
 
         let state = |server: &mut Gd<PhysicsServer3D>, rid: Rid| server.body_get_direct_state(rid);
-        let states = bodies
-            .iter()
-            .filter_map(|&rid| state(server, rid))
-            .collect();
+        let states = bodies.iter().filter_map(|&rid| state(server, rid)).collect();
         let bag_state = state(server, bag).expect("a rigid body has a direct state");
         let mut geometry = self.character.geometry;
         geometry.bag_radius_m = self.bag.radius_m;
         geometry.bag_height_m = self.bag.height_m;
         geometry.bag_mass_kg = self.bag.body.mass_kg;
-        Slot {
-            bodies,
-            states,
-            joints,
-            bag,
-            bag_state,
-            pin,
-            geometry,
-        }
+        Slot { bodies, states, joints, bag, bag_state, pin, geometry }
     }
 }
 
@@ -400,10 +324,7 @@ fn configure_server_joint(server: &mut Gd<PhysicsServer3D>, joint: Rid, joint_in
             (G6dofJointAxisParam::LINEAR_UPPER_LIMIT, 0.0),
             (G6dofJointAxisParam::ANGULAR_LOWER_LIMIT, settings.lower_rad),
             (G6dofJointAxisParam::ANGULAR_UPPER_LIMIT, settings.upper_rad),
-            (
-                G6dofJointAxisParam::ANGULAR_MOTOR_FORCE_LIMIT,
-                settings.max_torque_nm,
-            ),
+            (G6dofJointAxisParam::ANGULAR_MOTOR_FORCE_LIMIT, settings.max_torque_nm),
             (G6dofJointAxisParam::ANGULAR_MOTOR_TARGET_VELOCITY, 0.0),
         ] {
             server.generic_6dof_joint_set_param(joint, godot_axis, param, value);
@@ -466,10 +387,7 @@ impl World for TrainingWorld {
         }
         let mut fist_impulses = [Vec3::ZERO; 2];
         let mut character_impulse = Vec3::ZERO;
-        let forearms = [
-            slot.bodies[Body::ForearmR.index()],
-            slot.bodies[Body::ForearmL.index()],
-        ];
+        let forearms = [slot.bodies[Body::ForearmR.index()], slot.bodies[Body::ForearmL.index()]];
         for contact in 0..slot.bag_state.get_contact_count() {
             let collider = slot.bag_state.get_contact_collider(contact);
             if !slot.bodies.contains(&collider) {
@@ -484,22 +402,12 @@ impl World for TrainingWorld {
                 }
             }
         }
-        FrameReading {
-            bodies,
-            bag: read_state(&slot.bag_state),
-            fist_impulses,
-            character_impulse,
-        }
+        FrameReading { bodies, bag: read_state(&slot.bag_state), fist_impulses, character_impulse }
     }
 
     fn drive(&mut self, slot: usize, motor_velocities: &[Vec3; 5]) {
         let mut server = PhysicsServer3D::singleton();
-        for (joint_index, (joint, velocity)) in self.slots[slot]
-            .joints
-            .iter()
-            .zip(motor_velocities)
-            .enumerate()
-        {
+        for (joint_index, (joint, velocity)) in self.slots[slot].joints.iter().zip(motor_velocities).enumerate() {
             for (_, dof) in joint_dofs(joint_index) {
                 let value = velocity[dof.axis.index()];
                 server.generic_6dof_joint_set_param(
