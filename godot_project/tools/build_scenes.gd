@@ -7,6 +7,11 @@
 ## mass and principal moments come from the parallel-axis theorem. Arm length convention: shoulder joint to
 ## fist centre = 0.282 + 0.269 + 0.068 = 0.619 m (the paper's 0.84 m arm measures to the fingertips of a
 ## longer reference person). Frame: the character faces +Z, +X is its left, +Y up; the pose is a guard.
+##
+## Every body has exactly one collision shape. When a body touches another with two shapes at once, Jolt
+## orders the two contact manifolds by body ids, so the same punch would come out differently (in the last
+## bits) depending on where the character sits in the physics world; one shape per body keeps the training
+## server's characters bitwise identical whatever their slot.
 extends SceneTree
 
 const SCENE_DIR := "res://addons/punch_controller/scenes/"
@@ -109,6 +114,26 @@ func _sphere(radius: float) -> Array:
 	return [shape, mesh]
 
 
+## One convex hull around the forearm (a 4 cm radius tube from elbow to wrist) and the fist (a sphere).
+func _forearm_hull(elbow_y: float, wrist_y: float, fist_centre: Vector3) -> ConvexPolygonShape3D:
+	var points := PackedVector3Array()
+	for i in 8:
+		var angle := TAU * i / 8.0
+		var ring := Vector3(cos(angle), 0, sin(angle)) * 0.04
+		points.append(ring + Vector3(0, elbow_y, 0))
+		points.append(ring + Vector3(0, wrist_y, 0))
+	for i in 12:
+		# Points of an icosahedron on the fist's sphere.
+		var golden := (1.0 + sqrt(5.0)) / 2.0
+		var corners := [Vector3(-1, golden, 0), Vector3(1, golden, 0), Vector3(-1, -golden, 0), Vector3(1, -golden, 0),
+			Vector3(0, -1, golden), Vector3(0, 1, golden), Vector3(0, -1, -golden), Vector3(0, 1, -golden),
+			Vector3(golden, 0, -1), Vector3(golden, 0, 1), Vector3(-golden, 0, -1), Vector3(-golden, 0, 1)]
+		points.append(fist_centre + corners[i].normalized() * FIST_RADIUS)
+	var hull := ConvexPolygonShape3D.new()
+	hull.points = points
+	return hull
+
+
 func _rigid_body(name: String, mass: float, inertia: Vector3, at: Transform3D) -> RigidBody3D:
 	var body := RigidBody3D.new()
 	body.name = name
@@ -149,12 +174,15 @@ func _build_character() -> Node3D:
 
 	var torso := _rigid_body("Torso", TORSO.mass, TORSO.inertia, Transform3D(Basis.IDENTITY, Vector3(0, TORSO.com_y, 0)))
 	root.add_child(torso)
-	var abdomen := _box(Vector3(0.30, 0.215, 0.20))
-	_shape(torso, "AbdomenShape", abdomen[0], abdomen[1], _shirt, Transform3D(Basis.IDENTITY, Vector3(0, 1.1635 - TORSO.com_y, 0)))
-	var chest := _box(Vector3(0.34, 0.171, 0.22))
-	_shape(torso, "ChestShape", chest[0], chest[1], _shirt, Transform3D(Basis.IDENTITY, Vector3(0, 1.3565 - TORSO.com_y, 0)))
-	var head := _sphere(0.1)
-	_shape(torso, "HeadShape", head[0], head[1], _skin, Transform3D(Basis.IDENTITY, Vector3(0, 1.58 - TORSO.com_y, 0)))
+	# One box from the waist (omphalion) to the shoulders (suprasternale); the head is drawn, not collided.
+	var trunk := _box(Vector3(0.34, 0.386, 0.22))
+	_shape(torso, "TorsoShape", trunk[0], trunk[1], _shirt, Transform3D(Basis.IDENTITY, Vector3(0, 1.249 - TORSO.com_y, 0)))
+	var head := MeshInstance3D.new()
+	head.name = "HeadMesh"
+	head.mesh = _sphere(0.1)[1]
+	head.material_override = _skin
+	head.position = Vector3(0, 1.58 - TORSO.com_y, 0)
+	torso.add_child(head)
 	_joint("Waist", Vector3(0, WAIST_Y, 0), pelvis, torso, root)
 
 	var upper_angle := deg_to_rad(UPPER_ARM_FORWARD_DEG)
@@ -179,15 +207,27 @@ func _build_character() -> Node3D:
 		var forearm := _rigid_body("Forearm" + suffix, FOREARM.mass, FOREARM.inertia,
 			Transform3D(forearm_basis, elbow + FOREARM.com_from_elbow * forearm_direction))
 		root.add_child(forearm)
-		var forearm_capsule := _capsule(0.04, FOREARM_LENGTH)
-		_shape(forearm, "ForearmShape", forearm_capsule[0], forearm_capsule[1], _skin,
-			Transform3D(Basis.IDENTITY, Vector3(0, FOREARM.com_from_elbow - FOREARM_LENGTH / 2.0, 0)))
 		var fist_offset := Vector3(0, FOREARM.com_from_elbow - (FOREARM_LENGTH + FIST_FROM_WRIST), 0)
-		var fist := _sphere(FIST_RADIUS)
-		_shape(forearm, "FistShape", fist[0], fist[1], _glove, Transform3D(Basis.IDENTITY, fist_offset))
+		var forearm_shape := CollisionShape3D.new()
+		forearm_shape.name = "ForearmShape"
+		forearm_shape.shape = _forearm_hull(FOREARM.com_from_elbow, FOREARM.com_from_elbow - FOREARM_LENGTH, fist_offset)
+		forearm.add_child(forearm_shape)
+		var forearm_mesh := MeshInstance3D.new()
+		forearm_mesh.name = "ForearmMesh"
+		forearm_mesh.mesh = _capsule(0.04, FOREARM_LENGTH)[1]
+		forearm_mesh.material_override = _skin
+		forearm_mesh.position = Vector3(0, FOREARM.com_from_elbow - FOREARM_LENGTH / 2.0, 0)
+		forearm.add_child(forearm_mesh)
+		var fist_mesh := MeshInstance3D.new()
+		fist_mesh.name = "FistMesh"
+		fist_mesh.mesh = _sphere(FIST_RADIUS)[1]
+		fist_mesh.material_override = _glove
+		fist_mesh.position = fist_offset
+		forearm.add_child(fist_mesh)
 		var marker := Marker3D.new()
 		marker.name = "Fist" + suffix
 		marker.position = fist_offset
+		marker.set_meta("radius_m", FIST_RADIUS)  # the fist's size, for sensing which contacts are the fist's
 		forearm.add_child(marker)
 		_joint("Elbow" + suffix, elbow, upper, forearm, root)
 

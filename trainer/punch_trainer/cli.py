@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from punch_trainer import __version__
 from punch_trainer.errors import PunchError
@@ -34,6 +35,17 @@ def _bench_env(args: argparse.Namespace) -> int:
     return 0
 
 
+def _search(args: argparse.Namespace) -> int:
+    from punch_trainer.search import SearchArgs, run_search
+
+    fields = {k: getattr(args, k) for k in SearchArgs.__dataclass_fields__ if getattr(args, k, None) is not None}
+    out, result, report = run_search(SearchArgs(**fields))
+    print(f"best return {result.best_return:.4f} after {len(result.history)} iterations; "
+          f"peak fist speed {report['peak_fist_speed_mps']:.2f} m/s")
+    print(f"run directory: {out} (report: {out / 'report.md'})")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="punch", description="Train and run physics-based punching policies.")
     parser.add_argument("--version", action="version", version=f"punch {__version__}")
@@ -43,6 +55,23 @@ def build_parser() -> argparse.ArgumentParser:
     selfcheck.add_argument("--batch", type=int, default=8, help="rows of the test input batch")
     selfcheck.add_argument("--seed", type=int, default=0, help="seed of the test model and input")
     selfcheck.set_defaults(run=_selfcheck)
+
+    search = commands.add_parser("search", help="trajectory search (TTR) for a reward; writes a run directory")
+    from punch_trainer.search import SearchArgs
+
+    defaults = SearchArgs()
+    search.add_argument("--reward", default=defaults.reward, help="preset (straight, straight100, hook, swing) or FILE.py:FUNCTION")
+    search.add_argument("--frames", type=int, help="episode length in physics frames (default: the reward's)")
+    search.add_argument("--seed", type=int, default=defaults.seed)
+    search.add_argument("--out", type=Path, help="run directory (default runs/<reward>__<seed>__<time>)")
+    search.add_argument("--iterations", type=int, default=defaults.iterations)
+    search.add_argument("--rollouts", type=int, default=defaults.rollouts, help="sampled trajectories per iteration")
+    search.add_argument("--smoothing-window", dest="smoothing_window", type=int, default=defaults.smoothing_window)
+    search.add_argument("--plateau-iterations", dest="plateau_iterations", type=int, default=defaults.plateau_iterations)
+    search.add_argument("--time-budget-s", dest="time_budget_s", type=float)
+    search.add_argument("--processes", type=int, default=defaults.processes)
+    search.add_argument("--characters-per-process", dest="characters_per_process", type=int, default=defaults.characters_per_process)
+    search.set_defaults(run=_search)
 
     bench = commands.add_parser("bench", help="measure speed and write BENCHMARKS.md")
     bench_targets = bench.add_subparsers(dest="target", required=True)

@@ -15,16 +15,31 @@ pub struct BodyState {
     pub angular_velocity: Vec3,
 }
 
+/// Most contacts the engine reports on the bag per step (its `max_contacts_reported`).
+pub const MAX_BAG_CONTACTS: usize = 8;
+
+/// How far beyond the fist's surface a contact point on a forearm still counts as the fist's, m.
+pub const FIST_CONTACT_MARGIN_M: f32 = 0.02;
+
+/// One contact on the bag from a body of the character, as the engine reported it (world coordinates).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct BagContact {
+    /// Index into `Body::ALL` of the character's body.
+    pub body: usize,
+    pub point: Vec3,
+    /// Impulse applied to the bag, N s.
+    pub impulse: Vec3,
+}
+
 /// Everything read from the engine for one frame (world coordinates).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct FrameReading {
     /// Bodies in `Body::ALL` order.
     pub bodies: [BodyState; 6],
     pub bag: BodyState,
-    /// Contact impulse (N s) that each fist applied to the bag this frame: [right, left].
-    pub fist_impulses: [Vec3; 2],
-    /// Contact impulse (N s) that the whole character (fists, arms, torso) applied to the bag this frame.
-    pub character_impulse: Vec3,
+    /// The character's contacts on the bag this frame: the first `contact_count` entries.
+    pub contacts: [BagContact; MAX_BAG_CONTACTS],
+    pub contact_count: usize,
 }
 
 /// Geometry fixed for a character instance, read from its scene once.
@@ -53,7 +68,7 @@ pub mod guard {
     pub const JOINT_SEPARATED: u32 = 1 << 1;
     /// A fist is deep inside the bag.
     pub const PENETRATION: u32 = 1 << 2;
-    /// A body's velocity jumped without a contact to explain it (a body snapping back into place).
+    /// A body's velocity jumped with no contact on the bag to explain it (a body snapping back into place).
     pub const VELOCITY_JUMP: u32 = 1 << 3;
 
     pub const FIST_SPEED_LIMIT_MPS: f32 = 15.0;
@@ -63,7 +78,7 @@ pub mod guard {
     pub const PENETRATION_LIMIT_M: f32 = 0.03;
     /// Largest velocity change in one frame (m/s) that the drives can cause without a contact (about 60 g).
     pub const VELOCITY_JUMP_LIMIT_MPS: f32 = 10.0;
-    /// Contact impulse (N s) below which a body counts as not touching anything.
+    /// Contact impulse (N s) below which the character counts as not touching the bag.
     pub const CONTACT_IMPULSE_EPSILON: f32 = 1e-3;
 }
 
@@ -195,11 +210,13 @@ impl Sensor {
             None => Vec3::ZERO,
         };
 
+        let (fist_impulses, character_impulse) = self.contact_impulses(reading, &fists);
         let rotations = self.joint_rotations(reading);
         let angles = dof_angles(&rotations);
         let speeds = self.joint_speeds(reading);
         let joint_gap = self.largest_joint_gap(reading);
-        let flags = self.exploit_flags(reading, &fists, joint_gap);
+        let touching = character_impulse.length() > guard::CONTACT_IMPULSE_EPSILON;
+        let flags = self.exploit_flags(reading, &fists, joint_gap, touching);
 
         let mut out = [0.0f32; FEATURE_COUNT];
         let mut cursor = 0;
@@ -211,10 +228,10 @@ impl Sensor {
             push(&local_point(position).to_array());
             push(&local_vector(velocity).to_array());
         }
-        for impulse in reading.fist_impulses {
+        for impulse in fist_impulses {
             push(&local_vector(impulse).to_array());
         }
-        push(&local_vector(reading.character_impulse).to_array());
+        push(&local_vector(character_impulse).to_array());
         push(&local_point(bag_position).to_array());
         push(&local_vector(reading.bag.linear_velocity).to_array());
         push(&local_vector(bag_momentum_change).to_array());
@@ -239,6 +256,23 @@ impl Sensor {
         })
     }
 
+    /// Impulses on the bag this frame: by each fist (a forearm contact within the fist's radius plus a
+    /// margin of the fist's centre), and by the whole character.
+    fn contact_impulses(&self, reading: &FrameReading, fists: &[(Vec3, Vec3); 2]) -> ([Vec3; 2], Vec3) {
+        let mut by_fist = [Vec3::ZERO; 2];
+        let mut total = Vec3::ZERO;
+        let reach = self.geometry.fist_radius_m + FIST_CONTACT_MARGIN_M;
+        for contact in &reading.contacts[..reading.contact_count.min(MAX_BAG_CONTACTS)] {
+            total += contact.impulse;
+            for (side, forearm) in [Body::ForearmR, Body::ForearmL].into_iter().enumerate() {
+                if contact.body == forearm.index() && contact.point.distance(fists[side].0) <= reach {
+                    by_fist[side] += contact.impulse;
+                }
+            }
+        }
+        (by_fist, total)
+    }
+
     /// Largest distance (m) between a joint's anchor as seen from its parent and from its child.
     fn largest_joint_gap(&self, reading: &FrameReading) -> f32 {
         JOINTS
@@ -254,7 +288,7 @@ impl Sensor {
             .fold(0.0, f32::max)
     }
 
-    fn exploit_flags(&self, reading: &FrameReading, fists: &[(Vec3, Vec3); 2], joint_gap: f32) -> u32 {
+    fn exploit_flags(&self, reading: &FrameReading, fists: &[(Vec3, Vec3); 2], joint_gap: f32, touching: bool) -> u32 {
         let g = &self.geometry;
         let mut flags = 0;
         if fists.iter().any(|(_, velocity)| velocity.length() > guard::FIST_SPEED_LIMIT_MPS) {
@@ -274,7 +308,6 @@ impl Sensor {
             }
         }
         if let Some(previous) = &self.previous {
-            let touching = reading.fist_impulses.iter().any(|i| i.length() > guard::CONTACT_IMPULSE_EPSILON);
             let jumped = |now: &BodyState, before: &BodyState| {
                 (now.linear_velocity - before.linear_velocity).length() > guard::VELOCITY_JUMP_LIMIT_MPS
             };
@@ -401,6 +434,23 @@ mod tests {
     }
 
     #[test]
+    fn only_contacts_at_the_fist_count_as_the_fists() {
+        let mut sensor = Sensor::new(rest_geometry());
+        let mut reading = reading_at_rest();
+        let fist = sensor.fists(&reading)[0].0;
+        let forearm = Body::ForearmR.index();
+        reading.contacts[0] = BagContact { body: forearm, point: fist + Vec3::new(0.0, 0.0, 0.04), impulse: Vec3::Z };
+        reading.contacts[1] =
+            BagContact { body: forearm, point: fist + Vec3::new(0.0, 0.2, 0.0), impulse: 2.0 * Vec3::Z };
+        reading.contacts[2] = BagContact { body: Body::Torso.index(), point: Vec3::ZERO, impulse: 4.0 * Vec3::Z };
+        reading.contact_count = 3;
+        let features = sensor.features(&reading);
+        assert_eq!(features[feature_index("fist_r_impulse_z").expect("feature")], 1.0);
+        assert_eq!(features[feature_index("fist_l_impulse_z").expect("feature")], 0.0);
+        assert_eq!(features[feature_index("character_impulse_z").expect("feature")], 7.0);
+    }
+
+    #[test]
     fn a_hit_is_not_a_velocity_jump() {
         let mut sensor = Sensor::new(rest_geometry());
         let flags_index = feature_index("exploit_flags").expect("feature");
@@ -408,7 +458,10 @@ mod tests {
         reading.bodies[Body::ForearmR.index()].linear_velocity = Vec3::new(0.0, 0.0, 11.0);
         sensor.features(&reading);
         reading.bodies[Body::ForearmR.index()].linear_velocity = Vec3::ZERO;
-        reading.fist_impulses[0] = Vec3::new(0.0, 0.0, 15.0);
+        let fist = Sensor::new(rest_geometry()).fists(&reading)[0].0;
+        reading.contacts[0] =
+            BagContact { body: Body::ForearmR.index(), point: fist, impulse: Vec3::new(0.0, 0.0, 15.0) };
+        reading.contact_count = 1;
         assert_eq!(sensor.features(&reading)[flags_index] as u32 & guard::VELOCITY_JUMP, 0);
     }
 }

@@ -19,12 +19,12 @@ use godot::classes::physics_server_3d::{
 };
 use godot::classes::{
     CollisionShape3D, CylinderShape3D, Generic6DofJoint3D, Marker3D, Node, Node3D, PackedScene,
-    PhysicsDirectBodyState3D, PhysicsServer3D, PinJoint3D, RigidBody3D, Shape3D, SphereShape3D, World3D,
+    PhysicsDirectBodyState3D, PhysicsServer3D, PinJoint3D, RigidBody3D, Shape3D, World3D,
 };
 use godot::meta::ToGodot;
 use godot::obj::{Gd, NewGd, Singleton};
 use punch_core::character::{Axis, Body, JOINTS, engine_axis, joint_dofs};
-use punch_core::sensing::{BodyState, CharacterGeometry, FrameReading};
+use punch_core::sensing::{BagContact, BodyState, CharacterGeometry, FrameReading, MAX_BAG_CONTACTS};
 use punch_core::session::{BagPlacement, World};
 
 use crate::convert::{godot_axis, quat, vec3};
@@ -32,7 +32,7 @@ use crate::convert::{godot_axis, quat, vec3};
 /// Slots per arena: a slot uses two of the 32 collision layers, one for its character and one for its bag.
 const SLOTS_PER_ARENA: usize = 16;
 /// Contacts the bag reports per step (the trainer reads each fist's impulse on it).
-const BAG_MAX_CONTACTS: i32 = 8;
+const BAG_MAX_CONTACTS: i32 = MAX_BAG_CONTACTS as i32;
 
 /// One rigid body of a template: where it is relative to its scene's root, its mass properties and shapes.
 struct BodyTemplate {
@@ -102,7 +102,6 @@ struct CharacterTemplate {
     bodies: Vec<BodyTemplate>,
     /// Joint frames in the parent's and the child's local coordinates, `JOINTS` order.
     joint_frames: Vec<(Transform3D, Transform3D)>,
-    fist_shape_indices: [i32; 2],
     geometry: CharacterGeometry,
 }
 
@@ -156,26 +155,17 @@ impl CharacterTemplate {
             joint_frames.push(frames);
         }
         let mut fist_offsets = [Vec3::ZERO; 2];
-        let mut fist_shape_indices = [0; 2];
-        let mut fist_radius_m = 0.045;
-        for (side, (forearm, marker)) in
-            [(Body::ForearmR, "ForearmR/FistR"), (Body::ForearmL, "ForearmL/FistL")].into_iter().enumerate()
-        {
+        let mut fist_radius_m = 0.0;
+        for (side, path) in ["ForearmR/FistR", "ForearmL/FistL"].into_iter().enumerate() {
             let marker = root
-                .get_node_or_null(marker)
+                .get_node_or_null(path)
                 .and_then(|n| n.try_cast::<Marker3D>().ok())
-                .ok_or_else(|| format!("missing marker '{marker}'"))?;
+                .ok_or_else(|| format!("missing fist marker '{path}'"))?;
             fist_offsets[side] = vec3(marker.get_position());
-            // The fist is the forearm's sphere shape.
-            let shapes = &bodies[forearm.index()].shapes;
-            let index = shapes
-                .iter()
-                .position(|(shape, _)| shape.clone().try_cast::<SphereShape3D>().is_ok())
-                .ok_or("a forearm has no sphere (fist) shape")?;
-            fist_shape_indices[side] = index as i32;
-            if let Ok(sphere) = shapes[index].0.clone().try_cast::<SphereShape3D>() {
-                fist_radius_m = sphere.get_radius();
-            }
+            fist_radius_m = marker
+                .get_meta("radius_m")
+                .try_to::<f32>()
+                .map_err(|_| format!("'{path}' has no 'radius_m' metadata"))?;
         }
         let geometry = CharacterGeometry {
             rest_rotations: std::array::from_fn(|i| quat(bodies[i].transform.basis.get_quaternion())),
@@ -188,7 +178,7 @@ impl CharacterTemplate {
             root_rotation: glam::Quat::IDENTITY,
             root_position: Vec3::ZERO,
         };
-        Ok(Self { bodies, joint_frames, fist_shape_indices, geometry })
+        Ok(Self { bodies, joint_frames, geometry })
     }
 }
 
@@ -385,24 +375,21 @@ impl World for TrainingWorld {
         for (body, state) in bodies.iter_mut().zip(&slot.states) {
             *body = read_state(state);
         }
-        let mut fist_impulses = [Vec3::ZERO; 2];
-        let mut character_impulse = Vec3::ZERO;
-        let forearms = [slot.bodies[Body::ForearmR.index()], slot.bodies[Body::ForearmL.index()]];
+        let mut reading = FrameReading { bodies, bag: read_state(&slot.bag_state), ..FrameReading::default() };
         for contact in 0..slot.bag_state.get_contact_count() {
             let collider = slot.bag_state.get_contact_collider(contact);
-            if !slot.bodies.contains(&collider) {
-                continue;
+            let Some(body) = slot.bodies.iter().position(|rid| *rid == collider) else { continue };
+            if reading.contact_count == MAX_BAG_CONTACTS {
+                break;
             }
-            let impulse = vec3(slot.bag_state.get_contact_impulse(contact));
-            character_impulse += impulse;
-            let shape = slot.bag_state.get_contact_collider_shape(contact);
-            for side in 0..2 {
-                if collider == forearms[side] && shape == self.character.fist_shape_indices[side] {
-                    fist_impulses[side] += impulse;
-                }
-            }
+            reading.contacts[reading.contact_count] = BagContact {
+                body,
+                point: vec3(slot.bag_state.get_contact_local_position(contact)),
+                impulse: vec3(slot.bag_state.get_contact_impulse(contact)),
+            };
+            reading.contact_count += 1;
         }
-        FrameReading { bodies, bag: read_state(&slot.bag_state), fist_impulses, character_impulse }
+        reading
     }
 
     fn drive(&mut self, slot: usize, motor_velocities: &[Vec3; 5]) {

@@ -1,0 +1,63 @@
+"""Rewards: presets against hand-computed values, user reward files, and clear errors."""
+
+import numpy as np
+import pytest
+
+from punch_trainer.rewards import RewardError, evaluate, load_reward, total
+
+NAMES = ["fist_r_bag_distance", "fist_r_vel_x", "fist_r_vel_z", "fist_r_vel_y", "exploit_flags"]
+
+
+def features(distance, vx, vz, flags=0.0):
+    return np.array([[[distance, vx, vz, 0.0, flags]]], dtype=np.float32)
+
+
+def test_presets_match_table_2():
+    f = features(0.2, 1.0, 8.0)
+    near = (0.3 - 0.2) ** 2
+    assert total(evaluate(load_reward("straight"), f, NAMES))[0, 0] == pytest.approx(near * 10 * 8.0, rel=1e-5)
+    assert total(evaluate(load_reward("hook"), f, NAMES))[0, 0] == pytest.approx(near * 10 * (8.0 + 0.75), rel=1e-5)
+    assert total(evaluate(load_reward("swing"), f, NAMES))[0, 0] == pytest.approx(near * 500 * (8.0 + 0.5), rel=1e-5)
+    assert load_reward("straight").frames == 50 and load_reward("straight100").frames == 100
+    assert total(evaluate(load_reward("straight"), features(0.35, 0, 8.0), NAMES))[0, 0] == 0.0  # too far
+
+
+def test_terms_are_separate_and_guarded_frames_earn_nothing():
+    terms = evaluate(load_reward("hook"), features(0.1, 2.0, 5.0), NAMES)
+    assert set(terms) == {"forward", "sideways"}
+    guarded = evaluate(load_reward("hook"), features(0.1, 2.0, 5.0, flags=2.0), NAMES)
+    assert all(v[0, 0] == 0.0 for v in guarded.values())
+
+
+def test_user_reward_file(tmp_path):
+    path = tmp_path / "my_rewards.py"
+    path.write_text("import numpy as np\n\ndef uppercut(f):\n    return np.maximum(0, 0.3 - f['fist_r_bag_distance']) * f['fist_r_vel_y']\n")
+    reward = load_reward(f"{path}:uppercut", frames=100)
+    assert reward.frames == 100
+    f = features(0.1, 0.0, 0.0)
+    f[..., 3] = 4.0
+    assert total(evaluate(reward, f, NAMES))[0, 0] == pytest.approx(0.2 * 4.0, rel=1e-5)
+
+
+@pytest.mark.parametrize("body, message", [
+    ("def r(f):\n    raise ValueError('boom')\n", "raised ValueError: boom"),
+    ("def r(f):\n    return 1.0\n", "has shape"),
+    ("import numpy as np\ndef r(f):\n    return f['fist_r_vel_z'] * np.nan\n", "NaN"),
+    ("def r(f):\n    return f['no_such_feature']\n", "no feature 'no_such_feature'"),
+])
+def test_bad_rewards_are_named_in_the_error(tmp_path, body, message):
+    path = tmp_path / "bad.py"
+    path.write_text(body)
+    with pytest.raises(RewardError, match=message) as error:
+        evaluate(load_reward(f"{path}:r"), features(0.1, 0, 1.0), NAMES)
+    assert "bad.py:r" in str(error.value)
+
+
+@pytest.mark.parametrize("spec, message", [
+    ("nonsense", "unknown reward"),
+    ("missing_file.py:r", "not found"),
+    ("punch_trainer.rewards:no_such_function", "has no function"),
+])
+def test_unloadable_rewards(spec, message):
+    with pytest.raises(RewardError, match=message):
+        load_reward(spec)

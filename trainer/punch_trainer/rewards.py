@@ -1,0 +1,145 @@
+"""Rewards: Python functions of the per-frame features, the only thing a user writes to get a new motion.
+
+A reward receives a `Frames` view of features shaped [..., frames, F] (batched: every rollout at once) and
+returns either one array of per-frame rewards [..., frames] or a dict of named terms of that shape (their
+sum is the reward; each term is logged on its own). Frames the physics guard flagged earn nothing.
+
+    # my_rewards.py, used as: punch search --reward my_rewards.py:uppercut
+    def uppercut(f):
+        near = np.maximum(0.0, 0.3 - f["fist_r_bag_distance"]) ** 2
+        return {"up": near * 10.0 * f["fist_r_vel_y"], "forward": near * 5.0 * f["fist_r_vel_z"]}
+
+The presets are the paper's Table 2, with d the distance from the right fist to the bag's centre of mass
+and v the right fist's velocity (z toward the bag, x the character's left).
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from punch_trainer.errors import PunchError
+
+Terms = dict[str, np.ndarray]
+RewardFunction = Callable[["Frames"], "np.ndarray | Terms"]
+
+
+class RewardError(PunchError):
+    """A reward could not be loaded, raised, or returned something that is not a per-frame reward."""
+
+
+class Frames:
+    """Named access to features [..., frames, F]: `f["fist_r_vel_z"]` is [..., frames]."""
+
+    def __init__(self, features: np.ndarray, feature_names: list[str]):
+        self.features = features
+        self._index = {name: i for i, name in enumerate(feature_names)}
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        try:
+            return self.features[..., self._index[name]]
+        except KeyError:
+            raise KeyError(f"no feature '{name}'; features are: {', '.join(self._index)}") from None
+
+    @property
+    def names(self) -> list[str]:
+        return list(self._index)
+
+
+def _near(f: Frames) -> np.ndarray:
+    return np.maximum(0.0, 0.3 - f["fist_r_bag_distance"]) ** 2
+
+
+def straight(f: Frames) -> Terms:
+    """(a) straight: max(0, 0.3 - d)^2 * 10 * v_z."""
+    return {"forward": _near(f) * 10.0 * f["fist_r_vel_z"]}
+
+
+def hook(f: Frames) -> Terms:
+    """(c) hook: max(0, 0.3 - d)^2 * 10 * (v_z + 0.75 v_x)."""
+    near = _near(f)
+    return {"forward": near * 10.0 * f["fist_r_vel_z"], "sideways": near * 10.0 * 0.75 * f["fist_r_vel_x"]}
+
+
+def swing(f: Frames) -> Terms:
+    """(d) swing: max(0, 0.3 - d)^2 * 500 * (v_z + 0.5 v_x)."""
+    near = _near(f)
+    return {"forward": near * 500.0 * f["fist_r_vel_z"], "sideways": near * 500.0 * 0.5 * f["fist_r_vel_x"]}
+
+
+@dataclass(frozen=True)
+class Reward:
+    """A reward and the episode length it is meant for."""
+
+    name: str
+    function: RewardFunction
+    frames: int
+
+
+PRESETS = {
+    "straight": Reward("straight", straight, 50),
+    "straight100": Reward("straight100", straight, 100),
+    "hook": Reward("hook", hook, 50),
+    "swing": Reward("swing", swing, 50),
+}
+
+
+def load_reward(spec: str, frames: int | None = None) -> Reward:
+    """A preset name, `path/to/file.py:function` or `package.module:function`; `frames` overrides the
+    preset's episode length (default 50 for user rewards)."""
+    if spec in PRESETS:
+        preset = PRESETS[spec]
+        return Reward(preset.name, preset.function, frames or preset.frames)
+    if ":" not in spec:
+        raise RewardError(f"unknown reward '{spec}': use a preset ({', '.join(PRESETS)}) or FILE.py:FUNCTION")
+    location, function_name = spec.rsplit(":", 1)
+    try:
+        if location.endswith(".py"):
+            path = Path(location)
+            if not path.is_file():
+                raise RewardError(f"reward file not found: {path}")
+            module_spec = importlib.util.spec_from_file_location(f"punch_user_reward_{path.stem}", path)
+            module = importlib.util.module_from_spec(module_spec)
+            module_spec.loader.exec_module(module)
+        else:
+            module = importlib.import_module(location)
+    except RewardError:
+        raise
+    except Exception as error:  # the user's module may fail in any way; say so, with its message
+        raise RewardError(f"reward '{spec}': importing {location} failed: {type(error).__name__}: {error}") from error
+    function = getattr(module, function_name, None)
+    if not callable(function):
+        raise RewardError(f"reward '{spec}': {location} has no function '{function_name}'")
+    return Reward(spec, function, frames or 50)
+
+
+def evaluate(reward: Reward, features: np.ndarray, feature_names: list[str]) -> Terms:
+    """Per-frame reward terms [..., frames] of `features` [..., frames, F], with guarded frames zeroed.
+    Raises RewardError naming the reward when it raises, returns the wrong shape, or returns NaN."""
+    frames = Frames(features, feature_names)
+    try:
+        result = reward.function(frames)
+    except Exception as error:  # the user's code may fail in any way; say which reward and why
+        raise RewardError(f"reward '{reward.name}' raised {type(error).__name__}: {error}") from error
+    terms = result if isinstance(result, dict) else {"reward": result}
+    expected = features.shape[:-1]
+    guarded = frames["exploit_flags"] != 0
+    out = {}
+    for name, values in terms.items():
+        values = np.asarray(values, dtype=np.float64)
+        if values.shape != expected:
+            raise RewardError(f"reward '{reward.name}' term '{name}' has shape {values.shape}; expected {expected} (one value per frame)")
+        if not np.all(np.isfinite(values)):
+            raise RewardError(f"reward '{reward.name}' term '{name}' returned NaN or infinity")
+        out[name] = np.where(guarded, 0.0, values)
+    return out
+
+
+def total(terms: Terms) -> np.ndarray:
+    """The reward: the sum of the terms, [..., frames]."""
+    return sum(terms.values())
