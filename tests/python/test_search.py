@@ -49,3 +49,30 @@ def test_a_reward_written_from_scratch_drives_the_search(tmp_path):
                                          rollouts=16, characters_per_process=16, plateau_iterations=0), progress=False)
     heights = result.best_features[:, result.feature_names.index("fist_r_pos_y")]
     assert heights.mean() > 1.55, "the search should lift the right fist above its guard height (1.49 m)"
+
+
+def test_capture_clip_reads_as_a_punch():
+    from punch_trainer.mocap import DEFAULT_BVH, captured_punch
+
+    if not DEFAULT_BVH.is_file():
+        pytest.skip(f"{DEFAULT_BVH} is not there")
+    punch = captured_punch(DEFAULT_BVH)
+    reach = punch["hand"][-1]
+    assert reach[2] == pytest.approx(np.linalg.norm(reach), rel=0.05), "aligned: the reach points forward"
+    assert 0.5 < np.linalg.norm(reach) <= 0.62, "scaled: full reach near the character's 0.619 m arm"
+    assert 3.0 < float(punch["peak_speed_mps"]) < 12.0
+
+
+@pytest.mark.godot
+def test_baselines_run_on_the_same_environment():
+    from punch_trainer.baselines import cem, cma_es
+    from punch_trainer.rewards import load_reward
+    from punch_trainer.rollouts import RolloutPool
+
+    args = SearchArgs(iterations=3, rollouts=16, characters_per_process=16)
+    with RolloutPool(1, 16) as pool:
+        for method in (cem, cma_es):
+            history = method(args, load_reward("straight"), pool)
+            best = [row["best_return"] for row in history]
+            assert len(history) == 3 and best == sorted(best), f"{method.__name__}: best return must never fall"
+            assert history[-1]["rollouts"] == 48

@@ -112,3 +112,69 @@ def write_section(name: str, command: str, body: str) -> Path:
     text = pattern.sub(lambda _: section, text) if pattern.search(text) else text.rstrip() + "\n\n" + section + "\n"
     BENCHMARKS_FILE.write_text(text)
     return BENCHMARKS_FILE
+
+
+def bench_search(plot_path: Path, presets=("straight", "straight100", "hook", "swing"), seeds=(0, 1, 2),
+                 iterations: int = 100, rollouts: int = 64, characters_per_process: int = 64) -> list[dict]:
+    """TTR, CEM and CMA-ES on the same presets, seeds and rollout budget. Returns one row per (preset,
+    method, seed) and writes a plot of return against rollouts and against wall time to `plot_path`."""
+    from punch_trainer.baselines import cem, cma_es
+    from punch_trainer.rewards import load_reward
+    from punch_trainer.rollouts import RolloutPool
+    from punch_trainer.search import SearchArgs, trajectory_search
+
+    methods = {"TTR": lambda a, r, p: trajectory_search(a, r, p, progress=False).history, "CEM": cem, "CMA-ES": cma_es}
+    rows, curves = [], {}
+    with RolloutPool(1, characters_per_process) as pool:
+        jobs = [(preset, method, seed) for preset in presets for method in methods for seed in seeds]
+        for preset, method, seed in tqdm(jobs, desc="bench search", unit="run"):
+            reward = load_reward(preset)
+            args = SearchArgs(reward=preset, seed=seed, iterations=iterations, rollouts=rollouts, plateau_iterations=0)
+            history = methods[method](args, reward, pool)
+            final = history[-1]["best_return"]
+            reach = next((h for h in history if h["best_return"] >= 0.95 * final), history[-1])
+            rows.append({"preset": preset, "method": method, "seed": seed, "final_return": final,
+                         "rollouts": history[-1]["rollouts"], "wall_s": history[-1]["elapsed_s"],
+                         "s_to_95": reach["elapsed_s"], "rollouts_to_95": reach["rollouts"]})
+            curves[(preset, method, seed)] = history
+    _plot_search_bench(curves, presets, list(methods), plot_path)
+    return rows
+
+
+def _plot_search_bench(curves: dict, presets, methods, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, axes = plt.subplots(2, len(presets), figsize=(4 * len(presets), 6.5), squeeze=False)
+    for column, preset in enumerate(presets):
+        for method, color in zip(methods, ["tab:red", "tab:blue", "tab:green"]):
+            for (p, m, seed), history in curves.items():
+                if p != preset or m != method:
+                    continue
+                label = method if seed == 0 else None
+                axes[0][column].plot([h["rollouts"] for h in history], [h["best_return"] for h in history], color=color, alpha=0.7, label=label)
+                axes[1][column].plot([h["elapsed_s"] for h in history], [h["best_return"] for h in history], color=color, alpha=0.7, label=label)
+        axes[0][column].set_title(preset)
+        axes[0][column].set_xlabel("rollouts")
+        axes[1][column].set_xlabel("wall time (s)")
+        for row in axes:
+            row[column].set_ylabel("best return")
+            row[column].grid(alpha=0.3)
+    axes[0][0].legend()
+    figure.tight_layout()
+    figure.savefig(path, dpi=90)
+    plt.close(figure)
+
+
+def search_table(rows: list[dict]) -> str:
+    lines = ["| preset | method | final best return (mean +- sd over seeds) | rollouts | wall time (s) | time to 95% of own final (s) |",
+             "|---|---|---|---|---|---|"]
+    keys = dict.fromkeys((r["preset"], r["method"]) for r in rows)
+    for preset, method in keys:
+        group = [r for r in rows if r["preset"] == preset and r["method"] == method]
+        finals = np.array([r["final_return"] for r in group])
+        lines.append(f"| {preset} | {method} | {finals.mean():.3f} +- {finals.std():.3f} | {group[0]['rollouts']} | "
+                     f"{np.mean([r['wall_s'] for r in group]):.1f} | {np.mean([r['s_to_95'] for r in group]):.1f} |")
+    return "\n".join(lines)

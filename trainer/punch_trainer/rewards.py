@@ -74,18 +74,22 @@ def swing(f: Frames) -> Terms:
 
 @dataclass(frozen=True)
 class Reward:
-    """A reward and the episode length it is meant for."""
+    """A reward, the episode length it is meant for, and the trajectory search's sigma clip for it."""
 
     name: str
     function: RewardFunction
     frames: int
+    # How fast TTR may narrow its search (see punch_trainer.search). The swing's half-circle sweep lies far
+    # from the guard pose and needs exploration to last longer: measured over 2 seeds at 6,400 rollouts,
+    # 0.1 gave a best return of 338 against 251 for 0.2, while 0.2 was better for hook and straight100.
+    search_clip_epsilon: float = 0.2
 
 
 PRESETS = {
     "straight": Reward("straight", straight, 50),
     "straight100": Reward("straight100", straight, 100),
     "hook": Reward("hook", hook, 50),
-    "swing": Reward("swing", swing, 50),
+    "swing": Reward("swing", swing, 50, search_clip_epsilon=0.1),
 }
 
 
@@ -94,7 +98,7 @@ def load_reward(spec: str, frames: int | None = None) -> Reward:
     preset's episode length (default 50 for user rewards)."""
     if spec in PRESETS:
         preset = PRESETS[spec]
-        return Reward(preset.name, preset.function, frames or preset.frames)
+        return Reward(preset.name, preset.function, frames or preset.frames, preset.search_clip_epsilon)
     if ":" not in spec:
         raise RewardError(f"unknown reward '{spec}': use a preset ({', '.join(PRESETS)}) or FILE.py:FUNCTION")
     location, function_name = spec.rsplit(":", 1)

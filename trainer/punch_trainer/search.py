@@ -12,8 +12,8 @@ Sigma rule (the paper names only its ingredients: the advantage of each rollout 
    the temperature s is the standard deviation of the iteration's returns.
 2. The proposed sigma is the weighted spread of the samples around the best trajectory:
    sqrt(sum_i w_i (a_i - mu)^2).
-3. The proposal may change sigma by at most a factor of 1 +- epsilon per iteration (the PPO clip; 0.2 by
-   default), and never below `sigma_min`.
+3. The proposal may change sigma by at most a factor of 1 +- epsilon per iteration (the PPO clip), and
+   never below `sigma_min`. Epsilon is 0.2 by default; the `swing` preset uses 0.1 (rewards.py says why).
 
 Why: while no sample beats the others, the weights stay flat and the spread stays near the current sigma,
 so the search stays wide. Once good samples cluster around the best, their weights dominate and sigma
@@ -56,8 +56,8 @@ class SearchArgs:
     """sampled trajectories per iteration (n_t)"""
     sigma_init: float = 1.0
     sigma_min: float = 0.02
-    clip_epsilon: float = 0.2
-    """largest relative change of sigma per iteration (PPO-style clip)"""
+    clip_epsilon: float | None = None
+    """largest relative change of sigma per iteration (PPO-style clip); default: the reward's (0.2, swing 0.1)"""
     smoothing_window: int = 3
     """Eq. 1 window n (1: no smoothing)"""
     plateau_iterations: int = 40
@@ -91,18 +91,25 @@ def update_sigma(samples: np.ndarray, returns: np.ndarray, mu: np.ndarray, best_
     return np.maximum(np.clip(spread, (1 - clip_epsilon) * sigma, (1 + clip_epsilon) * sigma), sigma_min)
 
 
+def evaluate_actions(pool: RolloutPool, reward: Reward, actions: np.ndarray, smoothing_window: int):
+    """Runs raw action sequences [M, decisions, 10] and scores them: (returns [M], per-frame terms,
+    features [M, frames, F], executed actions [M, decisions, 10])."""
+    features, executed = pool.run(actions, smoothing_window)
+    terms = evaluate(reward, features, pool.info.feature_names)
+    return total(terms).sum(axis=-1), terms, features, executed
+
+
 def trajectory_search(args: SearchArgs, reward: Reward, pool: RolloutPool, progress: bool = True) -> SearchResult:
     """Runs TTR on `pool` until a stopping rule fires."""
     rng = np.random.default_rng(args.seed)
     names = pool.info.feature_names
+    clip_epsilon = args.clip_epsilon if args.clip_epsilon is not None else reward.search_clip_epsilon
     decisions = reward.frames // args.decision_period
     mu = np.zeros((decisions, DOF_COUNT), dtype=np.float32)
     sigma = np.full((decisions, DOF_COUNT), args.sigma_init, dtype=np.float64)
 
     def returns_of(actions: np.ndarray):
-        features, executed = pool.run(actions, args.smoothing_window)
-        terms = evaluate(reward, features, names)
-        return total(terms).sum(axis=-1), terms, features, executed
+        return evaluate_actions(pool, reward, actions, args.smoothing_window)
 
     start = time.perf_counter()
     returns, terms, features, executed = returns_of(mu[None])
@@ -120,7 +127,7 @@ def trajectory_search(args: SearchArgs, reward: Reward, pool: RolloutPool, progr
             best = SearchResult(mu.copy(), executed[top], float(returns[top]), features[top],
                                 {k: float(v[top].sum()) for k, v in terms.items()}, best.history, names)
             last_improvement = iteration
-        sigma = update_sigma(samples, returns, mu, best.best_return, sigma, args.clip_epsilon, args.sigma_min)
+        sigma = update_sigma(samples, returns, mu, best.best_return, sigma, clip_epsilon, args.sigma_min)
         elapsed = time.perf_counter() - start
         best.history.append({
             "iteration": iteration, "rollouts": rollouts_done, "elapsed_s": round(elapsed, 4),
@@ -201,7 +208,8 @@ def motion_report(dataset: dict[str, np.ndarray]) -> dict[str, float | list[floa
 def write_run(out: Path, args: SearchArgs, reward: Reward, result: SearchResult, dataset: dict, report: dict, info) -> None:
     out.mkdir(parents=True, exist_ok=True)
     config = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(args).items()}
-    config.update(frames=reward.frames, punch_version=__version__, spec_hash=info.spec_hash, extension_version=info.extension_version)
+    config.update(frames=reward.frames, punch_version=__version__, spec_hash=info.spec_hash, extension_version=info.extension_version,
+                  clip_epsilon=args.clip_epsilon if args.clip_epsilon is not None else reward.search_clip_epsilon)
     (out / "config.json").write_text(json.dumps(config, indent=2) + "\n")
     with open(out / "metrics.csv", "w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=list(result.history[0]) if result.history else ["iteration"])
@@ -211,6 +219,12 @@ def write_run(out: Path, args: SearchArgs, reward: Reward, result: SearchResult,
     from punch_trainer.plots import plot_search
 
     plots = plot_search(out, result, dataset)
+    from punch_trainer.mocap import DEFAULT_BVH, captured_punch, plot_against_capture
+
+    capture_plot = plot_against_capture(out, dataset)
+    if capture_plot is not None:
+        plots.append(capture_plot)
+        report["captured_punch_peak_speed_mps"] = float(captured_punch(DEFAULT_BVH)["peak_speed_mps"])
     lines = [
         f"# Trajectory search: {reward.name}", "",
         f"- best return: {result.best_return:.4f} ({', '.join(f'{k} {v:.4f}' for k, v in result.best_terms.items())})",
@@ -225,6 +239,9 @@ def write_run(out: Path, args: SearchArgs, reward: Reward, result: SearchResult,
                      f"contact point relative to the bag's centre (x left, y up, z away): {report['contact_point_from_bag_centre_m']} m")
     else:
         lines.append(f"- no contact with the bag (closest distance {report['closest_fist_bag_distance_m']:.3f} m)")
+    if "captured_punch_peak_speed_mps" in report:
+        lines.append(f"- captured punch (CMU 143/23, scaled to this arm): peak hand speed {report['captured_punch_peak_speed_mps']:.2f} m/s; "
+                     "fist_vs_capture.png compares the paths, aligned at the shoulder")
     lines += ["", "## Plots", ""] + [f"![{p.stem}]({p.name})" for p in plots]
     (out / "report.md").write_text("\n".join(lines) + "\n")
     (out / "motion.json").write_text(json.dumps(report, indent=2) + "\n")
