@@ -15,7 +15,7 @@ from tqdm import tqdm
 
 from punch_trainer.godot import PROJECT_ROOT
 from punch_trainer.protocol import Message
-from punch_trainer.server import TrainingServer
+from punch_trainer.server import exchange, start_servers
 
 BENCHMARKS_FILE = PROJECT_ROOT / "BENCHMARKS.md"
 
@@ -43,12 +43,6 @@ def machine_description() -> str:
     return f"{cpu}, {os.cpu_count()} cores, {platform.system()} {platform.release()}"
 
 
-def _gather(servers: list[TrainingServer], messages: list[Message]) -> list[Message]:
-    for server, message in zip(servers, messages, strict=True):
-        server.send(message)
-    return [server.receive() for server in servers]
-
-
 def bench_env(characters=(1, 16, 64), processes=(1, 2), frames: int = 50, episodes: int = 6, seed: int = 0) -> list[EnvThroughput]:
     """Character-physics-frames per second through the real socket, open and closed loop. Each measurement
     runs `episodes` full episodes (reset included) after one warm-up episode."""
@@ -56,34 +50,34 @@ def bench_env(characters=(1, 16, 64), processes=(1, 2), frames: int = 50, episod
     results = []
     configurations = [(k, n) for k in processes for n in characters]
     for k, n in tqdm(configurations, desc="bench env", unit="config"):
-        servers = [TrainingServer(n) for _ in range(k)]
+        servers = start_servers(k, n)
         try:
             decisions = frames // servers[0].info.decision_period
             actions = rng.uniform(-1, 1, size=(n, decisions, 10)).astype(np.float32)
             rollout = Message("rollout", arrays={"actions": actions})
-            _gather(servers, [rollout] * k)  # warm-up
+            exchange(servers, [rollout] * k)  # warm-up
             start = time.perf_counter()
             for _ in range(episodes):
-                _gather(servers, [rollout] * k)
+                exchange(servers, [rollout] * k)
             elapsed = time.perf_counter() - start
             # Split an episode's cost: resets alone, and the per-frame rate from a much longer rollout.
             start = time.perf_counter()
             for _ in range(episodes):
-                _gather(servers, [Message("reset", {"frames": frames})] * k)
+                exchange(servers, [Message("reset", {"frames": frames})] * k)
             reset_s = (time.perf_counter() - start) / episodes
             long = Message("rollout", arrays={"actions": np.tile(actions, (1, 8, 1))})
             start = time.perf_counter()
-            _gather(servers, [long] * k)
+            exchange(servers, [long] * k)
             long_s = time.perf_counter() - start
             steady = k * n * (8 * frames - frames) / max(long_s - elapsed / episodes, 1e-9)
             results.append(EnvThroughput(k, n, "open loop", k * n * frames * episodes / elapsed, 1000 * reset_s, steady))
 
             start = time.perf_counter()
             for _ in range(episodes):
-                _gather(servers, [Message("reset", {"frames": frames})] * k)
+                exchange(servers, [Message("reset", {"frames": frames})] * k)
                 for decision in range(decisions):
                     step = Message("step", arrays={"actions": actions[:, decision]})
-                    _gather(servers, [step] * k)
+                    exchange(servers, [step] * k)
             elapsed = time.perf_counter() - start
             results.append(EnvThroughput(k, n, "closed loop", k * n * frames * episodes / elapsed))
         finally:

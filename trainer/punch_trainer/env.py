@@ -24,7 +24,7 @@ import gymnasium as gym
 import numpy as np
 
 from punch_trainer.protocol import Message
-from punch_trainer.server import TrainingServer
+from punch_trainer.server import TrainingServer, exchange, start_servers
 
 RewardFn = Callable[[np.ndarray], float]
 
@@ -94,13 +94,7 @@ class PunchVectorEnv(gym.vector.VectorEnv):
 
     def __init__(self, processes: int = 1, characters_per_process: int = 16, *, frames: int = 50,
                  decision_period: int = 5, reward_fn: RewardFn | None = None, bag_jitter_m: float = 0.0):
-        self.servers: list[TrainingServer] = []
-        try:
-            for _ in range(processes):
-                self.servers.append(TrainingServer(characters_per_process, decision_period=decision_period))
-        except BaseException:
-            self.close()
-            raise
+        self.servers = start_servers(processes, characters_per_process, decision_period)
         info = self.servers[0].info
         self.characters_per_process = characters_per_process
         self.num_envs = processes * characters_per_process
@@ -114,17 +108,12 @@ class PunchVectorEnv(gym.vector.VectorEnv):
         self.action_space = gym.vector.utils.batch_space(self.single_action_space, self.num_envs)
         self._needs_reset = True
 
-    def _gather(self, messages: list[Message]) -> list[Message]:
-        for server, message in zip(self.servers, messages, strict=True):
-            server.send(message)
-        return [server.receive() for server in self.servers]
-
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         if seed is not None:
             self._np_random, self._np_random_seed = gym.utils.seeding.np_random(seed)
         bags = _bag_options(options, self.np_random, self.num_envs, self.bag_jitter_m)
         n = self.characters_per_process
-        replies = self._gather([Message("reset", {"frames": self.frames, "bags": bags[p * n:(p + 1) * n]})
+        replies = exchange(self.servers, [Message("reset", {"frames": self.frames, "bags": bags[p * n:(p + 1) * n]})
                                 for p in range(len(self.servers))])
         self._needs_reset = False
         observations = np.concatenate([r.arrays["observations"] for r in replies])
@@ -137,7 +126,7 @@ class PunchVectorEnv(gym.vector.VectorEnv):
             return observations, np.zeros(self.num_envs), zeros, zeros.copy(), info
         actions = np.asarray(actions, dtype=np.float32).reshape(self.num_envs, -1)
         n = self.characters_per_process
-        replies = self._gather([Message("step", arrays={"actions": actions[p * n:(p + 1) * n]})
+        replies = exchange(self.servers, [Message("step", arrays={"actions": actions[p * n:(p + 1) * n]})
                                 for p in range(len(self.servers))])
         features = np.concatenate([r.arrays["features"] for r in replies])
         terminated = np.concatenate([r.fields["terminated"] for r in replies]).astype(bool)

@@ -5,20 +5,14 @@ from __future__ import annotations
 import numpy as np
 
 from punch_trainer.protocol import Message
-from punch_trainer.server import TrainingServer
+from punch_trainer.server import exchange, start_servers
 
 
 class RolloutPool:
     """Runs any number of open-loop action sequences, `slots` at a time in parallel processes."""
 
     def __init__(self, processes: int = 1, characters_per_process: int = 32, *, decision_period: int = 5):
-        self.servers: list[TrainingServer] = []
-        try:
-            for _ in range(processes):
-                self.servers.append(TrainingServer(characters_per_process, decision_period=decision_period))
-        except BaseException:
-            self.close()
-            raise
+        self.servers = start_servers(processes, characters_per_process, decision_period)
         self.info = self.servers[0].info
         self.characters_per_process = characters_per_process
         self.slots = processes * characters_per_process
@@ -32,9 +26,8 @@ class RolloutPool:
             chunk = actions[start:start + self.slots]
             padded = np.zeros((self.slots, *actions.shape[1:]), dtype=np.float32)
             padded[:len(chunk)] = chunk  # unused slots run the guard pose; their results are dropped
-            for server, part in zip(self.servers, np.split(padded, len(self.servers))):
-                server.send(Message("rollout", {"smoothing_window": smoothing_window}, {"actions": part}))
-            replies = [server.receive() for server in self.servers]
+            parts = np.split(padded, len(self.servers))
+            replies = exchange(self.servers, [Message("rollout", {"smoothing_window": smoothing_window}, {"actions": part}) for part in parts])
             features.append(np.concatenate([r.arrays["features"] for r in replies])[:len(chunk)])
             executed.append(np.concatenate([r.arrays["executed_actions"] for r in replies])[:len(chunk)])
         return np.concatenate(features), np.concatenate(executed)

@@ -170,4 +170,25 @@ class TrainingServer:
         self.close()
 
 
-__all__ = ["ServerError", "ServerInfo", "TrainingServer", "ProtocolVersionError"]
+def start_servers(processes: int, characters_per_process: int, decision_period: int = 5) -> list[TrainingServer]:
+    """K servers with N characters each; if one fails to start, the others are closed before the error
+    propagates."""
+    servers: list[TrainingServer] = []
+    try:
+        for _ in range(processes):
+            servers.append(TrainingServer(characters_per_process, decision_period=decision_period))
+    except BaseException:
+        for server in servers:
+            server.close()
+        raise
+    return servers
+
+
+def exchange(servers: list[TrainingServer], messages: list[Message]) -> list[Message]:
+    """Sends one message to each server, then reads every reply: the processes work in parallel."""
+    for server, message in zip(servers, messages, strict=True):
+        server.send(message)
+    return [server.receive() for server in servers]
+
+
+__all__ = ["ServerError", "ServerInfo", "TrainingServer", "ProtocolVersionError", "exchange", "start_servers"]
