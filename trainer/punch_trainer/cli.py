@@ -72,6 +72,16 @@ def _bench_search(args: argparse.Namespace) -> int:
     return 0
 
 
+def _train(args: argparse.Namespace) -> int:
+    from punch_trainer.train import TrainArgs, run_train
+
+    fields = {k: getattr(args, k) for k in TrainArgs.__dataclass_fields__ if getattr(args, k, None) is not None}
+    out = run_train(TrainArgs(**fields))
+    print((out / "report.md").read_text())
+    print(f"report: {out / 'report.md'}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="punch", description="Train and run physics-based punching policies.")
     parser.add_argument("--version", action="version", version=f"punch {__version__}")
@@ -98,6 +108,16 @@ def build_parser() -> argparse.ArgumentParser:
     search.add_argument("--processes", type=int, default=defaults.processes)
     search.add_argument("--characters-per-process", dest="characters_per_process", type=int, default=defaults.characters_per_process)
     search.set_defaults(run=_search)
+
+    train = commands.add_parser("train", help="search, pretraining, A2C and ONNX export for a reward")
+    train.add_argument("--reward", default="straight", help="preset or FILE.py:FUNCTION")
+    train.add_argument("--frames", type=int)
+    train.add_argument("--seed", type=int)
+    train.add_argument("--out", type=Path)
+    train.add_argument("--search-iterations", dest="search_iterations", type=int)
+    train.add_argument("--a2c-updates", dest="a2c_updates", type=int)
+    train.add_argument("--advantage", choices=["gae", "paper"])
+    train.set_defaults(run=_train)
 
     bench = commands.add_parser("bench", help="measure speed and write BENCHMARKS.md")
     bench_targets = bench.add_subparsers(dest="target", required=True)

@@ -93,15 +93,18 @@ class PunchVectorEnv(gym.vector.VectorEnv):
     metadata = {"autoreset_mode": gym.vector.AutoresetMode.NEXT_STEP}
 
     def __init__(self, processes: int = 1, characters_per_process: int = 16, *, frames: int = 50,
-                 decision_period: int = 5, reward_fn: RewardFn | None = None, bag_jitter_m: float = 0.0):
+                 decision_period: int = 5, smoothing_window: int = 1, reward_fn: RewardFn | None = None,
+                 bag_jitter_m: float = 0.0):
         self.servers = start_servers(processes, characters_per_process, decision_period)
         info = self.servers[0].info
         self.characters_per_process = characters_per_process
         self.num_envs = processes * characters_per_process
         self.frames = frames
+        self.smoothing_window = smoothing_window
         self.reward_fn = reward_fn
         self.bag_jitter_m = bag_jitter_m
         self.feature_names = info.feature_names
+        self.spec_hash = info.spec_hash
         self.single_observation_space = gym.spaces.Box(-np.inf, np.inf, (len(info.observation_names),), np.float32)
         self.single_action_space = gym.spaces.Box(-1.0, 1.0, (len(info.action_names),), np.float32)
         self.observation_space = gym.vector.utils.batch_space(self.single_observation_space, self.num_envs)
@@ -113,7 +116,8 @@ class PunchVectorEnv(gym.vector.VectorEnv):
             self._np_random, self._np_random_seed = gym.utils.seeding.np_random(seed)
         bags = _bag_options(options, self.np_random, self.num_envs, self.bag_jitter_m)
         n = self.characters_per_process
-        replies = exchange(self.servers, [Message("reset", {"frames": self.frames, "bags": bags[p * n:(p + 1) * n]})
+        fields = {"frames": self.frames, "smoothing_window": self.smoothing_window}
+        replies = exchange(self.servers, [Message("reset", {**fields, "bags": bags[p * n:(p + 1) * n]})
                                 for p in range(len(self.servers))])
         self._needs_reset = False
         observations = np.concatenate([r.arrays["observations"] for r in replies])

@@ -1,0 +1,124 @@
+"""`punch train`: the whole pipeline for one reward. Trajectory search, then the dataset, supervised
+pretraining, A2C, and export to ONNX, ending with a noise-free replay of the exported policy in the
+simulator. Everything goes into one run directory with a short report."""
+
+from __future__ import annotations
+
+import csv
+import json
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import onnxruntime
+
+from punch_trainer import __version__
+from punch_trainer.a2c import A2CArgs, decision_rewards, evaluate_noise_free, train_a2c
+from punch_trainer.env import PunchVectorEnv
+from punch_trainer.export import export_policy
+from punch_trainer.policy import Actor, ActorCritic
+from punch_trainer.pretrain import PretrainArgs, load_datasets, pretrain
+from punch_trainer.rewards import load_reward
+from punch_trainer.search import SearchArgs, run_search
+
+
+@dataclass
+class TrainArgs:
+    reward: str = "straight"
+    frames: int | None = None
+    seed: int = 0
+    out: Path | None = None
+    search_iterations: int = 100
+    search_rollouts: int = 64
+    smoothing_window: int = 3
+    pretrain_epochs: int = 1500
+    a2c_updates: int = 40
+    a2c_characters: int = 32
+    advantage: str = "gae"
+    a2c_time_budget_s: float | None = 60.0
+
+
+def replay_onnx(path: Path, env: PunchVectorEnv, reward, sigma: float = 0.0, seed: int = 0) -> tuple[float, np.ndarray]:
+    """Runs the exported policy with onnxruntime in the simulator (noise `sigma` on its mean); returns
+    character 0's return and its features [frames, F]."""
+    session = onnxruntime.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    rng = np.random.default_rng(seed)
+    obs, _ = env.reset()
+    total_return, frames = 0.0, []
+    while True:
+        mean, _ = session.run(None, {"obs": obs.astype(np.float32)})
+        action = np.clip(mean + sigma * rng.standard_normal(mean.shape), -1, 1).astype(np.float32)
+        obs, _, terminated, truncated, info = env.step(action)
+        total_return += float(decision_rewards(reward, info["features"][:1], env.feature_names)[0])
+        frames.append(info["features"][0])
+        if terminated[0] or truncated[0]:
+            return total_return, np.concatenate(frames)
+
+
+def run_train(args: TrainArgs, progress: bool = True) -> Path:
+    started = time.perf_counter()
+    reward = load_reward(args.reward, args.frames)
+    out = args.out or Path("runs") / f"train_{reward.name.replace('/', '_').replace(':', '_')}__{args.seed}__{int(time.time())}"
+    timings = {}
+
+    search_args = SearchArgs(reward=args.reward, frames=reward.frames, seed=args.seed, out=out / "search",
+                             iterations=args.search_iterations, rollouts=args.search_rollouts,
+                             smoothing_window=args.smoothing_window)
+    _, search, _ = run_search(search_args, progress)
+    timings["search_s"] = time.perf_counter() - started
+
+    data = load_datasets([out / "search" / "dataset.npz"])
+    model = ActorCritic(data["observations"].shape[1], data["actions"].shape[1])
+    pretrain_history = pretrain(model, data, PretrainArgs(epochs=args.pretrain_epochs, seed=args.seed), progress)
+    timings["pretrain_s"] = time.perf_counter() - started - timings["search_s"]
+
+    env = PunchVectorEnv(1, args.a2c_characters, frames=reward.frames, smoothing_window=args.smoothing_window)
+    try:
+        pretrained_return = evaluate_noise_free(model, env, reward)
+        a2c_args = A2CArgs(updates=args.a2c_updates, characters=args.a2c_characters, advantage=args.advantage,
+                           smoothing_window=args.smoothing_window, time_budget_s=args.a2c_time_budget_s, seed=args.seed)
+        model, a2c_history = train_a2c(model, reward, a2c_args, env, progress, start_rollouts=search.history[-1]["rollouts"] if search.history else 0)
+        timings["a2c_s"] = time.perf_counter() - started - timings["search_s"] - timings["pretrain_s"]
+
+        metadata = {
+            "punch_spec_hash": env.spec_hash,
+            "punch_action_spec": "10 raw actions in [-1, 1]; see docs/env.md (mean clipped to [-1, 1], smoothed by the controller)",
+            "punch_decision_period": "5",
+            "punch_smoothing_window": str(args.smoothing_window),
+            "punch_physics_hz": "120",
+            "punch_frames": str(reward.frames),
+            "punch_reward": reward.name,
+            "punch_trainer_version": __version__,
+            "punch_training_summary": json.dumps({"search_best_return": search.best_return, "pretrained_return": pretrained_return,
+                                                 "a2c_best_eval_return": max(h["eval_return"] for h in a2c_history),
+                                                 "a2c_updates": len(a2c_history) - 1}),
+        }
+        policy_path = export_policy(Actor(model), data["observations"].shape[1], out / "policy.onnx", metadata=metadata)
+        exported_return, features = replay_onnx(policy_path, env, reward)
+    finally:
+        env.close()
+    timings["total_s"] = time.perf_counter() - started
+
+    with open(out / "a2c_metrics.csv", "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(a2c_history[0]))
+        writer.writeheader()
+        writer.writerows(a2c_history)
+    (out / "config.json").write_text(json.dumps({k: str(v) if isinstance(v, Path) else v for k, v in asdict(args).items()}, indent=2) + "\n")
+    ratio = exported_return / search.best_return if search.best_return > 0 else float("nan")
+    lines = [
+        f"# punch train: {reward.name}", "",
+        f"- trajectory search: best return {search.best_return:.4f} ({search_args.iterations} iterations of {search_args.rollouts} rollouts)",
+        f"- after pretraining ({args.pretrain_epochs} epochs, final actor MSE {pretrain_history[-1]['actor_mse']:.2e}): noise-free return {pretrained_return:.4f}",
+        f"- after A2C ({len(a2c_history) - 1} updates x {args.a2c_characters} episodes, advantage '{args.advantage}'): "
+        f"best noise-free return {max(h['eval_return'] for h in a2c_history):.4f}",
+        f"- exported policy (onnxruntime, sigma 0) in the simulator: return {exported_return:.4f} = {100 * ratio:.1f}% of the search's best",
+        f"- timings: search {timings['search_s']:.1f} s, pretraining {timings['pretrain_s']:.1f} s, A2C {timings['a2c_s']:.1f} s, "
+        f"total {timings['total_s']:.1f} s",
+        f"- policy: `policy.onnx` (input `obs` [B, 45], outputs `mean`, `sigma` [B, 10]; metadata: spec hash {metadata['punch_spec_hash']})",
+        "", "Search details: [search/report.md](search/report.md)",
+    ]
+    (out / "report.md").write_text("\n".join(lines) + "\n")
+    (out / "summary.json").write_text(json.dumps({"search_best_return": search.best_return, "pretrained_return": pretrained_return,
+                                                  "exported_return": exported_return, "ratio": ratio, **timings}, indent=2) + "\n")
+    return out
