@@ -142,3 +142,9 @@ class PunchVectorEnv(gym.vector.VectorEnv):
     def close_extras(self, **kwargs):
         for server in self.servers:
             server.close()
+
+    def __enter__(self) -> PunchVectorEnv:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

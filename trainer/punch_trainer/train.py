@@ -64,7 +64,7 @@ def run_train(args: TrainArgs, progress: bool = True) -> Path:
 
     search_args = SearchArgs(reward=args.reward, frames=reward.frames, seed=args.seed, out=out / "search",
                              iterations=args.search_iterations, rollouts=args.search_rollouts,
-                             smoothing_window=args.smoothing_window)
+                             characters_per_process=min(64, args.search_rollouts), smoothing_window=args.smoothing_window)
     _, search, _ = run_search(search_args, progress)
     timings["search_s"] = time.perf_counter() - started
 

@@ -1,0 +1,34 @@
+"""The whole pipeline on a small budget: search, pretraining, A2C, export with metadata, replay."""
+
+import json
+
+import onnx
+import pytest
+
+from punch_trainer.env import PunchVectorEnv
+from punch_trainer.rewards import load_reward
+from punch_trainer.train import TrainArgs, replay_onnx, run_train
+
+pytestmark = pytest.mark.godot
+
+
+def test_small_training_run_exports_a_policy_that_repeats_its_punch(tmp_path):
+    args = TrainArgs(reward="straight", out=tmp_path / "run", search_iterations=4, search_rollouts=16,
+                     pretrain_epochs=300, a2c_updates=2, a2c_characters=4, a2c_time_budget_s=None)
+    out = run_train(args, progress=False)
+    for name in ["policy.onnx", "report.md", "summary.json", "a2c_metrics.csv", "search/dataset.npz"]:
+        assert (out / name).is_file(), name
+    model = onnx.load(str(out / "policy.onnx"))
+    metadata = {p.key: p.value for p in model.metadata_props}
+    for key in ["punch_spec_hash", "punch_action_spec", "punch_decision_period", "punch_smoothing_window",
+                "punch_physics_hz", "punch_reward", "punch_training_summary"]:
+        assert metadata.get(key), key
+    assert [i.name for i in model.graph.input] == ["obs"] and [o.name for o in model.graph.output] == ["mean", "sigma"]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["exported_return"] == pytest.approx(summary["exported_return"])  # a number, not NaN
+    # With sigma = 0 the exported policy repeats the same punch exactly.
+    with PunchVectorEnv(1, 2, frames=50, smoothing_window=3) as env:
+        first, features_a = replay_onnx(out / "policy.onnx", env, load_reward("straight"))
+        second, features_b = replay_onnx(out / "policy.onnx", env, load_reward("straight"))
+    assert first == second and (features_a == features_b).all()
+    assert first == pytest.approx(summary["exported_return"])
