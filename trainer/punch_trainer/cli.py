@@ -82,6 +82,29 @@ def _train(args: argparse.Namespace) -> int:
     return 0
 
 
+def _fig6(args: argparse.Namespace) -> int:
+    import shutil
+
+    from punch_trainer.bench import write_section
+    from punch_trainer.experiments import fig6, fig6_table
+    from punch_trainer.godot import PROJECT_ROOT
+
+    out, rows = fig6(args.reward, args.seeds, args.search_iterations, args.a2c_updates, args.characters)
+    table = fig6_table(rows)
+    print(table)
+    if not args.no_write:
+        shutil.copy(out / "fig6.png", PROJECT_ROOT / "docs" / "fig6.png")
+        command = f"punch experiment fig6 --reward {args.reward} --seeds {' '.join(map(str, args.seeds))}"
+        note = (f"Reward `{args.reward}`. A2C runs {args.a2c_updates} updates of {args.characters} episodes each. The pretrained "
+                f"variants first run the trajectory search ({args.search_iterations} iterations of 64 rollouts), and their "
+                "environment steps, episodes and wall time include it. PPO (Stable-Baselines3, n_steps 128) gets as many "
+                "environment steps as A2C alone. 'Mean episode return' averages the sampled (noisy) episodes; the best "
+                "noise-free return is the policy's mean actions, evaluated after every update.\n\n![Fig. 6](docs/fig6.png)")
+        print(f"written to {write_section('Policy learning (paper Fig. 6)', command, note + chr(10) + chr(10) + table)}")
+    print(f"run directory: {out}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="punch", description="Train and run physics-based punching policies.")
     parser.add_argument("--version", action="version", version=f"punch {__version__}")
@@ -118,6 +141,17 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--a2c-updates", dest="a2c_updates", type=int)
     train.add_argument("--advantage", choices=["gae", "paper"])
     train.set_defaults(run=_train)
+
+    experiment = commands.add_parser("experiment", help="experiments of the paper")
+    experiments = experiment.add_subparsers(dest="experiment", required=True)
+    fig6 = experiments.add_parser("fig6", help="A2C only, A2C after pretraining, and SB3 PPO (paper Fig. 6)")
+    fig6.add_argument("--reward", default="straight")
+    fig6.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    fig6.add_argument("--search-iterations", dest="search_iterations", type=int, default=60)
+    fig6.add_argument("--a2c-updates", dest="a2c_updates", type=int, default=40)
+    fig6.add_argument("--characters", type=int, default=32)
+    fig6.add_argument("--no-write", action="store_true", help="print only; leave BENCHMARKS.md alone")
+    fig6.set_defaults(run=_fig6)
 
     bench = commands.add_parser("bench", help="measure speed and write BENCHMARKS.md")
     bench_targets = bench.add_subparsers(dest="target", required=True)

@@ -1,0 +1,162 @@
+"""The paper's Fig. 6 experiment, extended: mean episode return against episodes, environment steps and
+wall time for
+- A2C alone, from a fresh network;
+- A2C after pretraining on the trajectory search's best trajectory, with the standard advantage (GAE) and
+  with the paper's advantage as printed;
+- Stable-Baselines3 PPO with small n_steps, on the same Gymnasium env, as an outside baseline.
+
+Environment steps count agent decisions per character. The pretrained variants start their counts, their
+episodes and their clocks after the search's own rollouts, so their x-axes are honest.
+"""
+
+from __future__ import annotations
+
+import csv
+import time
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from punch_trainer.a2c import A2CArgs, train_a2c
+from punch_trainer.env import PunchEnv, PunchVectorEnv
+from punch_trainer.policy import ActorCritic
+from punch_trainer.pretrain import PretrainArgs, pretrain, returns_to_go
+from punch_trainer.rewards import Reward, evaluate, load_reward, total
+from punch_trainer.rollouts import RolloutPool
+from punch_trainer.search import SearchArgs, replay_dataset, trajectory_search
+
+METHODS = ["A2C only", "A2C after pretraining (GAE)", "A2C after pretraining (paper's advantage)", "SB3 PPO"]
+
+
+def _a2c_curve(history: list[dict], offset_steps: int, offset_episodes: int, offset_s: float) -> list[dict]:
+    return [{"episodes": h["episodes"] + offset_episodes, "env_steps": h["env_steps"] + (offset_steps if h["update"] else 0),
+             "wall_s": h["elapsed_s"] + offset_s, "mean_return": h["mean_return"], "eval_return": h["eval_return"]}
+            for h in history if h["update"] > 0]
+
+
+def _ppo_curve(reward: Reward, seed: int, total_steps: int, frames: int, smoothing_window: int, window: int) -> list[dict]:
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class Episodes(BaseCallback):
+        def __init__(self):
+            super().__init__()
+            self.start = time.perf_counter()
+            self.returns: list[float] = []
+            self.rows: list[dict] = []
+
+        def _on_step(self) -> bool:
+            for info in self.locals["infos"]:
+                if "episode" in info:
+                    self.returns.append(float(info["episode"]["r"]))
+                    recent = self.returns[-window:]
+                    self.rows.append({"episodes": len(self.returns), "env_steps": self.num_timesteps,
+                                      "wall_s": time.perf_counter() - self.start, "mean_return": float(np.mean(recent)),
+                                      "eval_return": float("nan")})
+            return True
+
+    env = PunchEnv(frames=frames, smoothing_window=smoothing_window)
+    names = env.feature_names
+    env.reward_fn = lambda features: float(total(evaluate(reward, features, names)).sum())
+    from stable_baselines3.common.monitor import Monitor
+
+    callback = Episodes()
+    try:
+        model = PPO("MlpPolicy", Monitor(env), n_steps=128, batch_size=64, seed=seed, verbose=0, device="cpu")
+        model.learn(total_timesteps=total_steps, callback=callback)
+    finally:
+        env.close()
+    return callback.rows
+
+
+def fig6(reward_name: str = "straight", seeds=(0, 1, 2), search_iterations: int = 60, a2c_updates: int = 40,
+         characters: int = 32, smoothing_window: int = 3, out: Path | None = None) -> tuple[Path, list[dict]]:
+    reward = load_reward(reward_name)
+    decisions = reward.frames // 5
+    out = out or Path("runs") / f"fig6_{reward.name}"
+    out.mkdir(parents=True, exist_ok=True)
+    curves: dict[tuple[str, int], list[dict]] = {}
+    jobs = [(method, seed) for seed in seeds for method in METHODS]
+    progress = tqdm(jobs, desc="fig6", unit="run")
+    with PunchVectorEnv(1, characters, frames=reward.frames, smoothing_window=smoothing_window) as env:
+        for method, seed in progress:
+            a2c_args = A2CArgs(updates=a2c_updates, characters=characters, smoothing_window=smoothing_window, seed=seed,
+                               advantage="paper" if "paper" in method else "gae")
+            if method == "A2C only":
+                model = ActorCritic(45, 10)  # identity normalisation: nothing is known before simulating
+                _, history = train_a2c(model, reward, a2c_args, env, progress=False)
+                curves[(method, seed)] = _a2c_curve(history, 0, 0, 0.0)
+            elif method.startswith("A2C after pretraining"):
+                start = time.perf_counter()
+                search_args = SearchArgs(reward=reward_name, seed=seed, iterations=search_iterations, rollouts=64,
+                                         plateau_iterations=0, smoothing_window=smoothing_window)
+                with RolloutPool(1, 64) as pool:
+                    result = trajectory_search(search_args, reward, pool, progress=False)
+                dataset = replay_dataset(result, reward, search_args)
+                data = {"observations": dataset["observations"], "actions": dataset["actions"],
+                        "rewards": dataset["rewards"], "returns_to_go": returns_to_go(dataset["rewards"], 1.0)}
+                model = ActorCritic(45, 10)
+                pretrain(model, data, PretrainArgs(epochs=1500, seed=seed), progress=False)
+                search_rollouts = result.history[-1]["rollouts"]
+                _, history = train_a2c(model, reward, a2c_args, env, progress=False)
+                curves[(method, seed)] = _a2c_curve(history, search_rollouts * decisions, search_rollouts, time.perf_counter() - start - history[-1]["elapsed_s"])
+            else:
+                curves[(method, seed)] = _ppo_curve(reward, seed, a2c_updates * characters * decisions, reward.frames,
+                                                    smoothing_window, characters)
+    rows = _summarise(curves, seeds)
+    _write(out, curves, rows, reward)
+    return out, rows
+
+
+def _summarise(curves: dict, seeds) -> list[dict]:
+    rows = []
+    for method in METHODS:
+        finals = [curves[(method, s)][-1] for s in seeds if curves.get((method, s))]
+        rows.append({
+            "method": method,
+            "final_mean_return": float(np.mean([f["mean_return"] for f in finals])),
+            "final_mean_return_sd": float(np.std([f["mean_return"] for f in finals])),
+            "best_noise_free_return": float(np.nanmean([max(r["eval_return"] for r in curves[(method, s)]) for s in seeds])) if "PPO" not in method else float("nan"),
+            "env_steps": int(np.mean([f["env_steps"] for f in finals])),
+            "wall_s": float(np.mean([f["wall_s"] for f in finals])),
+        })
+    return rows
+
+
+def _write(out: Path, curves: dict, rows: list[dict], reward: Reward) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    with open(out / "curves.csv", "w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["method", "seed", "episodes", "env_steps", "wall_s", "mean_return", "eval_return"])
+        for (method, seed), curve in curves.items():
+            for point in curve:
+                writer.writerow([method, seed, point["episodes"], point["env_steps"], round(point["wall_s"], 3), point["mean_return"], point["eval_return"]])
+    figure, axes = plt.subplots(1, 3, figsize=(15, 4.2))
+    colors = dict(zip(METHODS, ["tab:blue", "tab:red", "tab:orange", "tab:green"]))
+    for (method, seed), curve in curves.items():
+        for axis, key in zip(axes, ["episodes", "env_steps", "wall_s"]):
+            axis.plot([p[key] for p in curve], [p["mean_return"] for p in curve], color=colors[method], alpha=0.7,
+                      label=method if seed == min(s for m, s in curves if m == method) else None)
+    for axis, label in zip(axes, ["episodes", "environment steps (decisions; search rollouts included)", "wall time (s)"]):
+        axis.set_xlabel(label)
+        axis.set_ylabel("mean episode return")
+        axis.grid(alpha=0.3)
+    axes[0].legend(fontsize=8)
+    figure.suptitle(f"Policy learning for '{reward.name}' (paper Fig. 6): mean return of the sampled episodes")
+    figure.tight_layout()
+    figure.savefig(out / "fig6.png", dpi=90)
+    plt.close(figure)
+
+
+def fig6_table(rows: list[dict]) -> str:
+    lines = ["| method | final mean episode return (mean +- sd over seeds) | best noise-free return | env steps | wall time (s) |",
+             "|---|---|---|---|---|"]
+    for r in rows:
+        best = "-" if np.isnan(r["best_noise_free_return"]) else f"{r['best_noise_free_return']:.3f}"
+        lines.append(f"| {r['method']} | {r['final_mean_return']:.3f} +- {r['final_mean_return_sd']:.3f} | {best} | {r['env_steps']:,} | {r['wall_s']:.1f} |")
+    return "\n".join(lines)
