@@ -32,3 +32,32 @@ def test_small_training_run_exports_a_policy_that_repeats_its_punch(tmp_path):
         second, features_b = replay_onnx(out / "policy.onnx", env, load_reward("straight"))
     assert first == second and (features_a == features_b).all()
     assert first == pytest.approx(summary["exported_return"])
+
+
+def test_fig6_experiment_runs_every_method_with_honest_axes(tmp_path):
+    from punch_trainer.experiments import METHODS, fig6
+
+    out, rows = fig6("straight", seeds=(0,), search_iterations=2, a2c_updates=2, characters=4, out=tmp_path)
+    assert [r["method"] for r in rows] == METHODS
+    assert (out / "fig6.png").is_file() and (out / "curves.csv").is_file()
+    by_method = {r["method"]: r for r in rows}
+    # The pretrained variants count the search's rollouts: more environment steps than A2C alone.
+    assert by_method["A2C after pretraining (GAE)"]["env_steps"] > by_method["A2C only"]["env_steps"]
+
+
+def test_pretraining_on_several_datasets(tmp_path):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from punch_trainer.search import SearchArgs, run_search
+
+    datasets = []
+    for seed in (0, 1):
+        out, _, _ = run_search(SearchArgs(out=tmp_path / f"s{seed}", seed=seed, iterations=2, rollouts=16, characters_per_process=16), progress=False)
+        datasets.append(out / "dataset.npz")
+    punch = Path(sys.executable).with_name("punch")
+    result = subprocess.run([punch, "pretrain", *map(str, datasets), "--out", str(tmp_path / "p.onnx"), "--epochs", "100"],
+                            capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert "20 decisions from 2 dataset(s)" in result.stdout and (tmp_path / "p.onnx").is_file()

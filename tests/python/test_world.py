@@ -95,34 +95,38 @@ def test_hit_is_seen_by_contacts_and_by_the_bag(server):
     assert np.linalg.norm(features[:, column(server, "fist_r_impulse_x"):column(server, "fist_r_impulse_z") + 1]) > 0
 
 
-def test_features_are_bitwise_identical_whatever_the_slot_n_or_process():
+def test_exact_mode_is_bitwise_identical_whatever_the_slot_n_or_process():
     rng = np.random.default_rng(11)
     sequence = rng.uniform(-1, 1, size=(DECISIONS, 10)).astype(np.float32)
 
     def run(slot_count, slot):
         actions = rng.uniform(-1, 1, size=(slot_count, DECISIONS, 10)).astype(np.float32)
         actions[slot] = sequence
-        with TrainingServer(slot_count) as server:
+        with TrainingServer(slot_count, slots_per_world=1) as server:
             first = server.rollout(actions)[slot]
             again = server.rollout(actions)[slot]
         assert np.array_equal(first, again), "the same process repeated differently"
         return first
 
     reference = run(1, 0)
-    for slot_count, slot in [(5, 3), (40, 37)]:  # slot 37 lives in a third arena
+    for slot_count, slot in [(5, 3), (40, 37)]:
         assert np.array_equal(run(slot_count, slot), reference), f"slot {slot} of {slot_count} differs"
-    # A second process with the same N.
-    assert np.array_equal(run(1, 0), reference)
+    assert np.array_equal(run(1, 0), reference), "a second process differs"
 
 
-def test_simultaneous_punches_in_many_slots_match_single_runs():
-    # Contacts are where physics engines order work by body ids: every slot punches the bag at about the
-    # same time, and each must match the same punch run alone.
-    rng = np.random.default_rng(3)
+def punches(count: int, seed: int) -> np.ndarray:
+    """Right punches that all reach the bag at about the same time, each a little different."""
+    rng = np.random.default_rng(seed)
     punch = np.zeros((DECISIONS // 2, 10), np.float32)
     punch[:, 5], punch[:, 2], punch[:, 3], punch[:, 1] = 1.0, -0.6, 0.3, 0.5
-    actions = np.clip(punch + 0.15 * rng.standard_normal((16, *punch.shape)), -1, 1).astype(np.float32)
-    with TrainingServer(16) as server:
+    return np.clip(punch + 0.15 * rng.standard_normal((count, *punch.shape)), -1, 1).astype(np.float32)
+
+
+def test_exact_mode_simultaneous_punches_match_single_runs():
+    # Contacts are where physics engines order work by body ids: every slot punches the bag at about the
+    # same time, and each must match the same punch run alone.
+    actions = punches(16, seed=3)
+    with TrainingServer(16, slots_per_world=1) as server:
         together = server.rollout(actions, smoothing_window=3)
         impulse = column(server, "character_impulse_z")
     assert (np.abs(together[..., impulse]).max(axis=1) > 0).sum() >= 8, "most slots should hit the bag"
@@ -130,6 +134,15 @@ def test_simultaneous_punches_in_many_slots_match_single_runs():
         for slot in range(0, 16, 3):
             alone = server.rollout(actions[slot:slot + 1], smoothing_window=3)[0]
             assert np.array_equal(together[slot], alone), f"slot {slot} differs from the same punch alone"
+
+
+def test_default_mode_repeats_bitwise_for_the_same_slot_and_n():
+    actions = punches(16, seed=4)
+    results = []
+    for _ in range(2):  # two processes
+        with TrainingServer(16) as server:
+            results.append(server.rollout(actions, smoothing_window=3))
+    assert np.array_equal(results[0], results[1])
 
 
 def test_bag_position_is_configurable(server):

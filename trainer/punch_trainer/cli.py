@@ -105,6 +105,22 @@ def _fig6(args: argparse.Namespace) -> int:
     return 0
 
 
+def _pretrain(args: argparse.Namespace) -> int:
+    from punch_trainer.export import export_policy
+    from punch_trainer.policy import Actor, ActorCritic
+    from punch_trainer.pretrain import PretrainArgs, load_datasets, pretrain
+
+    data = load_datasets(args.datasets)
+    model = ActorCritic(data["observations"].shape[1], data["actions"].shape[1])
+    history = pretrain(model, data, PretrainArgs(epochs=args.epochs, seed=args.seed))
+    metadata = {"punch_spec_hash": str(data["spec_hash"]), "punch_training_summary":
+                f"pretrained on {len(args.datasets)} dataset(s), {len(data['actions'])} decisions, final actor MSE {history[-1]['actor_mse']:.3g}"}
+    path = export_policy(Actor(model), data["observations"].shape[1], args.out, metadata=metadata)
+    print(f"pretrained on {len(data['actions'])} decisions from {len(args.datasets)} dataset(s); final actor MSE "
+          f"{history[-1]['actor_mse']:.3g}; exported and verified: {path}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="punch", description="Train and run physics-based punching policies.")
     parser.add_argument("--version", action="version", version=f"punch {__version__}")
@@ -141,6 +157,13 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--a2c-updates", dest="a2c_updates", type=int)
     train.add_argument("--advantage", choices=["gae", "paper"])
     train.set_defaults(run=_train)
+
+    pre = commands.add_parser("pretrain", help="pretrain a policy on one or several trajectory datasets (no simulation)")
+    pre.add_argument("datasets", type=Path, nargs="+", help="dataset.npz files written by punch search")
+    pre.add_argument("--out", type=Path, default=Path("pretrained.onnx"))
+    pre.add_argument("--epochs", type=int, default=1500)
+    pre.add_argument("--seed", type=int, default=0)
+    pre.set_defaults(run=_pretrain)
 
     experiment = commands.add_parser("experiment", help="experiments of the paper")
     experiments = experiment.add_subparsers(dest="experiment", required=True)

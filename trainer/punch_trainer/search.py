@@ -78,6 +78,7 @@ class SearchResult:
     best_terms: dict[str, float]
     history: list[dict] = field(default_factory=list)
     feature_names: list[str] = field(default_factory=list)
+    best_slot: int = 0  # the character slot (within a process) the best trajectory ran in
 
 
 def update_sigma(samples: np.ndarray, returns: np.ndarray, mu: np.ndarray, best_return: float, sigma: np.ndarray,
@@ -125,7 +126,8 @@ def trajectory_search(args: SearchArgs, reward: Reward, pool: RolloutPool, progr
         if returns[top] > best.best_return:
             mu = samples[top].copy()
             best = SearchResult(mu.copy(), executed[top], float(returns[top]), features[top],
-                                {k: float(v[top].sum()) for k, v in terms.items()}, best.history, names)
+                                {k: float(v[top].sum()) for k, v in terms.items()}, best.history, names,
+                                best_slot=top % pool.characters_per_process)
             last_improvement = iteration
         sigma = update_sigma(samples, returns, mu, best.best_return, sigma, clip_epsilon, args.sigma_min)
         elapsed = time.perf_counter() - start
@@ -144,17 +146,21 @@ def trajectory_search(args: SearchArgs, reward: Reward, pool: RolloutPool, progr
 
 
 def replay_dataset(result: SearchResult, reward: Reward, args: SearchArgs) -> dict[str, np.ndarray]:
-    """Replays the best trajectory closed-loop-style (one step per decision) on a fresh one-character server
-    and stores, per decision, the observation seen, the raw and executed action and the reward, plus every
-    frame's features. The replay must reproduce the search's return exactly (deterministic physics)."""
-    with TrainingServer(1, decision_period=args.decision_period) as server:
+    """Replays the best trajectory one step per decision, in the same slot of a server of the same size as
+    the search's (so that it is bitwise the same trajectory: docs/env.md, Episodes), and stores per decision
+    the observation seen, the raw and executed action and the reward, plus every frame's features. The
+    replay must reproduce the search's features exactly."""
+    slot, slot_count = result.best_slot, args.characters_per_process
+    with TrainingServer(slot_count, decision_period=args.decision_period) as server:
         reply = server.reset(reward.frames, smoothing_window=args.smoothing_window)
-        observations, executed, frames = [reply.arrays["observations"][0]], [], []
+        observations, executed, frames = [reply.arrays["observations"][slot]], [], []
         for action in result.best_actions:
-            step = server.step(action[None])
-            observations.append(step.arrays["observations"][0])
-            executed.append(step.arrays["executed_actions"][0, 0])
-            frames.append(step.arrays["features"][0])
+            actions = np.zeros((slot_count, DOF_COUNT), dtype=np.float32)
+            actions[slot] = action
+            step = server.step(actions)
+            observations.append(step.arrays["observations"][slot])
+            executed.append(step.arrays["executed_actions"][slot, 0])
+            frames.append(step.arrays["features"][slot])
         info = server.info
     features = np.concatenate(frames)
     per_frame = total(evaluate(reward, features, info.feature_names))

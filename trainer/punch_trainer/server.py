@@ -46,8 +46,10 @@ class ServerInfo:
 class TrainingServer:
     """One Godot process running N characters. Use as a context manager, or call close()."""
 
-    def __init__(self, slot_count: int = 1, *, decision_period: int = 5, start_timeout_s: float = 60.0,
-                 reply_timeout_s: float = 120.0, idle_timeout_s: float = 120.0):
+    def __init__(self, slot_count: int = 1, *, decision_period: int = 5, slots_per_world: int = 16,
+                 start_timeout_s: float = 60.0, reply_timeout_s: float = 120.0, idle_timeout_s: float = 120.0):
+        """`slots_per_world` = 1 puts every character in a physics world of its own: bitwise-identical results
+        whatever the slot, at about 2.7 times the cost (docs/env.md, Episodes)."""
         self._process: subprocess.Popen | None = None
         self._socket: socket.socket | None = None
         self.reply_timeout_s = reply_timeout_s
@@ -55,7 +57,8 @@ class TrainingServer:
             # --fixed-fps: run frames back to back without waiting for the wall clock. The server checks the
             # physics rate itself and blocks between commands, so this value only sets steps per frame.
             "--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), SERVER_SCENE, "--",
-            "--port=0", f"--slots={slot_count}", f"--decision-period={decision_period}", f"--idle-timeout-s={idle_timeout_s}",
+            "--port=0", f"--slots={slot_count}", f"--decision-period={decision_period}",
+            f"--slots-per-world={slots_per_world}", f"--idle-timeout-s={idle_timeout_s}",
         ]
         self._log: list[str] = []
         self._process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,

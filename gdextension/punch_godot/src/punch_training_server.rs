@@ -20,7 +20,7 @@ use punch_core::character::PHYSICS_HZ;
 use punch_core::protocol::{Message, ProtocolError, error_reply};
 use punch_core::session::{BagPlacement, Outcome, Session, World};
 
-use crate::training_world::TrainingWorld;
+use crate::training_world::{MAX_SLOTS_PER_WORLD, TrainingWorld};
 
 /// The headless training server the Python trainer starts and drives (see docs/protocol.md). Command-line
 /// arguments after `--` override the exported values: `--port=`, `--slots=`, `--decision-period=`,
@@ -39,6 +39,11 @@ pub struct PunchTrainingServer {
     #[export]
     #[init(val = 5)]
     decision_period: i32,
+    /// Characters sharing one physics world (1 to 16). 1 makes every slot bitwise identical whatever its
+    /// index, at about 2.7 times the cost; see docs/env.md.
+    #[export]
+    #[init(val = 16)]
+    slots_per_world: i32,
     /// Seconds without a client (or without a message from it) after which the server quits.
     #[export]
     #[init(val = 120.0)]
@@ -101,6 +106,7 @@ impl PunchTrainingServer {
                 "slots" => self.slot_count = number()? as i32,
                 "decision-period" => self.decision_period = number()? as i32,
                 "idle-timeout-s" => self.idle_timeout_s = number()? as f32,
+                "slots-per-world" => self.slots_per_world = number()? as i32,
                 _ => {}
             }
         }
@@ -124,7 +130,15 @@ impl PunchTrainingServer {
         let port = listener.local_addr().map_err(|e| e.to_string())?.port();
         listener.set_nonblocking(true).map_err(|e| e.to_string())?;
         self.listener = Some(listener);
-        let mut world = TrainingWorld::new(&character_scene, &sandbag_scene, self.slot_count as usize)?;
+        if !(1..=MAX_SLOTS_PER_WORLD as i32).contains(&self.slots_per_world) {
+            return Err(format!("slots per world must be 1..={MAX_SLOTS_PER_WORLD}, not {}", self.slots_per_world));
+        }
+        let mut world = TrainingWorld::new(
+            &character_scene,
+            &sandbag_scene,
+            self.slot_count as usize,
+            self.slots_per_world as usize,
+        )?;
         world.reset(&vec![BagPlacement::default(); self.slot_count as usize])?;
         self.world = Some(world);
         self.session = Some(Session::new(self.decision_period as usize));
