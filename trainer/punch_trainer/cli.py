@@ -97,8 +97,8 @@ def _fig6(args: argparse.Namespace) -> int:
         command = f"punch experiment fig6 --reward {args.reward} --seeds {' '.join(map(str, args.seeds))}"
         note = (f"Reward `{args.reward}`. A2C runs {args.a2c_updates} updates of {args.characters} episodes each. The pretrained "
                 f"variants first run the trajectory search ({args.search_iterations} iterations of 64 rollouts), and their "
-                "environment steps, episodes and wall time include it. PPO (Stable-Baselines3, n_steps 128) gets as many "
-                "environment steps as A2C alone. 'Mean episode return' averages the sampled (noisy) episodes; the best "
+                "environment steps, episodes and wall time include it. A2C alone and PPO (Stable-Baselines3, n_steps 128) get "
+                "as many environment steps in all as the pretrained variants (matched budgets). 'Mean episode return' averages the sampled (noisy) episodes; the best "
                 "noise-free return is the policy's mean actions, evaluated after every update.\n\n![Fig. 6](docs/fig6.png)")
         print(f"written to {write_section('Policy learning (paper Fig. 6)', command, note + chr(10) + chr(10) + table)}")
     print(f"run directory: {out}")

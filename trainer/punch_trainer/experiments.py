@@ -74,6 +74,10 @@ def fig6(reward_name: str = "straight", seeds=(0, 1, 2), search_iterations: int 
          characters: int = 32, smoothing_window: int = 3, out: Path | None = None) -> tuple[Path, list[dict]]:
     reward = load_reward(reward_name)
     decisions = reward.frames // 5
+    # Matched budgets: A2C alone and PPO get as many environment steps as the pretrained variants use in all,
+    # the search's rollouts (and its first evaluation of the zero sequence) included.
+    matched_steps = (search_iterations * 64 + 1) * decisions + a2c_updates * characters * decisions
+    scratch_updates = -(-matched_steps // (characters * decisions))
     out = out or Path("runs") / f"fig6_{reward.name}"
     out.mkdir(parents=True, exist_ok=True)
     curves: dict[tuple[str, int], list[dict]] = {}
@@ -85,6 +89,7 @@ def fig6(reward_name: str = "straight", seeds=(0, 1, 2), search_iterations: int 
                                advantage="paper" if "paper" in method else "gae")
             if method == "A2C only":
                 model = ActorCritic(45, 10)  # identity normalisation: nothing is known before simulating
+                a2c_args.updates = scratch_updates
                 _, history = train_a2c(model, reward, a2c_args, env, progress=False)
                 curves[(method, seed)] = _a2c_curve(history, 0, 0, 0.0)
             elif method.startswith("A2C after pretraining"):
@@ -102,8 +107,7 @@ def fig6(reward_name: str = "straight", seeds=(0, 1, 2), search_iterations: int 
                 _, history = train_a2c(model, reward, a2c_args, env, progress=False)
                 curves[(method, seed)] = _a2c_curve(history, search_rollouts * decisions, search_rollouts, time.perf_counter() - start - history[-1]["elapsed_s"])
             else:
-                curves[(method, seed)] = _ppo_curve(reward, seed, a2c_updates * characters * decisions, reward.frames,
-                                                    smoothing_window, characters)
+                curves[(method, seed)] = _ppo_curve(reward, seed, matched_steps, reward.frames, smoothing_window, characters)
     rows = _summarise(curves, seeds)
     _write(out, curves, rows, reward)
     return out, rows
