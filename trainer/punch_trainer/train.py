@@ -20,7 +20,7 @@ from punch_trainer.export import export_policy
 from punch_trainer.policy import Actor, ActorCritic
 from punch_trainer.pretrain import PretrainArgs, load_datasets, pretrain
 from punch_trainer.rewards import load_reward
-from punch_trainer.search import SearchArgs, run_search
+from punch_trainer.search import SearchArgs, motion_report, run_search
 
 
 @dataclass
@@ -106,6 +106,10 @@ def run_train(args: TrainArgs, progress: bool = True) -> Path:
         writer.writerows(a2c_history)
     (out / "config.json").write_text(json.dumps({k: str(v) if isinstance(v, Path) else v for k, v in asdict(args).items()}, indent=2) + "\n")
     ratio = exported_return / search.best_return if search.best_return > 0 else float("nan")
+    motion = motion_report({"features": features, "feature_names": np.array(env.feature_names), "physics_hz": np.array(120)})
+    impact = (f"first contact at {motion['impact_time_s']:.3f} s at {motion['impact_speed_mps']:.2f} m/s, contact point "
+              f"{motion['contact_point_from_bag_centre_m']} m from the bag's centre" if motion["impact_time_s"] is not None
+              else "no contact with the bag")
     lines = [
         f"# punch train: {reward.name}", "",
         f"- trajectory search: best return {search.best_return:.4f} ({search_args.iterations} iterations of {search_args.rollouts} rollouts)",
@@ -113,6 +117,7 @@ def run_train(args: TrainArgs, progress: bool = True) -> Path:
         f"- after A2C ({len(a2c_history) - 1} updates x {args.a2c_characters} episodes, advantage '{args.advantage}'): "
         f"best noise-free return {max(h['eval_return'] for h in a2c_history):.4f}",
         f"- exported policy (onnxruntime, sigma 0) in the simulator: return {exported_return:.4f} = {100 * ratio:.1f}% of the search's best",
+        f"- the exported policy's punch: peak right-fist speed {motion['peak_fist_speed_mps']:.2f} m/s; {impact}",
         f"- timings: search {timings['search_s']:.1f} s, pretraining {timings['pretrain_s']:.1f} s, A2C {timings['a2c_s']:.1f} s, "
         f"total {timings['total_s']:.1f} s",
         f"- policy: `policy.onnx` (input `obs` [B, 45], outputs `mean`, `sigma` [B, 10]; metadata: spec hash {metadata['punch_spec_hash']})",
@@ -120,5 +125,5 @@ def run_train(args: TrainArgs, progress: bool = True) -> Path:
     ]
     (out / "report.md").write_text("\n".join(lines) + "\n")
     (out / "summary.json").write_text(json.dumps({"search_best_return": search.best_return, "pretrained_return": pretrained_return,
-                                                  "exported_return": exported_return, "ratio": ratio, **timings}, indent=2) + "\n")
+                                                  "exported_return": exported_return, "ratio": ratio, "motion": motion, **timings}, indent=2) + "\n")
     return out
