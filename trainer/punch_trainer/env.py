@@ -31,6 +31,12 @@ RewardFn = Callable[[np.ndarray], float]
 DEFAULT_BAG = {"distance_m": 0.72, "height_m": 1.35, "side_m": 0.0}
 
 
+def _spaces(info) -> tuple[gym.spaces.Box, gym.spaces.Box]:
+    """One character's observation and action spaces, from a server's handshake."""
+    return (gym.spaces.Box(-np.inf, np.inf, (len(info.observation_names),), np.float32),
+            gym.spaces.Box(-1.0, 1.0, (len(info.action_names),), np.float32))
+
+
 def _bag_options(options: dict | None, rng: np.random.Generator, count: int, jitter_m: float) -> list[dict]:
     """Bag placement for `count` slots: options["bag"] (one dict or a list) or the default, plus uniform
     jitter of +-jitter_m on each coordinate drawn from the env's seeded generator."""
@@ -62,8 +68,7 @@ class PunchEnv(gym.Env):
         self.bag_jitter_m = bag_jitter_m
         self.feature_names = info.feature_names
         self.spec_hash = info.spec_hash
-        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (len(info.observation_names),), np.float32)
-        self.action_space = gym.spaces.Box(-1.0, 1.0, (len(info.action_names),), np.float32)
+        self.observation_space, self.action_space = _spaces(info)
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
@@ -105,8 +110,7 @@ class PunchVectorEnv(gym.vector.VectorEnv):
         self.bag_jitter_m = bag_jitter_m
         self.feature_names = info.feature_names
         self.spec_hash = info.spec_hash
-        self.single_observation_space = gym.spaces.Box(-np.inf, np.inf, (len(info.observation_names),), np.float32)
-        self.single_action_space = gym.spaces.Box(-1.0, 1.0, (len(info.action_names),), np.float32)
+        self.single_observation_space, self.single_action_space = _spaces(info)
         self.observation_space = gym.vector.utils.batch_space(self.single_observation_space, self.num_envs)
         self.action_space = gym.vector.utils.batch_space(self.single_action_space, self.num_envs)
         self._needs_reset = True
