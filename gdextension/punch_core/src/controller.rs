@@ -4,7 +4,7 @@
 
 use glam::Vec3;
 
-use crate::character::{DOF_COUNT, JOINTS, joint_target, motor_velocities, targets_from_action};
+use crate::character::{DOF_COUNT, joint_target, motor_velocities, targets_from_action};
 use crate::error::{CoreError, CoreResult};
 use crate::sensing::{CharacterGeometry, FEATURE_COUNT, FrameReading, Sensor};
 use crate::smoothing::Smoother;
@@ -42,10 +42,6 @@ impl CharacterController {
         Ok(executed)
     }
 
-    pub fn targets(&self) -> &[f32; DOF_COUNT] {
-        &self.targets
-    }
-
     /// Motor target velocities for each joint (`JOINTS` order), in Godot's 6DOF motor convention.
     pub fn motor_commands(&self, reading: &FrameReading) -> [Vec3; 5] {
         let rotations = self.sensor.joint_rotations(reading);
@@ -56,11 +52,4 @@ impl CharacterController {
     pub fn features(&mut self, reading: &FrameReading) -> [f32; FEATURE_COUNT] {
         self.sensor.features(reading)
     }
-
-    pub fn geometry(&self) -> &CharacterGeometry {
-        self.sensor.geometry()
-    }
 }
-
-/// Number of joints, re-exported for array sizes in the engine layer.
-pub const JOINT_COUNT: usize = JOINTS.len();

@@ -144,9 +144,6 @@ pub const FEATURE_NAMES: [&str; FEATURE_COUNT] = [
 ];
 pub const FEATURE_COUNT: usize = 54;
 
-/// Units of each feature group, for the env card.
-pub const FEATURE_UNITS: &str = "pos m, vel m/s, impulse and momentum change N s, distance and gap m, angle rad, speed rad/s, exploit_flags bit set";
-
 /// Index of a feature by name.
 pub fn feature_index(name: &str) -> Option<usize> {
     FEATURE_NAMES.iter().position(|n| *n == name)

@@ -102,10 +102,6 @@ impl Session {
         }
     }
 
-    pub fn decision_period(&self) -> usize {
-        self.decision_period
-    }
-
     /// The handshake: versions, the spec and its hash, slot count, rates, and every name.
     pub fn hello(&self, slot_count: usize) -> Message {
         Message::new("hello")

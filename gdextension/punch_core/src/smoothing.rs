@@ -21,10 +21,6 @@ impl Smoother {
         Self { window: window.max(1), history: Vec::new() }
     }
 
-    pub fn window(&self) -> usize {
-        self.window
-    }
-
     /// Forgets the history (at episode reset).
     pub fn reset(&mut self) {
         self.history.clear();

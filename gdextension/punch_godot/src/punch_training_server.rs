@@ -16,7 +16,7 @@ use godot::classes::{Engine, INode, Node, Os, PackedScene};
 use godot::global::{godot_error, godot_print};
 use godot::obj::{Base, Gd, Singleton, WithBaseField};
 use godot::prelude::{GodotClass, godot_api};
-use punch_core::character::PHYSICS_HZ;
+use punch_core::character::{DEFAULT_DECISION_PERIOD, PHYSICS_HZ};
 use punch_core::protocol::{Message, ProtocolError, error_reply};
 use punch_core::session::{BagPlacement, Outcome, Session, World};
 
@@ -37,7 +37,7 @@ pub struct PunchTrainingServer {
     slot_count: i32,
     /// Physics frames each action is held for.
     #[export]
-    #[init(val = 5)]
+    #[init(val = DEFAULT_DECISION_PERIOD as i32)]
     decision_period: i32,
     /// Characters sharing one physics world (1 to 16). 1 makes every slot bitwise identical whatever its
     /// index, at about 2.7 times the cost; see docs/env.md.
