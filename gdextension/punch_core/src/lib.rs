@@ -7,6 +7,7 @@
 pub mod character;
 pub mod controller;
 pub mod error;
+pub mod noise;
 pub mod observation;
 pub mod policy;
 pub mod protocol;

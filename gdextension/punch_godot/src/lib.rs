@@ -3,6 +3,7 @@
 
 mod convert;
 mod punch_character;
+mod punch_controller;
 mod punch_policy;
 mod punch_runtime;
 mod punch_training_server;

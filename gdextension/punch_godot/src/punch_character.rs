@@ -1,29 +1,80 @@
 //! `PunchCharacter`: the root node of the character scene. In a game it makes the scene physically what
-//! training used: joints configured from the core's DOF table (limits, motors, torque limits) and no
-//! collisions between the character's own bodies.
+//! training used (joints configured from the core's DOF table, no collisions between its own bodies), and it
+//! reads and drives its bodies for `PunchController` with the same core code the training server uses.
 
+use glam::Vec3;
 use godot::classes::generic6_dof_joint_3d::{Flag, Param};
-use godot::classes::{Generic6DofJoint3D, INode3D, Node3D, PhysicsBody3D};
+use godot::classes::physics_server_3d::G6dofJointAxisParam;
+use godot::classes::{Generic6DofJoint3D, INode3D, Marker3D, Node3D, PhysicsBody3D, PhysicsServer3D, RigidBody3D};
 use godot::global::godot_error;
-use godot::obj::{Base, Gd, WithBaseField};
+use godot::obj::{Base, Gd, Singleton, WithBaseField};
 use godot::prelude::{GodotClass, godot_api};
-use punch_core::character::{Axis, Body, JOINTS, engine_axis};
+use punch_core::character::{Axis, Body, JOINTS, engine_axis, joint_dofs};
+use punch_core::sensing::{BodyState, CharacterGeometry};
+
+use crate::convert::{godot_axis, quat, vec3};
 
 /// A physics-based upper-body character: pelvis fixed in place, a welded head-neck-chest torso, and two
 /// arms with 10 actuated degrees of freedom (waist 2, shoulders 3 each, elbows 1 each), driven by joint
-/// motors. Use the addon's `punch_character.tscn` rather than building one by hand.
+/// motors. Use the addon's `punch_character.tscn` rather than building one by hand; a `PunchController`
+/// makes it punch.
 #[derive(GodotClass)]
 #[class(base = Node3D, init)]
 pub struct PunchCharacter {
-    ready_to_punch: bool,
+    rig: Option<Rig>,
     base: Base<Node3D>,
+}
+
+/// The character's bodies and joints, found at `ready`.
+pub struct Rig {
+    /// `Body::ALL` order.
+    pub bodies: Vec<Gd<PhysicsBody3D>>,
+    pub joint_rids: [godot::builtin::Rid; 5],
+    /// Rest-pose geometry (without target data, which the controller adds).
+    pub geometry: CharacterGeometry,
+}
+
+impl Rig {
+    /// World state of every body, `Body::ALL` order.
+    pub fn read_bodies(&self) -> [BodyState; 6] {
+        std::array::from_fn(|i| {
+            let body = &self.bodies[i];
+            let transform = body.get_global_transform();
+            let (linear, angular) = match body.clone().try_cast::<RigidBody3D>() {
+                Ok(rigid) => (vec3(rigid.get_linear_velocity()), vec3(rigid.get_angular_velocity())),
+                Err(_) => (Vec3::ZERO, Vec3::ZERO),
+            };
+            BodyState {
+                position: vec3(transform.origin),
+                rotation: quat(transform.basis.get_quaternion()),
+                linear_velocity: linear,
+                angular_velocity: angular,
+            }
+        })
+    }
+
+    /// Sets the joint motors (Godot's 6DOF convention) on actuated axes.
+    pub fn drive(&self, motor_velocities: &[Vec3; 5]) {
+        let mut server = PhysicsServer3D::singleton();
+        for (joint_index, (rid, velocity)) in self.joint_rids.iter().zip(motor_velocities).enumerate() {
+            for (_, dof) in joint_dofs(joint_index) {
+                let value = velocity[dof.axis.index()];
+                server.generic_6dof_joint_set_param(
+                    *rid,
+                    godot_axis(dof.axis),
+                    G6dofJointAxisParam::ANGULAR_MOTOR_TARGET_VELOCITY,
+                    value,
+                );
+            }
+        }
+    }
 }
 
 #[godot_api]
 impl INode3D for PunchCharacter {
     fn ready(&mut self) {
         match self.set_up() {
-            Ok(()) => self.ready_to_punch = true,
+            Ok(rig) => self.rig = Some(rig),
             Err(error) => godot_error!("PunchCharacter '{}': {error}", self.base().get_name()),
         }
     }
@@ -34,10 +85,14 @@ impl PunchCharacter {
     /// True when the character found all its bodies and joints and configured them.
     #[func]
     fn is_ready_to_punch(&self) -> bool {
-        self.ready_to_punch
+        self.rig.is_some()
     }
 
-    fn set_up(&mut self) -> Result<(), String> {
+    pub fn rig(&self) -> Option<&Rig> {
+        self.rig.as_ref()
+    }
+
+    fn set_up(&mut self) -> Result<Rig, String> {
         let base = self.base().clone();
         let bodies: Vec<Gd<PhysicsBody3D>> = Body::ALL
             .iter()
@@ -47,19 +102,52 @@ impl PunchCharacter {
                     .ok_or_else(|| format!("missing physics body '{}'", body.node_name()))
             })
             .collect::<Result<_, _>>()?;
+        let mut joints = Vec::new();
         for (joint_index, joint) in JOINTS.iter().enumerate() {
             let mut node = base
                 .get_node_or_null(joint.node_name)
                 .and_then(|n| n.try_cast::<Generic6DofJoint3D>().ok())
                 .ok_or_else(|| format!("missing Generic6DOFJoint3D '{}'", joint.node_name))?;
             configure_joint(&mut node, joint_index);
+            joints.push(node);
         }
         for (i, body) in bodies.iter().enumerate() {
             for other in &bodies[i + 1..] {
                 body.clone().add_collision_exception_with(other);
             }
         }
-        Ok(())
+        let mut fist_offsets = [Vec3::ZERO; 2];
+        let mut fist_radius_m = 0.045;
+        for (side, path) in ["ForearmR/FistR", "ForearmL/FistL"].into_iter().enumerate() {
+            let marker = base
+                .get_node_or_null(path)
+                .and_then(|n| n.try_cast::<Marker3D>().ok())
+                .ok_or_else(|| format!("missing fist marker '{path}'"))?;
+            fist_offsets[side] = vec3(marker.get_position());
+            fist_radius_m = marker.get_meta("radius_m").try_to::<f32>().unwrap_or(fist_radius_m);
+        }
+        let transform_of = |i: usize| bodies[i].get_global_transform();
+        let joint_anchors = std::array::from_fn(|j| {
+            let at = joints[j].get_global_position();
+            let local = |body: Body| vec3(transform_of(body.index()).affine_inverse() * at);
+            (local(JOINTS[j].parent), local(JOINTS[j].child))
+        });
+        let root = base.get_global_transform();
+        Ok(Rig {
+            joint_rids: std::array::from_fn(|j| joints[j].get_rid()),
+            geometry: CharacterGeometry {
+                rest_rotations: std::array::from_fn(|i| quat(transform_of(i).basis.get_quaternion())),
+                fist_offsets,
+                fist_radius_m,
+                joint_anchors,
+                bag_radius_m: 0.0,
+                bag_height_m: 0.0,
+                bag_mass_kg: 0.0,
+                root_rotation: quat(root.basis.get_quaternion()),
+                root_position: vec3(root.origin),
+            },
+            bodies,
+        })
     }
 }
 
