@@ -144,6 +144,19 @@ pub const FEATURE_NAMES: [&str; FEATURE_COUNT] = [
 ];
 pub const FEATURE_COUNT: usize = 54;
 
+/// First column of some three-component features (x, y, z follow), for code that reads them every frame.
+pub mod columns {
+    pub const FIST_R_VEL: usize = 3;
+    pub const FIST_L_VEL: usize = 9;
+    pub const FIST_R_IMPULSE: usize = 12;
+    pub const FIST_L_IMPULSE: usize = 15;
+}
+
+/// The three components starting at `column` as a vector.
+pub fn feature_vector(features: &[f32; FEATURE_COUNT], column: usize) -> Vec3 {
+    Vec3::new(features[column], features[column + 1], features[column + 2])
+}
+
 /// Index of a feature by name.
 pub fn feature_index(name: &str) -> Option<usize> {
     FEATURE_NAMES.iter().position(|n| *n == name)
@@ -352,6 +365,14 @@ mod tests {
         names.dedup();
         assert_eq!(names.len(), FEATURE_COUNT);
         assert_eq!(feature_index("exploit_flags"), Some(FEATURE_COUNT - 1), "the session reads flags from the end");
+        for (column, name) in [
+            (columns::FIST_R_VEL, "fist_r_vel_x"),
+            (columns::FIST_L_VEL, "fist_l_vel_x"),
+            (columns::FIST_R_IMPULSE, "fist_r_impulse_x"),
+            (columns::FIST_L_IMPULSE, "fist_l_impulse_x"),
+        ] {
+            assert_eq!(feature_index(name), Some(column), "{name}");
+        }
     }
 
     #[test]

@@ -3,9 +3,10 @@
 //! reads and drives its bodies for `PunchController` with the same core code the training server uses.
 
 use glam::Vec3;
+use godot::builtin::{Rid, Transform3D};
 use godot::classes::generic6_dof_joint_3d::{Flag, Param};
 use godot::classes::physics_server_3d::G6dofJointAxisParam;
-use godot::classes::{Generic6DofJoint3D, INode3D, Marker3D, Node3D, PhysicsBody3D, PhysicsServer3D, RigidBody3D};
+use godot::classes::{Generic6DofJoint3D, INode3D, Node3D, PhysicsBody3D, PhysicsServer3D, RigidBody3D};
 use godot::global::godot_error;
 use godot::obj::{Base, Gd, Singleton, WithBaseField};
 use godot::prelude::{GodotClass, godot_api};
@@ -13,6 +14,7 @@ use punch_core::character::{Axis, Body, JOINTS, engine_axis, joint_dofs};
 use punch_core::sensing::{BodyState, CharacterGeometry};
 
 use crate::convert::{godot_axis, quat, vec3};
+use crate::reading::character_geometry;
 
 /// A physics-based upper-body character: pelvis fixed in place, a welded head-neck-chest torso, and two
 /// arms with 10 actuated degrees of freedom (waist 2, shoulders 3 each, elbows 1 each), driven by joint
@@ -29,7 +31,9 @@ pub struct PunchCharacter {
 pub struct Rig {
     /// `Body::ALL` order.
     pub bodies: Vec<Gd<PhysicsBody3D>>,
-    pub joint_rids: [godot::builtin::Rid; 5],
+    pub joint_rids: [Rid; 5],
+    /// The bodies' physics-server RIDs (`Body::ALL` order), to recognise their contacts.
+    pub body_rids: [Rid; 6],
     /// Rest-pose geometry (without target data, which the controller adds).
     pub geometry: CharacterGeometry,
 }
@@ -116,36 +120,13 @@ impl PunchCharacter {
                 body.clone().add_collision_exception_with(other);
             }
         }
-        let mut fist_offsets = [Vec3::ZERO; 2];
-        let mut fist_radius_m = 0.045;
-        for (side, path) in ["ForearmR/FistR", "ForearmL/FistL"].into_iter().enumerate() {
-            let marker = base
-                .get_node_or_null(path)
-                .and_then(|n| n.try_cast::<Marker3D>().ok())
-                .ok_or_else(|| format!("missing fist marker '{path}'"))?;
-            fist_offsets[side] = vec3(marker.get_position());
-            fist_radius_m = marker.get_meta("radius_m").try_to::<f32>().unwrap_or(fist_radius_m);
-        }
-        let transform_of = |i: usize| bodies[i].get_global_transform();
-        let joint_anchors = std::array::from_fn(|j| {
-            let at = joints[j].get_global_position();
-            let local = |body: Body| vec3(transform_of(body.index()).affine_inverse() * at);
-            (local(JOINTS[j].parent), local(JOINTS[j].child))
-        });
-        let root = base.get_global_transform();
+        let body_transforms: [Transform3D; 6] = std::array::from_fn(|i| bodies[i].get_global_transform());
+        let joint_transforms: [Transform3D; 5] = std::array::from_fn(|j| joints[j].get_global_transform());
+        let geometry = character_geometry(&base, &body_transforms, &joint_transforms, base.get_global_transform())?;
         Ok(Rig {
             joint_rids: std::array::from_fn(|j| joints[j].get_rid()),
-            geometry: CharacterGeometry {
-                rest_rotations: std::array::from_fn(|i| quat(transform_of(i).basis.get_quaternion())),
-                fist_offsets,
-                fist_radius_m,
-                joint_anchors,
-                bag_radius_m: 0.0,
-                bag_height_m: 0.0,
-                bag_mass_kg: 0.0,
-                root_rotation: quat(root.basis.get_quaternion()),
-                root_position: vec3(root.origin),
-            },
+            body_rids: std::array::from_fn(|i| bodies[i].get_rid()),
+            geometry,
             bodies,
         })
     }

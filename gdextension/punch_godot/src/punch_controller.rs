@@ -2,21 +2,22 @@
 //! builds the observation, runs the ONNX policy, adds the designer's noise to the mean action, and hands
 //! the action to the same controller code (smoothing, targets, motor law) the training server runs.
 
-use glam::Vec3;
 use godot::builtin::{GString, VarDictionary, Vector3};
 use godot::classes::{CylinderShape3D, FileAccess, INode, Node, Node3D, PhysicsServer3D, RigidBody3D};
 use godot::global::godot_error;
 use godot::obj::{Base, Gd, Singleton, WithBaseField, WithUserSignals};
 use godot::prelude::{GodotClass, godot_api};
 use punch_core::Policy;
+use punch_core::character::DEFAULT_DECISION_PERIOD;
 use punch_core::controller::CharacterController;
 use punch_core::noise::GaussianNoise;
 use punch_core::observation::{OBS_DIM, observation, spec_hash};
-use punch_core::sensing::{BagContact, BodyState, FEATURE_COUNT, FrameReading, MAX_BAG_CONTACTS, feature_index};
+use punch_core::sensing::{BodyState, FEATURE_COUNT, FrameReading, columns, feature_vector};
 
 use crate::convert::{quat, vec3};
 use crate::punch_character::PunchCharacter;
 use crate::punch_runtime::ensure_onnx_runtime;
+use crate::reading::add_bag_contacts;
 
 /// Impulse (N s) on the target above which a fist counts as hitting it.
 const HIT_IMPULSE_NS: f32 = 0.05;
@@ -39,7 +40,7 @@ pub struct PunchController {
     noise_decisions: i32,
     /// Physics frames each decision is held for; must match the policy's.
     #[export]
-    #[init(val = 5)]
+    #[init(val = DEFAULT_DECISION_PERIOD as i32)]
     decision_period: i32,
     /// The character to drive.
     #[export]
@@ -260,19 +261,7 @@ fn read(character: &Gd<PunchCharacter>, target: &Gd<Node3D>) -> Result<FrameRead
         reading.bag.linear_velocity = vec3(body.get_linear_velocity());
         reading.bag.angular_velocity = vec3(body.get_angular_velocity());
         if let Some(state) = PhysicsServer3D::singleton().body_get_direct_state(body.get_rid()) {
-            for contact in 0..state.get_contact_count() {
-                let collider = state.get_contact_collider(contact);
-                let Some(index) = rig.bodies.iter().position(|b| b.get_rid() == collider) else { continue };
-                if reading.contact_count == MAX_BAG_CONTACTS {
-                    break;
-                }
-                reading.contacts[reading.contact_count] = BagContact {
-                    body: index,
-                    point: vec3(state.get_contact_local_position(contact)),
-                    impulse: vec3(state.get_contact_impulse(contact)),
-                };
-                reading.contact_count += 1;
-            }
+            add_bag_contacts(&state, &rig.body_rids, &mut reading);
         }
     }
     Ok(reading)
@@ -284,11 +273,9 @@ fn track_hits(
     features: &[f32; FEATURE_COUNT],
     reading: &FrameReading,
 ) -> Option<(f32, f32, Vector3)> {
-    let at = |name: &str| feature_index(name).map_or(0.0, |i| features[i]);
-    let vector =
-        |prefix: &str| Vec3::new(at(&format!("{prefix}_x")), at(&format!("{prefix}_y")), at(&format!("{prefix}_z")));
-    let speeds = [vector("fist_r_vel").length(), vector("fist_l_vel").length()];
-    let impulses = [vector("fist_r_impulse").length(), vector("fist_l_impulse").length()];
+    let length = |column: usize| feature_vector(features, column).length();
+    let speeds = [length(columns::FIST_R_VEL), length(columns::FIST_L_VEL)];
+    let impulses = [length(columns::FIST_R_IMPULSE), length(columns::FIST_L_IMPULSE)];
     let previous_peak = state.peak_speed_mps;
     state.peak_speed_mps = state.peak_speed_mps.max(speeds[0]).max(speeds[1]);
     let side = if impulses[0] >= impulses[1] { 0 } else { 1 };

@@ -18,16 +18,17 @@ use godot::classes::physics_server_3d::{
     BodyMode, BodyParameter, BodyState as ServerBodyState, G6dofJointAxisFlag, G6dofJointAxisParam,
 };
 use godot::classes::{
-    CollisionShape3D, CylinderShape3D, Generic6DofJoint3D, Marker3D, Node, Node3D, PackedScene,
-    PhysicsDirectBodyState3D, PhysicsServer3D, PinJoint3D, RigidBody3D, Shape3D, World3D,
+    CollisionShape3D, CylinderShape3D, Generic6DofJoint3D, Node, Node3D, PackedScene, PhysicsDirectBodyState3D,
+    PhysicsServer3D, PinJoint3D, RigidBody3D, Shape3D, World3D,
 };
 use godot::meta::ToGodot;
 use godot::obj::{Gd, NewGd, Singleton};
 use punch_core::character::{Axis, Body, JOINTS, engine_axis, joint_dofs};
-use punch_core::sensing::{BagContact, BodyState, CharacterGeometry, FrameReading, MAX_BAG_CONTACTS};
+use punch_core::sensing::{BodyState, CharacterGeometry, FrameReading, MAX_BAG_CONTACTS};
 use punch_core::session::{BagPlacement, World};
 
-use crate::convert::{godot_axis, quat, vec3};
+use crate::convert::godot_axis;
+use crate::reading::{add_bag_contacts, character_geometry, read_state};
 
 /// Most slots per arena: a slot uses two of the 32 collision layers, one for its character and one for its bag.
 pub const MAX_SLOTS_PER_WORLD: usize = 16;
@@ -141,8 +142,8 @@ impl CharacterTemplate {
             Body::ALL.iter().map(|b| child_3d(root, b.node_name())).collect::<Result<_, _>>()?;
         let bodies: Vec<BodyTemplate> = body_nodes.iter().map(BodyTemplate::read).collect::<Result<_, _>>()?;
         let mut joint_frames = Vec::new();
-        let mut joint_anchors = [(Vec3::ZERO, Vec3::ZERO); 5];
-        for (j, joint) in JOINTS.iter().enumerate() {
+        let mut joint_transforms = Vec::new();
+        for joint in &JOINTS {
             let node = child_3d(root, joint.node_name)?;
             node.clone()
                 .try_cast::<Generic6DofJoint3D>()
@@ -150,34 +151,13 @@ impl CharacterTemplate {
             let at = node.get_transform();
             let parent = bodies[joint.parent.index()].transform;
             let child = bodies[joint.child.index()].transform;
-            let frames = (parent.affine_inverse() * at, child.affine_inverse() * at);
-            joint_anchors[j] = (vec3(frames.0.origin), vec3(frames.1.origin));
-            joint_frames.push(frames);
+            joint_frames.push((parent.affine_inverse() * at, child.affine_inverse() * at));
+            joint_transforms.push(at);
         }
-        let mut fist_offsets = [Vec3::ZERO; 2];
-        let mut fist_radius_m = 0.0;
-        for (side, path) in ["ForearmR/FistR", "ForearmL/FistL"].into_iter().enumerate() {
-            let marker = root
-                .get_node_or_null(path)
-                .and_then(|n| n.try_cast::<Marker3D>().ok())
-                .ok_or_else(|| format!("missing fist marker '{path}'"))?;
-            fist_offsets[side] = vec3(marker.get_position());
-            fist_radius_m = marker
-                .get_meta("radius_m")
-                .try_to::<f32>()
-                .map_err(|_| format!("'{path}' has no 'radius_m' metadata"))?;
-        }
-        let geometry = CharacterGeometry {
-            rest_rotations: std::array::from_fn(|i| quat(bodies[i].transform.basis.get_quaternion())),
-            fist_offsets,
-            fist_radius_m,
-            joint_anchors,
-            bag_radius_m: 0.0,
-            bag_height_m: 0.0,
-            bag_mass_kg: 0.0,
-            root_rotation: glam::Quat::IDENTITY,
-            root_position: Vec3::ZERO,
-        };
+        // The template's frame is the scene root's, so the root sits at the identity.
+        let body_transforms: [Transform3D; 6] = std::array::from_fn(|i| bodies[i].transform);
+        let joint_transforms: [Transform3D; 5] = std::array::from_fn(|j| joint_transforms[j]);
+        let geometry = character_geometry(root, &body_transforms, &joint_transforms, Transform3D::IDENTITY)?;
         Ok(Self { bodies, joint_frames, geometry })
     }
 }
@@ -338,16 +318,6 @@ fn configure_server_joint(server: &mut Gd<PhysicsServer3D>, joint: Rid, joint_in
     }
 }
 
-fn read_state(state: &Gd<PhysicsDirectBodyState3D>) -> BodyState {
-    let transform = state.get_transform();
-    BodyState {
-        position: vec3(transform.origin),
-        rotation: quat(transform.basis.get_quaternion()),
-        linear_velocity: vec3(state.get_linear_velocity()),
-        angular_velocity: vec3(state.get_angular_velocity()),
-    }
-}
-
 impl World for TrainingWorld {
     fn slot_count(&self) -> usize {
         self.slot_count
@@ -382,19 +352,7 @@ impl World for TrainingWorld {
             *body = read_state(state);
         }
         let mut reading = FrameReading { bodies, bag: read_state(&slot.bag_state), ..FrameReading::default() };
-        for contact in 0..slot.bag_state.get_contact_count() {
-            let collider = slot.bag_state.get_contact_collider(contact);
-            let Some(body) = slot.bodies.iter().position(|rid| *rid == collider) else { continue };
-            if reading.contact_count == MAX_BAG_CONTACTS {
-                break;
-            }
-            reading.contacts[reading.contact_count] = BagContact {
-                body,
-                point: vec3(slot.bag_state.get_contact_local_position(contact)),
-                impulse: vec3(slot.bag_state.get_contact_impulse(contact)),
-            };
-            reading.contact_count += 1;
-        }
+        add_bag_contacts(&slot.bag_state, &slot.bodies, &mut reading);
         reading
     }
 

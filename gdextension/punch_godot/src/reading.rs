@@ -1,0 +1,77 @@
+//! Reading the engine into the core's types, shared by the training world (physics-server bodies) and by
+//! `PunchCharacter`/`PunchController` in a game (scene nodes).
+
+use glam::Vec3;
+use godot::builtin::{Rid, Transform3D};
+use godot::classes::{Marker3D, Node3D, PhysicsDirectBodyState3D};
+use godot::obj::Gd;
+use punch_core::character::JOINTS;
+use punch_core::sensing::{BagContact, BodyState, CharacterGeometry, FrameReading, MAX_BAG_CONTACTS};
+
+use crate::convert::{quat, vec3};
+
+/// A body's state from its physics-server direct state.
+pub fn read_state(state: &Gd<PhysicsDirectBodyState3D>) -> BodyState {
+    let transform = state.get_transform();
+    BodyState {
+        position: vec3(transform.origin),
+        rotation: quat(transform.basis.get_quaternion()),
+        linear_velocity: vec3(state.get_linear_velocity()),
+        angular_velocity: vec3(state.get_angular_velocity()),
+    }
+}
+
+/// Adds the contacts the target reported with the character's bodies (`body_rids`, `Body::ALL` order).
+pub fn add_bag_contacts(target: &Gd<PhysicsDirectBodyState3D>, body_rids: &[Rid; 6], reading: &mut FrameReading) {
+    for contact in 0..target.get_contact_count() {
+        let collider = target.get_contact_collider(contact);
+        let Some(body) = body_rids.iter().position(|rid| *rid == collider) else { continue };
+        if reading.contact_count == MAX_BAG_CONTACTS {
+            break;
+        }
+        reading.contacts[reading.contact_count] = BagContact {
+            body,
+            point: vec3(target.get_contact_local_position(contact)),
+            impulse: vec3(target.get_contact_impulse(contact)),
+        };
+        reading.contact_count += 1;
+    }
+}
+
+/// The character's rest-pose geometry from the transforms of its bodies (`Body::ALL` order) and joints
+/// (`JOINTS` order) in one frame, and of its root in that frame. The fist markers are read from `root`'s
+/// scene. Target data (bag size and mass) is left at zero for the caller to fill.
+pub fn character_geometry(
+    root: &Gd<Node3D>,
+    bodies: &[Transform3D; 6],
+    joints: &[Transform3D; 5],
+    root_transform: Transform3D,
+) -> Result<CharacterGeometry, String> {
+    let mut fist_offsets = [Vec3::ZERO; 2];
+    let mut fist_radius_m = 0.0;
+    for (side, path) in ["ForearmR/FistR", "ForearmL/FistL"].into_iter().enumerate() {
+        let marker = root
+            .get_node_or_null(path)
+            .and_then(|n| n.try_cast::<Marker3D>().ok())
+            .ok_or_else(|| format!("missing fist marker '{path}'"))?;
+        fist_offsets[side] = vec3(marker.get_position());
+        fist_radius_m =
+            marker.get_meta("radius_m").try_to::<f32>().map_err(|_| format!("'{path}' has no 'radius_m' metadata"))?;
+    }
+    let joint_anchors = std::array::from_fn(|j| {
+        let at = joints[j].origin;
+        let local = |body: usize| vec3(bodies[body].affine_inverse() * at);
+        (local(JOINTS[j].parent.index()), local(JOINTS[j].child.index()))
+    });
+    Ok(CharacterGeometry {
+        rest_rotations: std::array::from_fn(|i| quat(bodies[i].basis.get_quaternion())),
+        fist_offsets,
+        fist_radius_m,
+        joint_anchors,
+        bag_radius_m: 0.0,
+        bag_height_m: 0.0,
+        bag_mass_kg: 0.0,
+        root_rotation: quat(root_transform.basis.get_quaternion()),
+        root_position: vec3(root_transform.origin),
+    })
+}
