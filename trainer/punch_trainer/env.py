@@ -101,7 +101,7 @@ class PunchVectorEnv(gym.vector.VectorEnv):
                  decision_period: int = 5, smoothing_window: int = 1, reward_fn: RewardFn | None = None,
                  bag_jitter_m: float = 0.0):
         self.servers = start_servers(processes, characters_per_process, decision_period)
-        info = self.servers[0].info
+        self.info = info = self.servers[0].info  # the handshake: rates, names, spec hash
         self.characters_per_process = characters_per_process
         self.num_envs = processes * characters_per_process
         self.frames = frames

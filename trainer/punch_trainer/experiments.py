@@ -73,17 +73,17 @@ def _ppo_curve(reward: Reward, seed: int, total_steps: int, frames: int, smoothi
 def fig6(reward_name: str = "straight", seeds=(0, 1, 2), search_iterations: int = 60, a2c_updates: int = 40,
          characters: int = 32, smoothing_window: int = 3, out: Path | None = None) -> tuple[Path, list[dict]]:
     reward = load_reward(reward_name)
-    decisions = reward.frames // 5
-    # Matched budgets: A2C alone and PPO get as many environment steps as the pretrained variants use in all,
-    # the search's rollouts (and its first evaluation of the zero sequence) included.
-    matched_steps = (search_iterations * 64 + 1) * decisions + a2c_updates * characters * decisions
-    scratch_updates = -(-matched_steps // (characters * decisions))
     out = out or Path("runs") / f"fig6_{reward.name}"
     out.mkdir(parents=True, exist_ok=True)
     curves: dict[tuple[str, int], list[dict]] = {}
     jobs = [(method, seed) for seed in seeds for method in METHODS]
     progress = tqdm(jobs, desc="fig6", unit="run")
     with PunchVectorEnv(1, characters, frames=reward.frames, smoothing_window=smoothing_window) as env:
+        decisions = reward.frames // env.info.decision_period
+        # Matched budgets: A2C alone and PPO get as many environment steps as the pretrained variants use in
+        # all, the search's rollouts (and its first evaluation of the zero sequence) included.
+        matched_steps = (search_iterations * 64 + 1) * decisions + a2c_updates * characters * decisions
+        scratch_updates = -(-matched_steps // (characters * decisions))
         for method, seed in progress:
             a2c_args = A2CArgs(updates=a2c_updates, characters=characters, smoothing_window=smoothing_window, seed=seed,
                                advantage="paper" if "paper" in method else "gae")

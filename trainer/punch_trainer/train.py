@@ -84,9 +84,9 @@ def run_train(args: TrainArgs, progress: bool = True) -> Path:
         metadata = {
             "punch_spec_hash": env.spec_hash,
             "punch_action_spec": "10 raw actions in [-1, 1]; see docs/env.md (mean clipped to [-1, 1], smoothed by the controller)",
-            "punch_decision_period": "5",
+            "punch_decision_period": str(env.info.decision_period),
             "punch_smoothing_window": str(args.smoothing_window),
-            "punch_physics_hz": "120",
+            "punch_physics_hz": str(env.info.physics_hz),
             "punch_frames": str(reward.frames),
             "punch_reward": reward.name,
             "punch_trainer_version": __version__,
@@ -106,7 +106,7 @@ def run_train(args: TrainArgs, progress: bool = True) -> Path:
         writer.writerows(a2c_history)
     (out / "config.json").write_text(json.dumps({k: str(v) if isinstance(v, Path) else v for k, v in asdict(args).items()}, indent=2) + "\n")
     ratio = exported_return / search.best_return if search.best_return > 0 else float("nan")
-    motion = motion_report({"features": features, "feature_names": np.array(env.feature_names), "physics_hz": np.array(120)})
+    motion = motion_report({"features": features, "feature_names": np.array(env.feature_names), "physics_hz": np.array(env.info.physics_hz)})
     impact = (f"first contact at {motion['impact_time_s']:.3f} s at {motion['impact_speed_mps']:.2f} m/s, contact point "
               f"{motion['contact_point_from_bag_centre_m']} m from the bag's centre" if motion["impact_time_s"] is not None
               else "no contact with the bag")
