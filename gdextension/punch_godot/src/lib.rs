@@ -2,12 +2,12 @@
 //! the logic is in `punch_core`.
 
 mod convert;
+mod engine_io;
 mod punch_character;
 mod punch_controller;
 mod punch_policy;
 mod punch_runtime;
 mod punch_training_server;
-mod reading;
 mod training_world;
 
 use godot::prelude::{ExtensionLibrary, gdextension};

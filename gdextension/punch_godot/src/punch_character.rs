@@ -5,16 +5,15 @@
 use glam::Vec3;
 use godot::builtin::{Rid, Transform3D};
 use godot::classes::generic6_dof_joint_3d::{Flag, Param};
-use godot::classes::physics_server_3d::G6dofJointAxisParam;
-use godot::classes::{Generic6DofJoint3D, INode3D, Node3D, PhysicsBody3D, PhysicsServer3D, RigidBody3D};
+use godot::classes::{Generic6DofJoint3D, INode3D, Node3D, PhysicsBody3D, RigidBody3D};
 use godot::global::godot_error;
-use godot::obj::{Base, Gd, Singleton, WithBaseField};
+use godot::obj::{Base, Gd, WithBaseField};
 use godot::prelude::{GodotClass, godot_api};
-use punch_core::character::{Axis, Body, JOINTS, engine_axis, joint_dofs};
+use punch_core::character::{Axis, Body, JOINTS, engine_axis};
 use punch_core::sensing::{BodyState, CharacterGeometry};
 
-use crate::convert::{godot_axis, quat, vec3};
-use crate::reading::character_geometry;
+use crate::convert::{quat, vec3};
+use crate::engine_io::{character_geometry, drive_joints};
 
 /// A physics-based upper-body character: pelvis fixed in place, a welded head-neck-chest torso, and two
 /// arms with 10 actuated degrees of freedom (waist 2, shoulders 3 each, elbows 1 each), driven by joint
@@ -59,18 +58,7 @@ impl Rig {
 
     /// Sets the joint motors (Godot's 6DOF convention) on actuated axes.
     pub fn drive(&self, motor_velocities: &[Vec3; 5]) {
-        let mut server = PhysicsServer3D::singleton();
-        for (joint_index, (rid, velocity)) in self.joint_rids.iter().zip(motor_velocities).enumerate() {
-            for (_, dof) in joint_dofs(joint_index) {
-                let value = velocity[dof.axis.index()];
-                server.generic_6dof_joint_set_param(
-                    *rid,
-                    godot_axis(dof.axis),
-                    G6dofJointAxisParam::ANGULAR_MOTOR_TARGET_VELOCITY,
-                    value,
-                );
-            }
-        }
+        drive_joints(&self.joint_rids, motor_velocities);
     }
 }
 

@@ -15,9 +15,9 @@ use punch_core::observation::{OBS_DIM, observation, spec_hash};
 use punch_core::sensing::{BodyState, FEATURE_COUNT, FrameReading, columns, feature_vector};
 
 use crate::convert::{quat, vec3};
+use crate::engine_io::add_bag_contacts;
 use crate::punch_character::PunchCharacter;
 use crate::punch_runtime::ensure_onnx_runtime;
-use crate::reading::add_bag_contacts;
 
 /// Impulse (N s) on the target above which a fist counts as hitting it.
 const HIT_IMPULSE_NS: f32 = 0.05;

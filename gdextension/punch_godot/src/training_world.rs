@@ -23,12 +23,12 @@ use godot::classes::{
 };
 use godot::meta::ToGodot;
 use godot::obj::{Gd, NewGd, Singleton};
-use punch_core::character::{Axis, Body, JOINTS, engine_axis, joint_dofs};
+use punch_core::character::{Axis, Body, JOINTS, engine_axis};
 use punch_core::sensing::{BodyState, CharacterGeometry, FrameReading, MAX_BAG_CONTACTS};
 use punch_core::session::{BagPlacement, World};
 
 use crate::convert::godot_axis;
-use crate::reading::{add_bag_contacts, character_geometry, read_state};
+use crate::engine_io::{add_bag_contacts, character_geometry, drive_joints, read_state};
 
 /// Most slots per arena: a slot uses two of the 32 collision layers, one for its character and one for its bag.
 pub const MAX_SLOTS_PER_WORLD: usize = 16;
@@ -357,17 +357,6 @@ impl World for TrainingWorld {
     }
 
     fn drive(&mut self, slot: usize, motor_velocities: &[Vec3; 5]) {
-        let mut server = PhysicsServer3D::singleton();
-        for (joint_index, (joint, velocity)) in self.slots[slot].joints.iter().zip(motor_velocities).enumerate() {
-            for (_, dof) in joint_dofs(joint_index) {
-                let value = velocity[dof.axis.index()];
-                server.generic_6dof_joint_set_param(
-                    *joint,
-                    godot_axis(dof.axis),
-                    G6dofJointAxisParam::ANGULAR_MOTOR_TARGET_VELOCITY,
-                    value,
-                );
-            }
-        }
+        drive_joints(&self.slots[slot].joints, motor_velocities);
     }
 }

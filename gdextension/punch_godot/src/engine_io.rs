@@ -1,14 +1,32 @@
-//! Reading the engine into the core's types, shared by the training world (physics-server bodies) and by
+//! Between the engine and the core: reading bodies and contacts into the core's types, and driving the joint
+//! motors from its commands. Shared by the training world (physics-server bodies) and by
 //! `PunchCharacter`/`PunchController` in a game (scene nodes).
 
 use glam::Vec3;
 use godot::builtin::{Rid, Transform3D};
-use godot::classes::{Marker3D, Node3D, PhysicsDirectBodyState3D};
-use godot::obj::Gd;
-use punch_core::character::JOINTS;
+use godot::classes::physics_server_3d::G6dofJointAxisParam;
+use godot::classes::{Marker3D, Node3D, PhysicsDirectBodyState3D, PhysicsServer3D};
+use godot::obj::{Gd, Singleton};
+use punch_core::character::{JOINTS, joint_dofs};
 use punch_core::sensing::{BagContact, BodyState, CharacterGeometry, FrameReading, MAX_BAG_CONTACTS};
 
-use crate::convert::{quat, vec3};
+use crate::convert::{godot_axis, quat, vec3};
+
+/// Sets each joint's motor target velocities (Godot's 6DOF convention, `JOINTS` order) on its actuated axes.
+pub fn drive_joints(joint_rids: &[Rid; 5], motor_velocities: &[Vec3; 5]) {
+    let mut server = PhysicsServer3D::singleton();
+    for (joint_index, (rid, velocity)) in joint_rids.iter().zip(motor_velocities).enumerate() {
+        for (_, dof) in joint_dofs(joint_index) {
+            let value = velocity[dof.axis.index()];
+            server.generic_6dof_joint_set_param(
+                *rid,
+                godot_axis(dof.axis),
+                G6dofJointAxisParam::ANGULAR_MOTOR_TARGET_VELOCITY,
+                value,
+            );
+        }
+    }
+}
 
 /// A body's state from its physics-server direct state.
 pub fn read_state(state: &Gd<PhysicsDirectBodyState3D>) -> BodyState {
