@@ -121,6 +121,18 @@ def _pretrain(args: argparse.Namespace) -> int:
     return 0
 
 
+def _replay(args: argparse.Namespace) -> int:
+    from punch_trainer.replay import ReplayArgs, parse_sigmas, run_replay
+
+    out, rows = run_replay(ReplayArgs(policy=args.policy, sigmas=parse_sigmas(args.sigmas), episodes=args.episodes,
+                                      noise_decisions=args.noise_decisions, reward=args.reward, characters=args.characters,
+                                      characters_per_world=args.characters_per_world, seed=args.seed, out=args.out,
+                                      keep_frames=args.keep_frames))
+    print((out / "report.md").read_text())
+    print(f"report: {out / 'report.md'}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="punch", description="Train and run physics-based punching policies.")
     parser.add_argument("--version", action="version", version=f"punch {__version__}")
@@ -164,6 +176,20 @@ def build_parser() -> argparse.ArgumentParser:
     pre.add_argument("--epochs", type=int, default=1500)
     pre.add_argument("--seed", type=int, default=0)
     pre.set_defaults(run=_pretrain)
+
+    replay = commands.add_parser("replay", help="replay a policy through PunchController in Godot at several noise sigmas (paper Fig. 10-11)")
+    replay.add_argument("--policy", type=Path, required=True, help="an exported policy.onnx")
+    replay.add_argument("--sigmas", default="0.1:0.9:0.1", help="start:stop:step (inclusive) or a,b,c")
+    replay.add_argument("--episodes", type=int, default=1000, help="punches per sigma")
+    replay.add_argument("--noise-decisions", dest="noise_decisions", type=int, default=-1,
+                        help="noise on the first k decisions only (-1: all)")
+    replay.add_argument("--reward", help="reward to score with (default: the policy's, from its metadata)")
+    replay.add_argument("--characters", type=int, default=64, help="characters punching at once")
+    replay.add_argument("--characters-per-world", dest="characters_per_world", type=int, default=16)
+    replay.add_argument("--seed", type=int, default=0)
+    replay.add_argument("--out", type=Path, help="output directory (default: next to the policy)")
+    replay.add_argument("--keep-frames", dest="keep_frames", action="store_true", help="keep Godot's raw per-frame files")
+    replay.set_defaults(run=_replay)
 
     experiment = commands.add_parser("experiment", help="experiments of the paper")
     experiments = experiment.add_subparsers(dest="experiment", required=True)

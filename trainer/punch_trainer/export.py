@@ -29,10 +29,12 @@ def export_policy(
     output_names: tuple[str, ...] = ("mean", "sigma"),
     metadata: dict[str, str] | None = None,
     seed: int = 0,
+    verify: bool = True,
 ) -> Path:
     """Exports `module` (input [batch, input_width] -> outputs [batch, k]) to `path` with a dynamic batch
     axis and string metadata, then checks that onnxruntime reproduces torch within EXPORT_TOLERANCE on
-    random inputs. Raises ExportError otherwise."""
+    random inputs (unless `verify` is off: for test models that output NaN on purpose). Raises ExportError
+    otherwise."""
     module = module.eval()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -54,7 +56,8 @@ def export_policy(
         entry = model.metadata_props.add()
         entry.key, entry.value = key, str(value)
     onnx.save(model, str(path))
-    verify_export(module, path, input_width, input_name=input_name, seed=seed)
+    if verify:
+        verify_export(module, path, input_width, input_name=input_name, seed=seed)
     return path
 
 

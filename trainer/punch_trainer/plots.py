@@ -60,6 +60,50 @@ def plot_search(out: Path, result, dataset: dict) -> list[Path]:
     return paths
 
 
+def plot_replay(out: Path, sigmas: list[float], rows: list[dict], analyses: list[dict], best_return: float | None,
+                paths_per_sigma: int = 40) -> list[Path]:
+    """Fig. 10: return ratio and success rate against sigma. Fig. 11: right-fist paths (side and top views)
+    and impact points at a low, a middle and the highest sigma."""
+    figure, (left, right) = plt.subplots(1, 2, figsize=(10, 3.8))
+    if best_return:
+        left.plot(sigmas, [r["return_ratio"] for r in rows], marker="o")
+        left.set_ylabel("mean return / search best")
+    else:
+        left.plot(sigmas, [r["mean_return"] for r in rows], marker="o")
+        left.set_ylabel("mean return")
+    right.plot(sigmas, [100 * r["success_rate"] for r in rows], marker="o", label="return > 0")
+    right.plot(sigmas, [100 * r["hit_rate"] for r in rows], marker="s", alpha=0.7, label="right fist touches the bag")
+    right.set_ylabel("% of punches")
+    right.set_ylim(0, 105)
+    right.legend(fontsize=8)
+    for axis in (left, right):
+        axis.set_xlabel("runtime noise sigma")
+        axis.grid(alpha=0.3)
+    figure.suptitle("Replay through PunchController: quality against noise")
+    figure.tight_layout()
+    paths = [_save(figure, out / "replay_returns.png")]
+
+    shown = sorted({0, len(sigmas) // 2, len(sigmas) - 1})
+    figure, axes = plt.subplots(2, len(shown), figsize=(4 * len(shown), 7), squeeze=False)
+    for column, index in enumerate(shown):
+        fist, impacts = analyses[index]["fist_paths"], analyses[index]["impacts"]
+        for row, (axis_index, label) in enumerate([(1, "y up (m)"), (0, "x left (m)")]):
+            axis = axes[row][column]
+            for path in fist[:paths_per_sigma]:
+                axis.plot(path[:, 2], path[:, axis_index], color="tab:red", alpha=0.25, linewidth=0.8)
+            if len(impacts):
+                axis.scatter(impacts[:, 2], impacts[:, axis_index], s=4, color="black", alpha=0.4, label="impact points")
+            axis.set_xlabel("z toward the bag (m)")
+            axis.set_ylabel(label)
+            axis.set_aspect("equal", adjustable="datalim")
+            axis.grid(alpha=0.3)
+            axis.set_title(f"sigma {sigmas[index]:.2f}, {'side' if row == 0 else 'top'} view", fontsize=10)
+    figure.suptitle(f"Right-fist paths ({paths_per_sigma} per sigma) and impact points")
+    figure.tight_layout()
+    paths.append(_save(figure, out / "replay_paths.png"))
+    return paths
+
+
 def _save(figure, path: Path) -> Path:
     figure.savefig(path, dpi=110)
     plt.close(figure)

@@ -1,0 +1,153 @@
+## Replays a trained policy through PunchController itself, many punches at several noise sigmas, and writes
+## what each punch did for `punch replay` to analyse (it computes the rewards in Python).
+##
+## tools/godot --headless --fixed-fps 120 --path godot_project --script res://tools/replay.gd -- \
+##     --policy=PATH --sigmas=0.1,0.5 --episodes=100 --out=DIR [--noise-decisions=4] [--characters=64]
+##     [--characters-per-world=16] [--seed=0] [--bag=distance_m,height_m,side_m]
+##
+## Characters run side by side like the training server's slots: each group shares a physics world (a
+## SubViewport with its own World3D) and two collision layers per character keep them apart. Every batch is
+## built fresh, so every punch starts from the same state. Episode e at sigma index s uses noise seed
+## seed * 1000003 + s * 100003 + e, whatever the batch size.
+##
+## Output per sigma index s in DIR: features_s.f32 [episodes, frames, F], observations_s.f32
+## [episodes, decisions, 45], mean_actions_s.f32 and actions_s.f32 [episodes, decisions, 10], all little-endian
+## float32, and meta.json. Progress lines: `REPLAY_PROGRESS done total`.
+extends SceneTree
+
+const CHARACTER_SCENE := "res://addons/punch_controller/scenes/punch_character.tscn"
+const SANDBAG_SCENE := "res://addons/punch_controller/scenes/punch_sandbag.tscn"
+
+var _options := {
+	"policy": "", "sigmas": "0", "episodes": "10", "out": "", "noise-decisions": "-1", "characters": "64",
+	"characters-per-world": "16", "seed": "0", "bag": "0.72,1.35,0.0",
+}
+var _sigmas := PackedFloat32Array()
+var _sigma_index := 0
+var _episodes_done := 0
+var _episodes_total := 0
+var _arenas: Array[SubViewport] = []
+var _controllers: Array[Node] = []
+var _pending := 0
+var _files := {}
+var _character_scene: PackedScene
+var _sandbag_scene: PackedScene
+var _meta := {}
+
+
+func _initialize() -> void:
+	for argument in OS.get_cmdline_user_args():
+		var parts := argument.trim_prefix("--").split("=", true, 1)
+		if parts.size() != 2 or not _options.has(parts[0]):
+			_fail("unknown argument '%s' (expected --%s=VALUE)" % [argument, "=VALUE, --".join(_options.keys())])
+			return
+		_options[parts[0]] = parts[1]
+	for value in _options.sigmas.split(","):
+		_sigmas.append(float(value))
+	_episodes_total = int(_options.episodes)
+	if _options.out == "" or _options.policy == "" or _episodes_total < 1:
+		_fail("--policy, --out and --episodes >= 1 are needed")
+		return
+	if not FileAccess.file_exists(_options.policy):
+		_fail("policy file not found: %s" % _options.policy)
+		return
+	DirAccess.make_dir_recursive_absolute(_options.out)
+	_character_scene = load(CHARACTER_SCENE)
+	_sandbag_scene = load(SANDBAG_SCENE)
+	_meta = {"policy": _options.policy, "sigmas": Array(_sigmas), "episodes": _episodes_total,
+		"noise_decisions": int(_options["noise-decisions"]), "seed": int(_options.seed), "bag": _options.bag,
+		"characters": int(_options.characters), "characters_per_world": int(_options["characters-per-world"]),
+		"feature_names": Array(ClassDB.class_call_static("PunchController", "feature_names"))}
+
+
+func _physics_process(_delta: float) -> bool:
+	if _sigma_index >= _sigmas.size():
+		return true
+	if not _controllers.is_empty():
+		if _pending > 0:
+			return false
+		_collect_batch()
+	if _sigma_index < _sigmas.size():
+		_start_batch()
+		return false
+	var meta_file := FileAccess.open(_options.out.path_join("meta.json"), FileAccess.WRITE)
+	meta_file.store_string(JSON.stringify(_meta, "  "))
+	meta_file.close()
+	print("REPLAY_DONE")
+	return true
+
+
+func _start_batch() -> void:
+	var count := mini(int(_options.characters), _episodes_total - _episodes_done)
+	var per_world := clampi(int(_options["characters-per-world"]), 1, 16)
+	var bag: PackedFloat64Array = (_options.bag as String).split_floats(",")
+	var arena: SubViewport
+	for slot in count:
+		if slot % per_world == 0:
+			arena = SubViewport.new()
+			arena.own_world_3d = true
+			arena.render_target_update_mode = SubViewport.UPDATE_DISABLED
+			root.add_child(arena)
+			_arenas.append(arena)
+		var character_layer := 1 << (2 * (slot % per_world))
+		var bag_layer := character_layer << 1
+		var character: Node3D = _character_scene.instantiate()
+		_set_layers(character, character_layer, bag_layer)
+		arena.add_child(character)
+		var sandbag: Node3D = _sandbag_scene.instantiate()
+		sandbag.position = Vector3(bag[2], bag[1], bag[0])
+		_set_layers(sandbag, bag_layer, character_layer)
+		arena.add_child(sandbag)
+		var controller: Node = ClassDB.instantiate("PunchController")
+		controller.set("character", character)
+		controller.set("target", sandbag.get_node("Bag"))
+		controller.set("policy", _options.policy)
+		controller.set("noise_sigma", _sigmas[_sigma_index])
+		controller.set("noise_decisions", int(_options["noise-decisions"]))
+		controller.set("seed", int(_options.seed) * 1000003 + _sigma_index * 100003 + _episodes_done + slot)
+		controller.set("record", true)
+		controller.connect("punch_finished", func(_metrics): _pending -= 1)
+		arena.add_child(controller)
+		_controllers.append(controller)
+	_pending = count
+	for controller in _controllers:
+		if not controller.call("punch"):
+			_fail("PunchController refused to punch (see the error above)")
+			return
+
+
+func _collect_batch() -> void:
+	if _episodes_done == 0:
+		for kind in ["features", "observations", "mean_actions", "actions"]:
+			_files[kind] = FileAccess.open(_options.out.path_join("%s_%d.f32" % [kind, _sigma_index]), FileAccess.WRITE)
+	for controller in _controllers:
+		var record: Dictionary = controller.call("last_punch_record")
+		_meta["frames"] = record.frames
+		_meta["decisions"] = record.decisions
+		for kind in _files:
+			_files[kind].store_buffer((record[kind] as PackedFloat32Array).to_byte_array())
+	_episodes_done += _controllers.size()
+	print("REPLAY_PROGRESS %d %d" % [_sigma_index * _episodes_total + _episodes_done, _sigmas.size() * _episodes_total])
+	for arena in _arenas:
+		root.remove_child(arena)
+		arena.free()
+	_arenas.clear()
+	_controllers.clear()
+	if _episodes_done >= _episodes_total:
+		for kind in _files:
+			_files[kind].close()
+		_files.clear()
+		_episodes_done = 0
+		_sigma_index += 1
+
+
+func _set_layers(scene_root: Node, layer: int, mask: int) -> void:
+	for body in scene_root.find_children("*", "CollisionObject3D", true, false):
+		body.collision_layer = layer
+		body.collision_mask = mask
+
+
+func _fail(message: String) -> void:
+	printerr("error: replay: ", message)
+	_sigma_index = _sigmas.size() + 1
+	quit(2)

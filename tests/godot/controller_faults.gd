@@ -1,0 +1,117 @@
+## Faults a game can throw at PunchController, one after another in one running game: bad policy files, a
+## policy that outputs NaN, the target or the character freed mid-punch, out-of-range sigma from code, and a
+## policy loaded from inside a .pck. Each must give its clear error (or a clamp) and the game must go on.
+## Args: --policy=GOOD.onnx --nan-policy=NAN.onnx --corrupt=FILE --tiny=TINY.onnx --pck=OUT.pck
+## Prints `FAULTS <json>` and quits 0.
+extends SceneTree
+
+var _args := {}
+var _report := {}
+var _steps: Array[Callable] = []
+var _wait := 0
+var _character: Node3D
+var _sandbag: Node3D
+var _controller: Node
+
+
+func _initialize() -> void:
+	for argument in OS.get_cmdline_user_args():
+		var parts := argument.trim_prefix("--").split("=", true, 1)
+		_args[parts[0]] = parts[1]
+	_steps = [_bad_files, _nan_outputs, _target_freed, _character_freed, _sigma_clamped, _packed_policy]
+
+
+func _physics_process(_delta: float) -> bool:
+	if _wait > 0:
+		_wait -= 1
+		return false
+	if _steps.is_empty():
+		print("FAULTS ", JSON.stringify(_report))
+		quit(0)
+		return false
+	_steps.pop_front().call()
+	return false
+
+
+func _scene() -> Node:
+	for node in [_character, _sandbag, _controller]:
+		if is_instance_valid(node):
+			node.free()
+	_character = load("res://addons/punch_controller/scenes/punch_character.tscn").instantiate()
+	root.add_child(_character)
+	_sandbag = load("res://addons/punch_controller/scenes/punch_sandbag.tscn").instantiate()
+	_sandbag.position = Vector3(0, 1.35, 0.72)
+	root.add_child(_sandbag)
+	var controller: Node = ClassDB.instantiate("PunchController")
+	controller.set("character", _character)
+	controller.set("target", _sandbag.get_node("Bag"))
+	controller.set("policy", _args.policy)
+	root.add_child(controller)
+	_controller = controller
+	return controller
+
+
+func _bad_files() -> void:
+	var controller := _scene()
+	var refused := {}
+	for case in [["missing", "res://no/such/policy.onnx"], ["corrupt", _args.corrupt], ["incompatible", _args.tiny], ["empty", ""]]:
+		controller.set("policy", case[1])
+		refused[case[0]] = not controller.call("punch")
+	controller.set("policy", _args.policy)
+	controller.set("decision_period", 4)
+	refused["wrong_decision_period"] = not controller.call("punch")
+	controller.set("decision_period", 5)
+	refused["good_policy_afterwards_punches"] = controller.call("punch")
+	_report["refused"] = refused
+	_wait = 5
+
+
+func _nan_outputs() -> void:
+	var controller := _scene()
+	controller.set("policy", _args["nan-policy"])
+	_report["nan_started"] = controller.call("punch")
+	_steps.push_front(func(): _report["nan_stopped"] = not controller.call("is_punching"))
+	_wait = 3
+
+
+func _target_freed() -> void:
+	var controller := _scene()
+	controller.call("punch")
+	_steps.push_front(func():
+		_sandbag.free()
+		_steps.push_front(func(): _report["target_freed_stopped"] = not controller.call("is_punching"))
+		_wait = 2)
+	_wait = 10
+
+
+func _character_freed() -> void:
+	var controller := _scene()
+	controller.call("punch")
+	_steps.push_front(func():
+		_character.free()
+		_steps.push_front(func(): _report["character_freed_stopped"] = not controller.call("is_punching"))
+		_wait = 2)
+	_wait = 10
+
+
+func _sigma_clamped() -> void:
+	var controller := _scene()
+	var seen := []
+	for value in [5.0, -1.0, NAN, 0.25]:
+		controller.set("noise_sigma", value)
+		seen.append(controller.get("noise_sigma"))
+	_report["sigma_after_set"] = seen
+
+
+func _packed_policy() -> void:
+	# An exported game reads its files from a .pck: pack the policy, mount it, and punch from res://.
+	var packer := PCKPacker.new()
+	packer.pck_start(_args.pck)
+	packer.add_file("res://packed_policies/straight.onnx", _args.policy)
+	packer.flush()
+	_report["pck_mounted"] = ProjectSettings.load_resource_pack(_args.pck)
+	var controller := _scene()
+	controller.set("policy", "res://packed_policies/straight.onnx")
+	controller.connect("punch_finished", func(metrics): _report["pck_punch"] = metrics)
+	_report["pck_started"] = controller.call("punch")
+	_wait = 60

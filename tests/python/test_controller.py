@@ -1,0 +1,77 @@
+"""PunchController in a game: trained policies played batched in an ordinary scene, and every fault a game can
+throw at it answered with a clear error (or a clamp) while the game goes on."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from punch_trainer.export import export_policy
+from punch_trainer.godot import GODOT_PROJECT, PROJECT_ROOT, run_godot
+from punch_trainer.replay import policy_metadata
+from punch_trainer.train import TrainArgs, run_train
+
+pytestmark = pytest.mark.godot
+FIXTURES = PROJECT_ROOT / "tests" / "fixtures"
+
+
+@pytest.fixture(scope="module")
+def policy(tmp_path_factory):
+    out = run_train(TrainArgs(reward="straight", out=tmp_path_factory.mktemp("game") / "run", search_iterations=30,
+                              search_rollouts=64, pretrain_epochs=800, a2c_updates=1, a2c_characters=4,
+                              a2c_time_budget_s=None), progress=False)
+    return out / "policy.onnx"
+
+
+def run_script(name: str, *args: str):
+    script = PROJECT_ROOT / "tests" / "godot" / name
+    return run_godot(["--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), "--script", str(script), "--", *args],
+                     check=False, timeout_s=120)
+
+
+def test_punch_controllers_play_a_shared_policy_batched_in_a_game_scene(policy):
+    run = run_script("punch_scene.gd", f"--policy={policy}")
+    assert run.fatal_lines() == [] and "ERROR" not in run.log, run.log[-3000:]
+    line = next(l for l in run.log.splitlines() if l.startswith("PUNCH_SCENE "))
+    report = json.loads(line[len("PUNCH_SCENE "):])
+    assert report["started"] == 3 and len(report["finished"]) == 3, run.log[-3000:]
+    for finished in report["finished"]:
+        assert finished["frames"] == 50 and finished["hits"] >= 1, "every punch should reach its bag"
+        assert 3.0 < finished["peak_fist_speed_mps"] < 15.0
+        # No noise: alike, though not bitwise, as each sits at other world coordinates.
+        assert finished["peak_fist_speed_mps"] == pytest.approx(report["finished"][0]["peak_fist_speed_mps"], rel=0.05)
+    assert {hit[0] for hit in report["hits"]} == {0, 1, 2}
+    # One ONNX Runtime call per decision tick for all three controllers.
+    assert report["inference"] == {"calls": 10, "rows": 30}
+
+
+def nan_policy(path, spec_hash: str):
+    class NanActor(torch.nn.Module):
+        def forward(self, obs):
+            mean = obs[:, :10] * torch.tensor(float("nan"))
+            return mean, torch.ones_like(mean)
+
+    return export_policy(NanActor(), 45, path, metadata={"punch_spec_hash": spec_hash}, verify=False)
+
+
+def test_controller_faults_give_clear_errors_and_the_game_goes_on(policy, tmp_path):
+    corrupt = tmp_path / "corrupt.onnx"
+    corrupt.write_bytes(np.random.default_rng(0).bytes(3000))
+    nan = nan_policy(tmp_path / "nan.onnx", policy_metadata(policy)["punch_spec_hash"])
+    run = run_script("controller_faults.gd", f"--policy={policy}", f"--nan-policy={nan}", f"--corrupt={corrupt}",
+                     f"--tiny={FIXTURES / 'tiny_actor.onnx'}", f"--pck={tmp_path / 'game.pck'}")
+    assert run.fatal_lines() == [], run.log[-3000:]
+    line = next((l for l in run.log.splitlines() if l.startswith("FAULTS ")), None)
+    assert line, f"the game did not reach its end:\n{run.log[-3000:]}"
+    report = json.loads(line[len("FAULTS "):])
+    assert report["refused"] == {"missing": True, "corrupt": True, "incompatible": True, "empty": True,
+                                 "wrong_decision_period": True, "good_policy_afterwards_punches": True}
+    for message in ["policy file not found", "invalid ONNX model", "incompatible policy '", "no policy file set",
+                    "incompatible policy: it was trained for spec", "returned NaN", "the target was freed",
+                    "the character was freed", "noise_sigma 5 is outside 0..1; using 1"]:
+        assert message in run.log, message
+    assert report["nan_started"] and report["nan_stopped"]
+    assert report["target_freed_stopped"] and report["character_freed_stopped"]
+    assert report["sigma_after_set"] == [1.0, 0.0, 0.0, 0.25]
+    assert report["pck_mounted"] and report["pck_started"] and report["pck_punch"]["frames"] == 50

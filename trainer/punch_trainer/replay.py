@@ -1,0 +1,209 @@
+"""Replay experiment (the paper's Fig. 10-11): how a trained policy's punches vary with the runtime noise sigma.
+
+The punches run in headless Godot through `PunchController` itself (godot_project/tools/replay.gd), the same
+node, ONNX Runtime call and noise a game uses; not the torch policy. Godot writes what every punch did, and
+this module scores it with the policy's reward (named in its metadata) and reports per sigma:
+
+- return ratio: mean return / the trajectory search's best return (from the policy's training summary),
+- success rate: the share of punches with a return > 0,
+- spread of the impact points (first contact of the right fist) and of the right fist's paths (m).
+
+    punch replay --policy runs/NAME/policy.onnx --sigmas 0.1:0.9:0.1 --episodes 10000 [--noise-decisions 4]
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import onnx
+from tqdm import tqdm
+
+from punch_trainer.errors import GodotRunError, PunchError
+from punch_trainer.godot import FATAL_LOG_PATTERNS, GODOT_PROJECT, godot_command, tail
+from punch_trainer.rewards import evaluate, load_reward, total
+
+KINDS = ("features", "observations", "mean_actions", "actions")
+# Paths drawn per sigma in the Fig. 11 plot.
+PLOTTED_PATHS = 40
+
+
+class ReplayError(PunchError):
+    """The replay could not run: a bad policy file, bad arguments, or Godot failed."""
+
+
+@dataclass
+class ReplayArgs:
+    policy: Path
+    """the exported policy (runs/NAME/policy.onnx)"""
+    sigmas: list[float] = field(default_factory=lambda: [round(0.1 * i, 1) for i in range(1, 10)])
+    """runtime noise sigmas to replay"""
+    episodes: int = 1000
+    """punches per sigma"""
+    noise_decisions: int = -1
+    """noise on the first k decisions only (-1: every decision; the paper's "Noise < 4" is 4)"""
+    reward: str | None = None
+    """reward to score with (default: the one the policy was trained for, from its metadata)"""
+    characters: int = 64
+    """characters punching at once in Godot"""
+    characters_per_world: int = 16
+    """characters sharing one physics world (1: each its own)"""
+    seed: int = 0
+    """noise seed"""
+    out: Path | None = None
+    """output directory (default: next to the policy, replay_<time>)"""
+    keep_frames: bool = False
+    """keep Godot's raw per-frame files (large: 11 kB per punch)"""
+    timeout_s: float = 3600.0
+
+
+def parse_sigmas(text: str) -> list[float]:
+    """`0.1:0.9:0.1` (start:stop:step, inclusive) or `0,0.3,0.5`."""
+    try:
+        if ":" in text:
+            start, stop, step = (float(v) for v in text.split(":"))
+            if step <= 0:
+                raise ValueError("step must be > 0")
+            return [round(v, 6) for v in np.arange(start, stop + step / 2, step)]
+        return [float(v) for v in text.split(",")]
+    except ValueError as error:
+        raise ReplayError(f"bad --sigmas '{text}' (use start:stop:step or a,b,c): {error}") from None
+
+
+def policy_metadata(path: Path) -> dict[str, str]:
+    if not Path(path).is_file():
+        raise ReplayError(f"policy file not found: {path}")
+    try:
+        model = onnx.load(str(path), load_external_data=False)
+    except Exception as error:  # onnx raises several types for a corrupt file
+        raise ReplayError(f"{path} is not an ONNX model: {error}") from error
+    return {p.key: p.value for p in model.metadata_props}
+
+
+def run_godot_replay(args: ReplayArgs, frames_dir: Path, progress: bool = True) -> dict:
+    """Runs tools/replay.gd; returns its meta.json. Raises ReplayError when Godot fails."""
+    command = godot_command() + [
+        "--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), "--script", "res://tools/replay.gd", "--",
+        f"--policy={Path(args.policy).resolve()}", f"--sigmas={','.join(map(str, args.sigmas))}",
+        f"--episodes={args.episodes}", f"--out={frames_dir.resolve()}", f"--noise-decisions={args.noise_decisions}",
+        f"--characters={args.characters}", f"--characters-per-world={args.characters_per_world}", f"--seed={args.seed}",
+    ]
+    log: list[str] = []
+    total_punches = len(args.sigmas) * args.episodes
+    deadline = time.monotonic() + args.timeout_s
+    with subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                          text=True, errors="replace") as process, \
+            tqdm(total=total_punches, desc="replay (Godot)", unit="punch", disable=not progress) as bar:
+        try:
+            for line in process.stdout:
+                log.append(line)
+                if line.startswith("REPLAY_PROGRESS "):
+                    bar.update(int(line.split()[1]) - bar.n)
+                if time.monotonic() > deadline:
+                    raise ReplayError(f"the replay did not finish within {args.timeout_s:.0f} s")
+            process.wait(timeout=60)
+        finally:
+            if process.poll() is None:
+                process.kill()
+    text = "".join(log)
+    fatal = [line for line in log if any(p in line for p in FATAL_LOG_PATTERNS) or line.startswith("error: replay")]
+    if process.returncode != 0 or fatal or "REPLAY_DONE" not in text:
+        raise GodotRunError(f"the Godot replay failed (exit code {process.returncode}):\n{tail(text)}", text)
+    return json.loads((frames_dir / "meta.json").read_text())
+
+
+def analyse_sigma(features: np.ndarray, names: list[str], reward, chunk: int = 2000) -> dict:
+    """Returns, success and spreads of one sigma's punches, features [episodes, frames, F] (may be a memmap)."""
+    col = names.index
+    returns = np.concatenate([total(evaluate(reward, np.asarray(features[i:i + chunk], dtype=np.float64), names)).sum(-1)
+                              for i in range(0, len(features), chunk)])
+    fist = np.asarray(features[:, :, col("fist_r_pos_x"):col("fist_r_pos_z") + 1], dtype=np.float64)
+    impulse = np.linalg.norm(features[:, :, col("fist_r_impulse_x"):col("fist_r_impulse_z") + 1], axis=-1)
+    touched = impulse > 1e-3
+    hit = touched.any(axis=1)
+    first = touched.argmax(axis=1)
+    impacts = fist[np.flatnonzero(hit), first[hit]]
+    return {
+        "returns": returns,
+        "fist_paths": fist,
+        "impacts": impacts,
+        "hit_rate": float(hit.mean()),
+        # Mean over frames of the distance of each path from the mean path: how far punches wander apart.
+        "path_spread_m": float(np.linalg.norm(fist - fist.mean(axis=0), axis=-1).mean()),
+        "impact_spread_m": float(np.linalg.norm(impacts - impacts.mean(axis=0), axis=-1).mean()) if len(impacts) > 1 else 0.0,
+    }
+
+
+def run_replay(args: ReplayArgs, progress: bool = True) -> tuple[Path, list[dict]]:
+    metadata = policy_metadata(args.policy)
+    if not args.sigmas or any(not 0.0 <= s <= 1.0 for s in args.sigmas):
+        raise ReplayError(f"sigmas must lie in [0, 1], got {args.sigmas}")
+    if args.episodes < 1:
+        raise ReplayError("--episodes must be at least 1")
+    reward_name = args.reward or metadata.get("punch_reward")
+    if not reward_name:
+        raise ReplayError(f"{args.policy} names no reward in its metadata; pass --reward")
+    frames = int(metadata.get("punch_frames", 50))
+    reward = load_reward(reward_name, frames)
+    summary = json.loads(metadata.get("punch_training_summary", "{}"))
+    best = summary.get("search_best_return")
+    out = Path(args.out or Path(args.policy).parent / f"replay_{int(time.time())}")
+    frames_dir = out / "frames"
+    frames_dir.mkdir(parents=True, exist_ok=True)
+
+    started = time.perf_counter()
+    meta = run_godot_replay(args, frames_dir, progress)
+    godot_s = time.perf_counter() - started
+    names = [str(n) for n in meta["feature_names"]]
+    rows, analyses = [], []
+    for index, sigma in enumerate(args.sigmas):
+        features = np.memmap(frames_dir / f"features_{index}.f32", dtype="<f4", mode="r").reshape(args.episodes, meta["frames"], len(names))
+        analysis = analyse_sigma(features, names, reward)
+        returns = analysis["returns"]
+        rows.append({
+            "sigma": sigma, "episodes": args.episodes, "mean_return": float(returns.mean()),
+            "return_ratio": float(returns.mean() / best) if best else None,
+            "success_rate": float((returns > 0).mean()), "hit_rate": analysis["hit_rate"],
+            "impact_spread_m": analysis["impact_spread_m"], "path_spread_m": analysis["path_spread_m"],
+        })
+        analyses.append(analysis)
+        del features
+    if not args.keep_frames:
+        for index in range(len(args.sigmas)):
+            for kind in KINDS:
+                (frames_dir / f"{kind}_{index}.f32").unlink(missing_ok=True)
+
+    from punch_trainer.plots import plot_replay
+
+    plots = plot_replay(out, args.sigmas, rows, analyses, best)
+    config = {"policy": str(args.policy), "reward": reward_name, "search_best_return": best, "noise_decisions": args.noise_decisions,
+              "episodes": args.episodes, "seed": args.seed, "godot_s": round(godot_s, 1),
+              "punches_per_s": round(len(args.sigmas) * args.episodes / godot_s, 1)}
+    (out / "replay.json").write_text(json.dumps({"config": config, "rows": rows}, indent=2) + "\n")
+    lines = [f"# punch replay: {Path(args.policy)}", "",
+             f"Reward `{reward_name}`, search best return {best}, noise on "
+             f"{'every decision' if args.noise_decisions < 0 else f'the first {args.noise_decisions} decisions'}, "
+             f"{args.episodes} punches per sigma through PunchController in Godot ({godot_s:.0f} s, "
+             f"{config['punches_per_s']} punches/s).", "",
+             "| sigma | mean return | / search best | success (return > 0) | hit rate | impact spread (cm) | path spread (cm) |",
+             "|---|---|---|---|---|---|---|"]
+    for row in rows:
+        ratio = f"{row['return_ratio']:.2f}" if row["return_ratio"] is not None else "-"
+        lines.append(f"| {row['sigma']:.2f} | {row['mean_return']:.3f} | {ratio} | {100 * row['success_rate']:.1f}% | "
+                     f"{100 * row['hit_rate']:.1f}% | {100 * row['impact_spread_m']:.1f} | {100 * row['path_spread_m']:.1f} |")
+    lines += ["", *[f"![{p.stem}]({p.name})" for p in plots]]
+    (out / "report.md").write_text("\n".join(lines) + "\n")
+    return out, rows
+
+
+def replay_frames(frames_dir: Path, sigma_index: int, meta: dict) -> dict[str, np.ndarray]:
+    """Godot's raw record of one sigma (with --keep-frames): features, observations, mean_actions, actions."""
+    shapes = {"features": (meta["frames"], len(meta["feature_names"])), "observations": (meta["decisions"], -1),
+              "mean_actions": (meta["decisions"], -1), "actions": (meta["decisions"], -1)}
+    return {kind: np.fromfile(frames_dir / f"{kind}_{sigma_index}.f32", dtype="<f4").reshape(meta["episodes"], *shapes[kind])
+            for kind in KINDS if os.path.exists(frames_dir / f"{kind}_{sigma_index}.f32")}
