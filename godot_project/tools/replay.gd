@@ -12,7 +12,8 @@
 ##
 ## Output per sigma index s in DIR: features_s.f32 [episodes, frames, F], observations_s.f32
 ## [episodes, decisions, 45], mean_actions_s.f32 and actions_s.f32 [episodes, decisions, 10], all little-endian
-## float32, and meta.json. Progress lines: `REPLAY_PROGRESS done total`.
+## float32, and meta.json (with the controllers' inference counts and time, and their work per physics frame,
+## for `punch bench inference`). Progress lines: `REPLAY_PROGRESS done total`.
 extends SceneTree
 
 const CHARACTER_SCENE := "res://addons/punch_controller/scenes/punch_character.tscn"
@@ -33,6 +34,8 @@ var _files := {}
 var _character_scene: PackedScene
 var _sandbag_scene: PackedScene
 var _meta := {}
+var _inference := {"calls": 0, "rows": 0, "usec": 0.0}
+var _controller_frame_usec := []
 
 
 func _initialize() -> void:
@@ -70,6 +73,8 @@ func _physics_process(_delta: float) -> bool:
 	if _sigma_index < _sigmas.size():
 		_start_batch()
 		return false
+	_meta["inference"] = _inference
+	_meta["controller_frame_usec_per_batch"] = _controller_frame_usec
 	var meta_file := FileAccess.open(_options.out.path_join("meta.json"), FileAccess.WRITE)
 	meta_file.store_string(JSON.stringify(_meta, "  "))
 	meta_file.close()
@@ -110,6 +115,8 @@ func _start_batch() -> void:
 		arena.add_child(controller)
 		_controllers.append(controller)
 	_pending = count
+	ClassDB.class_call_static("PunchController", "take_inference_counts")
+	ClassDB.class_call_static("PunchController", "take_frame_cost_usec")
 	for controller in _controllers:
 		if not controller.call("punch"):
 			_fail("PunchController refused to punch (see the error above)")
@@ -117,6 +124,10 @@ func _start_batch() -> void:
 
 
 func _collect_batch() -> void:
+	var counts: Dictionary = ClassDB.class_call_static("PunchController", "take_inference_counts")
+	for key in _inference:
+		_inference[key] += counts[key]
+	_controller_frame_usec.append(ClassDB.class_call_static("PunchController", "take_frame_cost_usec"))
 	if _episodes_done == 0:
 		for kind in ["features", "observations", "mean_actions", "actions"]:
 			_files[kind] = FileAccess.open(_options.out.path_join("%s_%d.f32" % [kind, _sigma_index]), FileAccess.WRITE)

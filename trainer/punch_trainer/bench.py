@@ -172,3 +172,34 @@ def search_table(rows: list[dict]) -> str:
         lines.append(f"| {preset} | {method} | {finals.mean():.3f} +- {finals.std():.3f} | {group[0]['rollouts']} | "
                      f"{np.mean([r['wall_s'] for r in group]):.1f} | {np.mean([r['s_to_95'] for r in group]):.1f} |")
     return "\n".join(lines)
+
+
+def bench_inference(policy: Path, characters=(1, 4, 16, 64, 100, 128, 256), batches: int = 3, sigma: float = 0.3) -> list[dict]:
+    """PunchController's cost in Godot, from `batches` punches of every controller at once for each count:
+    ONNX Runtime time per call and per character-decision (all controllers share the policy, so one call per
+    decision tick), and the controllers' whole work per physics frame (sensing, inference, driving)."""
+    import tempfile
+
+    from punch_trainer.replay import ReplayArgs, run_godot_replay
+
+    rows = []
+    for count in tqdm(characters, desc="bench inference", unit="config"):
+        with tempfile.TemporaryDirectory() as frames_dir:
+            args = ReplayArgs(policy=policy, sigmas=[sigma], episodes=count * batches, characters=count)
+            meta = run_godot_replay(args, Path(frames_dir), progress=False)
+        inference = meta["inference"]
+        frame_usec = float(np.mean(meta["controller_frame_usec_per_batch"]))
+        rows.append({"controllers": count, "calls": inference["calls"], "rows": inference["rows"],
+                     "usec_per_call": inference["usec"] / inference["calls"],
+                     "usec_per_character_decision": inference["usec"] / inference["rows"],
+                     "controller_usec_per_frame": frame_usec, "controller_usec_per_character_frame": frame_usec / count})
+    return rows
+
+
+def inference_table(rows: list[dict]) -> str:
+    lines = ["| controllers | ONNX Runtime calls | µs per call | µs per character-decision | controller work per physics frame (µs) | per character (µs) |",
+             "|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['controllers']} | {r['calls']} | {r['usec_per_call']:.1f} | {r['usec_per_character_decision']:.2f} | "
+                     f"{r['controller_usec_per_frame']:.0f} | {r['controller_usec_per_character_frame']:.2f} |")
+    return "\n".join(lines)

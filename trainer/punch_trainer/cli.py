@@ -8,6 +8,9 @@ from pathlib import Path
 
 from punch_trainer import __version__
 from punch_trainer.errors import PunchError
+from punch_trainer.godot import GODOT_PROJECT
+
+DEMO_POLICY = GODOT_PROJECT / "demo" / "policies" / "straight.onnx"
 
 
 def _selfcheck(args: argparse.Namespace) -> int:
@@ -32,6 +35,24 @@ def _bench_env(args: argparse.Namespace) -> int:
                 f"{args.frames}-frame episodes at 120 Hz. Open loop: one `rollout` message per episode; "
                 "closed loop: `reset` then one `step` per decision.")
         print(f"written to {write_section('Env throughput', command, note + chr(10) + chr(10) + table)}")
+    return 0
+
+
+def _bench_inference(args: argparse.Namespace) -> int:
+    from punch_trainer.bench import bench_inference, inference_table, write_section
+
+    rows = bench_inference(args.policy, args.characters, args.batches)
+    table = inference_table(rows)
+    print(table)
+    if not args.no_write:
+        command = "punch bench inference" + ("" if args.policy == DEMO_POLICY else f" --policy {args.policy}")
+        note = (f"PunchController in headless Godot (the editor's debug build of the extension), {args.batches} punches of 50 "
+                "frames per controller at sigma 0.3, every controller sharing one policy (`" + str(args.policy) + "`), so one ONNX "
+                "Runtime call per decision tick. Inference time is measured around each call; the controller work is the whole "
+                "per-frame pass over all controllers (sensing, observation, inference, noise, smoothing, motor commands), without "
+                "the physics step. Targets: at most 10 µs per character-decision when batched at 64 or more; at most 2 ms of "
+                "controller work per frame for 100 characters at 120 Hz.")
+        print(f"written to {write_section('PunchController inference', command, note + chr(10) + chr(10) + table)}")
     return 0
 
 
@@ -211,6 +232,12 @@ def build_parser() -> argparse.ArgumentParser:
     env.add_argument("--episodes", type=int, default=6, help="episodes measured per configuration")
     env.add_argument("--no-write", action="store_true", help="print only; leave BENCHMARKS.md alone")
     env.set_defaults(run=_bench_env)
+    inference = bench_targets.add_parser("inference", help="PunchController inference and per-frame cost in Godot, 1 to 256 controllers")
+    inference.add_argument("--policy", type=Path, default=DEMO_POLICY, help="policy to run (default: the demo's straight punch)")
+    inference.add_argument("--characters", type=int, nargs="+", default=[1, 4, 16, 64, 100, 128, 256])
+    inference.add_argument("--batches", type=int, default=3, help="punches per controller")
+    inference.add_argument("--no-write", action="store_true", help="print only; leave BENCHMARKS.md alone")
+    inference.set_defaults(run=_bench_inference)
     search_bench = bench_targets.add_parser("search", help="TTR against CEM and CMA-ES at equal rollouts")
     search_bench.add_argument("--presets", nargs="+", default=["straight", "straight100", "hook", "swing"])
     search_bench.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])

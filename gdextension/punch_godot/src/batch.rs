@@ -36,8 +36,8 @@ thread_local! {
     static CONNECTED_TREE: Cell<Option<InstanceId>> = const { Cell::new(None) };
     /// Controller work since the last `take_frame_cost`: (microseconds, frames).
     static COST: Cell<(f64, u64)> = const { Cell::new((0.0, 0)) };
-    /// Policy calls and the rows they ran since the last `take_inference_counts`.
-    static INFERENCE: Cell<(u64, u64)> = const { Cell::new((0, 0)) };
+    /// Policy calls, the rows they ran, and their time (µs) since the last `take_inference_counts`.
+    static INFERENCE: Cell<(u64, u64, f64)> = const { Cell::new((0, 0, 0.0)) };
 }
 
 impl SharedPolicy {
@@ -122,9 +122,9 @@ pub fn take_frame_cost_usec() -> f64 {
     if frames == 0 { 0.0 } else { usec / frames as f64 }
 }
 
-/// Policy calls and rows run since the last call: (calls, rows).
-pub fn take_inference_counts() -> (u64, u64) {
-    INFERENCE.replace((0, 0))
+/// Policy calls, rows and inference time (µs) since the last call.
+pub fn take_inference_counts() -> (u64, u64, f64) {
+    INFERENCE.replace((0, 0, 0.0))
 }
 
 fn connect_tick(node: &Gd<Node>) {
@@ -169,9 +169,10 @@ fn tick() {
         let (group, rest): (Vec<_>, Vec<_>) = requests.into_iter().partition(|(_, p, _)| Rc::ptr_eq(p, &policy));
         requests = rest;
         let observations: Vec<f32> = group.iter().flat_map(|(_, _, obs)| *obs).collect();
+        let inference_started = Instant::now();
         let result = policy.mean_actions(&observations, group.len());
-        let (calls, rows) = INFERENCE.get();
-        INFERENCE.set((calls + 1, rows + group.len() as u64));
+        let (calls, rows, usec) = INFERENCE.get();
+        INFERENCE.set((calls + 1, rows + group.len() as u64, usec + inference_started.elapsed().as_secs_f64() * 1e6));
         let width = result.as_ref().map_or(0, |m| m.len() / group.len());
         for (row, (index, _, _)) in group.iter().enumerate() {
             means[*index] = Some(match &result {

@@ -3,7 +3,7 @@
 //! reads and drives its bodies for `PunchController` with the same core code the training server uses.
 
 use glam::Vec3;
-use godot::builtin::{Rid, Transform3D};
+use godot::builtin::{Rid, Transform3D, Vector3};
 use godot::classes::generic6_dof_joint_3d::{Flag, Param};
 use godot::classes::{Generic6DofJoint3D, INode3D, Node3D, PhysicsBody3D, RigidBody3D};
 use godot::global::godot_error;
@@ -35,6 +35,8 @@ pub struct Rig {
     pub body_rids: [Rid; 6],
     /// Rest-pose geometry (without target data, which the controller adds).
     pub geometry: CharacterGeometry,
+    /// Each body's rest transform relative to the character's root (`Body::ALL` order).
+    rest_from_root: [Transform3D; 6],
 }
 
 impl Rig {
@@ -80,6 +82,26 @@ impl PunchCharacter {
         self.rig.is_some()
     }
 
+    /// Puts every body back in its rest (guard) pose where the character now stands, with no velocity: a
+    /// fresh start for the next punch. Joint motors are set to rest as well.
+    #[func]
+    fn reset_pose(&mut self) {
+        let Some(rig) = self.rig.as_ref() else {
+            godot_error!("PunchCharacter '{}': reset_pose() before the character is ready", self.base().get_name());
+            return;
+        };
+        let root = self.base().get_global_transform();
+        for (body, rest) in rig.bodies.iter().zip(&rig.rest_from_root) {
+            let mut body = body.clone();
+            body.set_global_transform(root * *rest);
+            if let Ok(mut rigid) = body.try_cast::<RigidBody3D>() {
+                rigid.set_linear_velocity(Vector3::ZERO);
+                rigid.set_angular_velocity(Vector3::ZERO);
+            }
+        }
+        rig.drive(&[Vec3::ZERO; 5]);
+    }
+
     pub fn rig(&self) -> Option<&Rig> {
         self.rig.as_ref()
     }
@@ -110,11 +132,13 @@ impl PunchCharacter {
         }
         let body_transforms: [Transform3D; 6] = std::array::from_fn(|i| bodies[i].get_global_transform());
         let joint_transforms: [Transform3D; 5] = std::array::from_fn(|j| joints[j].get_global_transform());
+        let root_inverse = base.get_global_transform().affine_inverse();
         let geometry = character_geometry(&base, &body_transforms, &joint_transforms, base.get_global_transform())?;
         Ok(Rig {
             joint_rids: std::array::from_fn(|j| joints[j].get_rid()),
             body_rids: std::array::from_fn(|i| bodies[i].get_rid()),
             geometry,
+            rest_from_root: std::array::from_fn(|i| root_inverse * body_transforms[i]),
             bodies,
         })
     }

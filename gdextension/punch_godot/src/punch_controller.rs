@@ -182,14 +182,15 @@ impl PunchController {
         batch::take_frame_cost_usec()
     }
 
-    /// How batched the inference was since the last call: `calls` to ONNX Runtime and the `rows`
-    /// (controller decisions) they ran, over all controllers.
+    /// How batched the inference was since the last call, over all controllers: `calls` to ONNX Runtime,
+    /// the `rows` (controller decisions) they ran, and the time they took, `usec` (for benchmarks).
     #[func]
     fn take_inference_counts() -> VarDictionary {
-        let (calls, rows) = batch::take_inference_counts();
+        let (calls, rows, usec) = batch::take_inference_counts();
         let mut counts = VarDictionary::new();
         counts.set("calls", calls as i64);
         counts.set("rows", rows as i64);
+        counts.set("usec", usec);
         counts
     }
 
