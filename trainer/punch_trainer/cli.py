@@ -154,6 +154,16 @@ def _replay(args: argparse.Namespace) -> int:
     return 0
 
 
+def _render(args: argparse.Namespace) -> int:
+    from punch_trainer.render import RenderArgs, render
+    from punch_trainer.replay import parse_sigmas
+
+    out = render(RenderArgs(policy=args.policy, out=args.out, sigmas=parse_sigmas(args.sigmas), noise_decisions=args.noise_decisions,
+                            seconds=args.seconds, width=args.width, height=args.height, seed=args.seed))
+    print(f"wrote {out}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="punch", description="Train and run physics-based punching policies.")
     parser.add_argument("--version", action="version", version=f"punch {__version__}")
@@ -211,6 +221,17 @@ def build_parser() -> argparse.ArgumentParser:
     replay.add_argument("--out", type=Path, help="output directory (default: next to the policy)")
     replay.add_argument("--keep-frames", dest="keep_frames", action="store_true", help="keep Godot's raw per-frame files")
     replay.set_defaults(run=_replay)
+
+    render = commands.add_parser("render", help="a GIF of a policy's punches at one or several sigmas (Godot Movie Maker under Xvfb)")
+    render.add_argument("--policy", type=Path, default=DEMO_POLICY, help="an exported policy.onnx")
+    render.add_argument("--out", type=Path, default=Path("punch.gif"), help="the GIF to write")
+    render.add_argument("--sigmas", default="0", help="one character per sigma, side by side: a,b,c or start:stop:step")
+    render.add_argument("--noise-decisions", dest="noise_decisions", type=int, default=-1)
+    render.add_argument("--seconds", type=float, default=3.0)
+    render.add_argument("--width", type=int, default=640)
+    render.add_argument("--height", type=int, default=360)
+    render.add_argument("--seed", type=int, default=0)
+    render.set_defaults(run=_render)
 
     experiment = commands.add_parser("experiment", help="experiments of the paper")
     experiments = experiment.add_subparsers(dest="experiment", required=True)

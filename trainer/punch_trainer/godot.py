@@ -53,6 +53,7 @@ def run_godot(
     timeout_s: float = 120.0,
     check: bool = True,
     cwd: Path | None = None,
+    env: dict[str, str] | None = None,
 ) -> GodotRun:
     """Runs Godot headless-or-not as `args` say, waits, and returns the run. With `check`, raises
     GodotRunError when the exit code is non-zero, the run times out, or the log has a fatal line."""
@@ -61,6 +62,7 @@ def run_godot(
         completed = subprocess.run(
             command,
             cwd=cwd or PROJECT_ROOT,
+            env=env,
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
             stdin=subprocess.DEVNULL,

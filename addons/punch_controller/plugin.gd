@@ -1,0 +1,66 @@
+@tool
+extends EditorPlugin
+## The addon's editor side (the node classes themselves come from the GDExtension and are always there):
+## Project > Tools > "Add Punching Character" adds a character, a sandbag in front of it and a
+## PunchController wired to both (with the demo's straight-punch policy when the project has it) to the open
+## 3D scene, as one undoable action.
+
+const MENU_ITEM := "Add Punching Character"
+const CHARACTER_SCENE := "res://addons/punch_controller/scenes/punch_character.tscn"
+const SANDBAG_SCENE := "res://addons/punch_controller/scenes/punch_sandbag.tscn"
+## Where the sandbag hangs relative to the character: as in training (distance 0.72 m, height 1.35 m).
+const SANDBAG_OFFSET := Vector3(0, 1.35, 0.72)
+const DEFAULT_POLICY := "res://demo/policies/straight.onnx"
+
+
+func _enter_tree() -> void:
+	if not ClassDB.class_exists("PunchController"):
+		push_error("Punch Controller: the GDExtension is not loaded. Build it (scons, see the project's README) "
+			+ "so that addons/punch_controller/bin/ has the library, then restart the editor.")
+	add_tool_menu_item(MENU_ITEM, add_punching_character)
+	# `godot --editor SCENE -- --punch-select=NODE_PATH` opens with that node in the inspector (for docs).
+	for argument in OS.get_cmdline_user_args():
+		if argument.begins_with("--punch-select="):
+			_select_later.call_deferred(NodePath(argument.trim_prefix("--punch-select=")))
+
+
+func _exit_tree() -> void:
+	remove_tool_menu_item(MENU_ITEM)
+
+
+## Adds the character, the sandbag and a wired PunchController under the edited scene's root.
+func add_punching_character() -> void:
+	var root := EditorInterface.get_edited_scene_root()
+	if not root is Node3D:
+		push_warning("Punch Controller: open a 3D scene first (its root must be a Node3D).")
+		return
+	var character: Node3D = load(CHARACTER_SCENE).instantiate()
+	var sandbag: Node3D = load(SANDBAG_SCENE).instantiate()
+	sandbag.position = SANDBAG_OFFSET
+	var controller: Node = ClassDB.instantiate("PunchController")
+	controller.name = "PunchController"
+	if ResourceLoader.exists(DEFAULT_POLICY) or FileAccess.file_exists(DEFAULT_POLICY):
+		controller.set("policy", DEFAULT_POLICY)
+	var undo := get_undo_redo()
+	undo.create_action("Add Punching Character")
+	for node in [character, sandbag, controller]:
+		undo.add_do_method(root, "add_child", node, true)
+		undo.add_do_property(node, "owner", root)
+		undo.add_do_reference(node)
+		undo.add_undo_method(root, "remove_child", node)
+	undo.add_do_property(controller, "character", character)
+	undo.add_do_property(controller, "target", sandbag.get_node("Bag"))
+	undo.commit_action()
+	EditorInterface.get_selection().clear()
+	EditorInterface.get_selection().add_node(controller)
+
+
+func _select_later(path: NodePath, tries := 100) -> void:
+	var root := EditorInterface.get_edited_scene_root()
+	var node := root.get_node_or_null(path) if root else null
+	if node:
+		EditorInterface.edit_node(node)
+		EditorInterface.get_selection().add_node(node)
+	elif tries > 0:
+		await get_tree().process_frame
+		_select_later(path, tries - 1)

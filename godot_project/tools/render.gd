@@ -1,0 +1,117 @@
+## The scene `punch render` films in Movie Maker mode: one character and sandbag per noise sigma, side by side
+## (each pair on its own collision layers), every character punching again and again from its guard pose.
+## Arguments after `--`: --policy=PATH --sigmas=0,0.3,0.6 [--noise-decisions=-1] [--seed=0]
+extends Node3D
+
+const CHARACTER_SCENE := preload("res://addons/punch_controller/scenes/punch_character.tscn")
+const SANDBAG_SCENE := preload("res://addons/punch_controller/scenes/punch_sandbag.tscn")
+## Metres between neighbouring pairs (arms and swinging bags never reach the next pair).
+const SPACING_M := 2.2
+## Seconds of rest between punches.
+const PAUSE_S := 0.35
+
+var _options := {"policy": "", "sigmas": "0", "noise-decisions": "-1", "seed": "0"}
+
+
+func _ready() -> void:
+	for argument in OS.get_cmdline_user_args():
+		var parts := argument.trim_prefix("--").split("=", true, 1)
+		if parts.size() == 2 and _options.has(parts[0]):
+			_options[parts[0]] = parts[1]
+		else:
+			printerr("error: render: unknown argument '%s'" % argument)
+			get_tree().quit(2)
+			return
+	var sigmas: PackedFloat64Array = (_options.sigmas as String).split_floats(",")
+	_build_stage(sigmas.size())
+	for index in sigmas.size():
+		_add_pair(index, sigmas.size(), sigmas[index])
+
+
+func _add_pair(index: int, count: int, sigma: float) -> void:
+	# The camera looks from behind the characters' right: ascending sigma from left to right on screen.
+	var x := ((count - 1) / 2.0 - index) * SPACING_M
+	var character: Node3D = CHARACTER_SCENE.instantiate()
+	character.position = Vector3(x, 0, 0)
+	var sandbag: Node3D = SANDBAG_SCENE.instantiate()
+	sandbag.position = Vector3(x, 1.35, 0.72)
+	var layer := 1 << (2 * index)
+	for body in character.find_children("*", "CollisionObject3D", true, false):
+		body.collision_layer = layer
+		body.collision_mask = layer << 1
+	var bag: RigidBody3D = sandbag.get_node("Bag")
+	bag.collision_layer = layer << 1
+	bag.collision_mask = layer
+	var stand := MeshInstance3D.new()
+	var stand_mesh := CylinderMesh.new()
+	stand_mesh.top_radius = 0.06
+	stand_mesh.bottom_radius = 0.2
+	stand_mesh.height = 0.96
+	stand.mesh = stand_mesh
+	stand.position = Vector3(x, 0.48, 0)
+	add_child(stand)
+	add_child(character)
+	add_child(sandbag)
+	var controller: Node = ClassDB.instantiate("PunchController")
+	controller.set("character", character)
+	controller.set("target", bag)
+	controller.set("policy", _options.policy)
+	controller.set("noise_sigma", sigma)
+	controller.set("noise_decisions", int(_options["noise-decisions"]))
+	controller.set("seed", int(_options.seed) + index)
+	add_child(controller)
+	var label := Label3D.new()
+	label.text = "sigma %.2f" % sigma
+	label.font_size = 64
+	label.outline_size = 12
+	label.billboard = BaseMaterial3D.BILLBOARD_ENABLED
+	label.position = Vector3(x, 2.25, 0.3)
+	add_child(label)
+	var bag_rest := bag.global_transform
+	var timer := Timer.new()
+	timer.one_shot = true
+	timer.wait_time = PAUSE_S
+	add_child(timer)
+	var punch := func():
+		character.reset_pose()
+		bag.global_transform = bag_rest
+		bag.linear_velocity = Vector3.ZERO
+		bag.angular_velocity = Vector3.ZERO
+		controller.punch()
+	timer.timeout.connect(punch)
+	controller.connect("punch_finished", func(_metrics): timer.start())
+	punch.call_deferred()
+
+
+func _build_stage(count: int) -> void:
+	var environment := Environment.new()
+	var sky_material := ProceduralSkyMaterial.new()
+	sky_material.sky_top_color = Color(0.32, 0.42, 0.58)
+	environment.background_mode = Environment.BG_SKY
+	environment.sky = Sky.new()
+	environment.sky.sky_material = sky_material
+	environment.ambient_light_source = Environment.AMBIENT_SOURCE_SKY
+	environment.ambient_light_energy = 0.6
+	environment.tonemap_mode = Environment.TONE_MAPPER_FILMIC
+	var world := WorldEnvironment.new()
+	world.environment = environment
+	add_child(world)
+	var sun := DirectionalLight3D.new()
+	sun.shadow_enabled = true
+	sun.look_at_from_position(Vector3(0, 4, 0), Vector3(0.7, 3, -0.6))
+	add_child(sun)
+	var floor_mesh := PlaneMesh.new()
+	floor_mesh.size = Vector2(SPACING_M * count + 4, 8)
+	var floor_material := StandardMaterial3D.new()
+	floor_material.albedo_color = Color(0.36, 0.33, 0.3)
+	floor_mesh.material = floor_material
+	var floor_instance := MeshInstance3D.new()
+	floor_instance.mesh = floor_mesh
+	add_child(floor_instance)
+	var camera := Camera3D.new()
+	camera.fov = 45
+	var width := SPACING_M * (count - 1)
+	var eye := Vector3(-2.3 - 0.5 * width, 2.2 + 0.2 * width, -1.7 - 0.4 * width)
+	camera.look_at_from_position(eye, Vector3(0, 1.2, 0.4))
+	add_child(camera)
+	camera.make_current()

@@ -1,0 +1,116 @@
+"""`punch render`: a GIF of a policy's punches, one character per noise sigma side by side, filmed by Godot's
+Movie Maker mode under a virtual X display (Xvfb), so it works on a machine without a screen or GPU.
+
+    punch render --policy godot_project/demo/policies/hook.onnx --sigmas 0,0.3,0.6 --out docs/hook.gif
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from PIL import Image
+
+from punch_trainer.errors import GodotRunError, PunchError
+from punch_trainer.godot import GODOT_PROJECT, run_godot, tail
+
+FPS = 30
+# The GIF keeps every second frame (15 fps) and 64 colours: a few hundred kB for a few seconds.
+GIF_FRAME_STEP = 2
+GIF_COLORS = 64
+
+
+class RenderError(PunchError):
+    """Rendering is not possible here (no Xvfb, no OpenGL drivers) or Godot failed to film."""
+
+
+@dataclass
+class RenderArgs:
+    policy: Path
+    out: Path
+    sigmas: list[float] = field(default_factory=lambda: [0.0])
+    noise_decisions: int = -1
+    seconds: float = 3.0
+    width: int = 640
+    height: int = 360
+    seed: int = 0
+
+
+def _free_display() -> int:
+    for number in range(99, 160):
+        if not Path(f"/tmp/.X{number}-lock").exists() and not Path(f"/tmp/.X11-unix/X{number}").exists():
+            return number
+    raise RenderError("no free X display number between :99 and :159")
+
+
+class VirtualDisplay:
+    """An Xvfb server for the duration of a `with` block."""
+
+    def __init__(self, width: int, height: int):
+        xvfb = shutil.which("Xvfb")
+        if not xvfb:
+            raise RenderError("rendering needs Xvfb: run ./dev setup-render (installs it with the OpenGL drivers), "
+                              "or install the 'xvfb' package yourself")
+        self.display = f":{_free_display()}"
+        self._process = subprocess.Popen([xvfb, self.display, "-screen", "0", f"{width}x{height}x24", "-nolisten", "tcp"],
+                                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        deadline = time.monotonic() + 10
+        socket = Path(f"/tmp/.X11-unix/X{self.display[1:]}")
+        while not socket.exists():
+            if self._process.poll() is not None or time.monotonic() > deadline:
+                error = self._process.stderr.read().decode(errors="replace") if self._process.poll() is not None else ""
+                self.close()
+                raise RenderError(f"Xvfb did not start on {self.display}: {error[-500:]}")
+            time.sleep(0.05)
+
+    def close(self) -> None:
+        if self._process.poll() is None:
+            self._process.terminate()
+            try:
+                self._process.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                self._process.kill()
+                self._process.wait()
+
+    def __enter__(self) -> VirtualDisplay:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def render(args: RenderArgs) -> Path:
+    """Films the punches and writes a looping GIF to `args.out`; returns its path."""
+    if not Path(args.policy).is_file():
+        raise RenderError(f"policy file not found: {args.policy}")
+    frames = max(1, round(args.seconds * FPS))
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory() as movie_dir, VirtualDisplay(args.width, args.height) as display:
+        movie = Path(movie_dir) / "frame.png"
+        environment = {**os.environ, "DISPLAY": display.display}
+        try:
+            run_godot(["--rendering-driver", "opengl3", "--path", str(GODOT_PROJECT),
+                       "--write-movie", str(movie), "--fixed-fps", str(FPS), "--quit-after", str(frames), "--disable-vsync",
+                       "res://tools/render.tscn", "--", f"--policy={Path(args.policy).resolve()}",
+                       f"--sigmas={','.join(map(str, args.sigmas))}", f"--noise-decisions={args.noise_decisions}",
+                       f"--seed={args.seed}"], timeout_s=120 + 2 * frames, env=environment)
+        except GodotRunError as error:
+            if "OpenGL" in error.log or "MESA" in error.log or "glx" in error.log.lower():
+                raise RenderError("Godot could not open OpenGL on the virtual display: run ./dev setup-render "
+                                  f"(it adds Mesa's drivers to the private Godot)\n{tail(error.log)}") from error
+            raise
+        pngs = sorted(Path(movie_dir).glob("frame*.png"))
+        if not pngs:
+            raise RenderError("Godot wrote no frames")
+        # Movie Maker films at the project's window size; the GIF gets the size asked for.
+        images = [Image.open(p).convert("RGB").resize((args.width, args.height), Image.Resampling.LANCZOS)
+                  .quantize(colors=GIF_COLORS, method=Image.Quantize.MEDIANCUT) for p in pngs[::GIF_FRAME_STEP]]
+        images[0].save(out, save_all=True, append_images=images[1:], duration=round(1000 * GIF_FRAME_STEP / FPS), loop=0,
+                       optimize=True)
+    return out
