@@ -57,14 +57,21 @@ class Message:
             raise ProtocolError(f"header is not JSON: {error}") from None
         if not isinstance(header, dict) or not isinstance(header.get("type"), str):
             raise ProtocolError("header is not an object with a string 'type'")
+        descriptors = header.pop("arrays", [])
+        if not isinstance(descriptors, list):
+            raise ProtocolError("'arrays' must be a list")
         arrays, offset = {}, 0
-        for descriptor in header.pop("arrays", []):
-            shape = tuple(int(d) for d in descriptor["shape"])
-            count = int(np.prod(shape, dtype=np.int64))
-            chunk = payload[offset:offset + 4 * count]
-            if len(chunk) != 4 * count:
-                raise ProtocolError(f"payload too short for array '{descriptor['name']}'")
-            arrays[descriptor["name"]] = np.frombuffer(chunk, dtype="<f4").reshape(shape)
+        for descriptor in descriptors:
+            shape = descriptor.get("shape") if isinstance(descriptor, dict) else None
+            if (not isinstance(descriptor.get("name") if isinstance(descriptor, dict) else None, str) or not isinstance(shape, list)
+                    or not all(isinstance(d, int) and not isinstance(d, bool) and d >= 0 for d in shape)):
+                raise ProtocolError(f"bad array descriptor {str(descriptor)[:80]}: needs a name and a shape of non-negative integers")
+            count = 1
+            for d in shape:  # Python ints: a huge declared shape cannot overflow, it is just too long
+                count *= d
+            if 4 * count > len(payload) - offset:
+                raise ProtocolError(f"payload too short for array '{descriptor['name']}' of shape {shape}")
+            arrays[descriptor["name"]] = np.frombuffer(payload[offset:offset + 4 * count], dtype="<f4").reshape(shape)
             offset += 4 * count
         if offset != len(payload):
             raise ProtocolError(f"payload has {len(payload)} bytes, arrays describe {offset}")

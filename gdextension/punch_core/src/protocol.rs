@@ -122,20 +122,9 @@ impl Message {
     pub fn read_from(reader: &mut impl Read) -> Result<Self, ProtocolError> {
         let mut lengths = [0u8; 8];
         read_exact_or_closed(reader, &mut lengths)?;
-        let header_len = u32::from_le_bytes([lengths[0], lengths[1], lengths[2], lengths[3]]) as usize;
-        let payload_len = u32::from_le_bytes([lengths[4], lengths[5], lengths[6], lengths[7]]) as usize;
-        if header_len == 0 || header_len > MAX_HEADER_BYTES {
-            return Err(ProtocolError::Framing(format!("header length {header_len} outside 1..={MAX_HEADER_BYTES}")));
-        }
-        if payload_len > MAX_PAYLOAD_BYTES || payload_len % 4 != 0 {
-            return Err(ProtocolError::Framing(format!(
-                "payload length {payload_len} is not a multiple of 4 up to {MAX_PAYLOAD_BYTES}"
-            )));
-        }
-        let mut header = vec![0u8; header_len];
-        reader.read_exact(&mut header).map_err(truncated)?;
-        let mut payload = vec![0u8; payload_len];
-        reader.read_exact(&mut payload).map_err(truncated)?;
+        let (header_len, payload_len) = frame_lengths(&lengths)?;
+        let header = read_growing(reader, header_len)?;
+        let payload = read_growing(reader, payload_len)?;
         Self::decode_parts(&header, &payload)
     }
 
@@ -186,6 +175,51 @@ impl Message {
     }
 }
 
+/// The header and payload lengths of a frame's 8-byte prefix, checked against the limits.
+fn frame_lengths(prefix: &[u8]) -> Result<(usize, usize), ProtocolError> {
+    let length = |at: usize| u32::from_le_bytes([prefix[at], prefix[at + 1], prefix[at + 2], prefix[at + 3]]) as usize;
+    let (header_len, payload_len) = (length(0), length(4));
+    if header_len == 0 || header_len > MAX_HEADER_BYTES {
+        return Err(ProtocolError::Framing(format!("header length {header_len} outside 1..={MAX_HEADER_BYTES}")));
+    }
+    if payload_len > MAX_PAYLOAD_BYTES || payload_len % 4 != 0 {
+        return Err(ProtocolError::Framing(format!(
+            "payload length {payload_len} is not a multiple of 4 up to {MAX_PAYLOAD_BYTES}"
+        )));
+    }
+    Ok((header_len, payload_len))
+}
+
+/// Collects a stream's bytes as they arrive and cuts them into messages, so that a server never blocks on a
+/// peer that sent half a frame. It holds only the bytes received.
+#[derive(Debug, Default)]
+pub struct FrameReader {
+    buffer: Vec<u8>,
+}
+
+impl FrameReader {
+    /// Adds bytes read from the stream.
+    pub fn push(&mut self, bytes: &[u8]) {
+        self.buffer.extend_from_slice(bytes);
+    }
+
+    /// The next complete message, if one has arrived. A `Framing` error means the stream cannot be
+    /// resynchronised; a `Content` error consumed its frame and the stream goes on.
+    pub fn next_message(&mut self) -> Option<Result<Message, ProtocolError>> {
+        let (header_len, payload_len) = match frame_lengths(self.buffer.get(..8)?) {
+            Ok(lengths) => lengths,
+            Err(error) => return Some(Err(error)),
+        };
+        let total = 8 + header_len + payload_len;
+        if self.buffer.len() < total {
+            return None;
+        }
+        let result = Message::decode_parts(&self.buffer[8..8 + header_len], &self.buffer[8 + header_len..total]);
+        self.buffer.drain(..total);
+        Some(result)
+    }
+}
+
 /// An error reply.
 pub fn error_reply(message: &str) -> Message {
     Message::new("error").with("message", Value::String(message.into()))
@@ -205,6 +239,19 @@ fn read_exact_or_closed(reader: &mut impl Read, buffer: &mut [u8]) -> Result<(),
         }
     }
     Ok(())
+}
+
+/// Reads exactly `len` bytes, growing the buffer as they arrive: a declared length costs memory only once
+/// the bytes are really there (a peer cannot make us allocate 256 MiB with an 8-byte frame).
+fn read_growing(reader: &mut impl Read, len: usize) -> Result<Vec<u8>, ProtocolError> {
+    const CHUNK_BYTES: usize = 1 << 20;
+    let mut buffer = Vec::with_capacity(len.min(CHUNK_BYTES));
+    while buffer.len() < len {
+        let start = buffer.len();
+        buffer.resize((start + CHUNK_BYTES).min(len), 0);
+        reader.read_exact(&mut buffer[start..]).map_err(truncated)?;
+    }
+    Ok(buffer)
 }
 
 fn truncated(error: std::io::Error) -> ProtocolError {

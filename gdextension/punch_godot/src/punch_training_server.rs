@@ -7,7 +7,7 @@
 //! Lockstep: while waiting for a command the server blocks inside `physics_process`, so no physics step
 //! happens between commands; a command that needs frames returns and lets Godot step.
 
-use std::io::ErrorKind;
+use std::io::{ErrorKind, Read};
 use std::net::{TcpListener, TcpStream};
 use std::os::fd::AsRawFd;
 use std::time::{Duration, Instant};
@@ -17,10 +17,19 @@ use godot::global::{godot_error, godot_print};
 use godot::obj::{Base, Gd, Singleton, WithBaseField};
 use godot::prelude::{GodotClass, godot_api};
 use punch_core::character::{DEFAULT_DECISION_PERIOD, PHYSICS_HZ};
-use punch_core::protocol::{Message, ProtocolError, error_reply};
+use punch_core::protocol::{FrameReader, Message, ProtocolError, error_reply};
 use punch_core::session::{BagPlacement, Outcome, Session, World};
 
 use crate::training_world::{MAX_SLOTS_PER_WORLD, TrainingWorld};
+
+/// Bytes read from a client at most per poll round.
+const RECEIVE_CHUNK_BYTES: usize = 1 << 20;
+
+/// A client: its socket and the bytes of its next message so far.
+struct Connection {
+    stream: TcpStream,
+    frames: FrameReader,
+}
 
 /// The headless training server the Python trainer starts and drives (see docs/protocol.md). Command-line
 /// arguments after `--` override the exported values: `--port=`, `--slots=`, `--decision-period=`,
@@ -56,7 +65,7 @@ pub struct PunchTrainingServer {
     sandbag_scene: Option<Gd<PackedScene>>,
 
     listener: Option<TcpListener>,
-    connections: Vec<TcpStream>,
+    connections: Vec<Connection>,
     session: Option<Session>,
     world: Option<TrainingWorld>,
     /// The client whose command is running, if one is.
@@ -151,20 +160,27 @@ impl PunchTrainingServer {
     }
 
     /// Answers messages from every client until one starts a physics run, or quits when idle too long.
+    /// Bytes are collected per client as they arrive, so a client that sends half a frame holds up no one.
     fn serve(&mut self) {
         let mut last_activity = Instant::now();
         loop {
             self.accept_pending();
-            let Some(index) = self.wait_readable() else {
-                if last_activity.elapsed().as_secs_f32() > self.idle_timeout_s {
-                    godot_print!("PunchTrainingServer: no request for {} s, quitting", self.idle_timeout_s);
-                    self.quit(0);
-                    return;
+            let Some((index, result)) = self.next_buffered_message() else {
+                match self.wait_readable() {
+                    Some(index) => {
+                        last_activity = Instant::now();
+                        self.receive_bytes(index);
+                    }
+                    None if last_activity.elapsed().as_secs_f32() > self.idle_timeout_s => {
+                        godot_print!("PunchTrainingServer: no request for {} s, quitting", self.idle_timeout_s);
+                        self.quit(0);
+                        return;
+                    }
+                    None => {}
                 }
                 continue;
             };
-            last_activity = Instant::now();
-            let message = match Message::read_from(&mut self.connections[index]) {
+            let message = match result {
                 Ok(message) => message,
                 Err(ProtocolError::Content(reason)) => {
                     self.send(index, &error_reply(&reason));
@@ -198,6 +214,27 @@ impl PunchTrainingServer {
         }
     }
 
+    /// A complete message some client has already sent, if any.
+    fn next_buffered_message(&mut self) -> Option<(usize, Result<Message, ProtocolError>)> {
+        self.connections.iter_mut().enumerate().find_map(|(index, c)| c.frames.next_message().map(|r| (index, r)))
+    }
+
+    /// Reads what a readable client has sent (poll said it is readable, so this does not block).
+    fn receive_bytes(&mut self, index: usize) {
+        let mut chunk = vec![0u8; RECEIVE_CHUNK_BYTES];
+        let connection = &mut self.connections[index];
+        match connection.stream.read(&mut chunk) {
+            Ok(0) => {
+                self.connections.remove(index);
+            }
+            Ok(n) => connection.frames.push(&chunk[..n]),
+            Err(error) if matches!(error.kind(), ErrorKind::Interrupted | ErrorKind::WouldBlock) => {}
+            Err(_) => {
+                self.connections.remove(index);
+            }
+        }
+    }
+
     /// Takes every client waiting in the listen queue.
     fn accept_pending(&mut self) {
         let Some(listener) = &self.listener else {
@@ -211,7 +248,7 @@ impl PunchTrainingServer {
                         && stream.set_nodelay(true).is_ok()
                         && stream.set_read_timeout(timeout).is_ok()
                     {
-                        self.connections.push(stream);
+                        self.connections.push(Connection { stream, frames: FrameReader::default() });
                     }
                 }
                 Err(error) if error.kind() == ErrorKind::WouldBlock => return,
@@ -229,7 +266,7 @@ impl PunchTrainingServer {
         let mut fds: Vec<libc::pollfd> = self
             .connections
             .iter()
-            .map(|c| libc::pollfd { fd: c.as_raw_fd(), events: libc::POLLIN, revents: 0 })
+            .map(|c| libc::pollfd { fd: c.stream.as_raw_fd(), events: libc::POLLIN, revents: 0 })
             .collect();
         if let Some(listener) = &self.listener {
             fds.push(libc::pollfd { fd: listener.as_raw_fd(), events: libc::POLLIN, revents: 0 });
@@ -248,7 +285,7 @@ impl PunchTrainingServer {
         let Some(connection) = self.connections.get_mut(index) else {
             return;
         };
-        if message.write_to(connection).is_err() {
+        if message.write_to(&mut connection.stream).is_err() {
             self.connections.remove(index);
         }
     }
