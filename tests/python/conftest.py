@@ -1,6 +1,7 @@
 """Shared pytest setup. Tests marked `godot` start the real headless Godot through tools/godot; the
 README's test command (./dev test) sets it up first."""
 
+import time
 from pathlib import Path
 
 import pytest
@@ -11,3 +12,30 @@ FIXTURES = PROJECT_ROOT / "tests" / "fixtures"
 
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", "godot: starts a real headless Godot (Jolt) with the built extension")
+
+
+def godot_processes() -> set[int]:
+    """PIDs of the Godot processes running this project (their command line names its Godot project)."""
+    found = set()
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            command = (entry / "cmdline").read_bytes().split(b"\0")
+        except OSError:
+            continue
+        if any(b"godot" in part for part in command) and any(str(PROJECT_ROOT).encode() in part for part in command):
+            found.add(int(entry.name))
+    return found
+
+
+@pytest.fixture(scope="session", autouse=True)
+def no_godot_left_behind():
+    """After the whole suite, no Godot process it started may still run (counted in the process table)."""
+    before = godot_processes()
+    yield
+    deadline = time.monotonic() + 10
+    while (left := godot_processes() - before) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not left, f"Godot processes left behind by the tests: {sorted(left)}"
+    print(f"\nprocess check: {len(before)} Godot process(es) of this project before the tests, {len(godot_processes())} after")

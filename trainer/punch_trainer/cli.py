@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -47,7 +48,7 @@ def _bench_inference(args: argparse.Namespace) -> int:
     if not args.no_write:
         command = "punch bench inference" + ("" if args.policy == DEMO_POLICY else f" --policy {args.policy}")
         note = (f"PunchController in headless Godot (the editor's debug build of the extension), {args.batches} punches of 50 "
-                "frames per controller at sigma 0.3, every controller sharing one policy (`" + str(args.policy) + "`), so one ONNX "
+                "frames per controller at sigma 0.3, every controller sharing one policy (`" + os.path.relpath(args.policy) + "`), so one ONNX "
                 "Runtime call per decision tick. Inference time is measured around each call; the controller work is the whole "
                 "per-frame pass over all controllers (sensing, observation, inference, noise, smoothing, motor commands), without "
                 "the physics step. Targets: at most 10 µs per character-decision when batched at 64 or more; at most 2 ms of "

@@ -1,21 +1,40 @@
-"""Batches of open-loop rollouts spread over K Godot processes x N characters each."""
+"""Batches of open-loop rollouts spread over K Godot processes x N characters each.
+
+A Godot process that crashes, is killed or stops answering (its reply timeout) is restarted, the handshake
+is made again, and the batch is run again. A rollout always starts from the same reset and the same slot
+gives bitwise the same features in any process, so a restarted run ends exactly where an uninterrupted one
+would."""
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 
-from punch_trainer.protocol import Message
+from punch_trainer.errors import PunchError
+from punch_trainer.protocol import Message, ProtocolError, ServerClosedError, ServerTimeoutError
 from punch_trainer.server import exchange, start_servers
+
+# Failures that a fresh Godot process fixes (a server's error reply is not one of them: it would repeat).
+SIMULATOR_FAILURES = (ServerClosedError, ServerTimeoutError, ProtocolError, ConnectionError)
+
+
+class SimulatorCrashError(PunchError):
+    """The simulator kept failing after the allowed number of restarts."""
 
 
 class RolloutPool:
     """Runs any number of open-loop action sequences, `slots` at a time in parallel processes."""
 
-    def __init__(self, processes: int = 1, characters_per_process: int = 32, *, decision_period: int = 5):
-        self.servers = start_servers(processes, characters_per_process, decision_period)
+    def __init__(self, processes: int = 1, characters_per_process: int = 32, *, decision_period: int = 5,
+                 max_restarts: int = 3):
+        self._start = lambda: start_servers(processes, characters_per_process, decision_period)
+        self.servers = self._start()
         self.info = self.servers[0].info
         self.characters_per_process = characters_per_process
         self.slots = processes * characters_per_process
+        self.max_restarts = max_restarts
+        self.restarts = 0
 
     def run(self, actions: np.ndarray, smoothing_window: int = 1) -> tuple[np.ndarray, np.ndarray]:
         """Raw actions [M, decisions, 10] -> (features [M, frames, F], executed actions [M, decisions, 10])."""
@@ -27,10 +46,25 @@ class RolloutPool:
             padded = np.zeros((self.slots, *actions.shape[1:]), dtype=np.float32)
             padded[:len(chunk)] = chunk  # unused slots run the guard pose; their results are dropped
             parts = np.split(padded, len(self.servers))
-            replies = exchange(self.servers, [Message("rollout", {"smoothing_window": smoothing_window}, {"actions": part}) for part in parts])
+            replies = self._exchange([Message("rollout", {"smoothing_window": smoothing_window}, {"actions": part}) for part in parts])
             features.append(np.concatenate([r.arrays["features"] for r in replies])[:len(chunk)])
             executed.append(np.concatenate([r.arrays["executed_actions"] for r in replies])[:len(chunk)])
         return np.concatenate(features), np.concatenate(executed)
+
+    def _exchange(self, messages: list[Message]) -> list:
+        while True:
+            try:
+                return exchange(self.servers, messages)
+            except SIMULATOR_FAILURES as error:
+                if self.restarts >= self.max_restarts:
+                    raise SimulatorCrashError(f"the simulator failed again after {self.restarts} restarts: {error}") from error
+                self.restarts += 1
+                print(f"punch: a Godot process failed ({type(error).__name__}: {error}); restarting it "
+                      f"({self.restarts}/{self.max_restarts}) and running the batch again", file=sys.stderr)
+                self.close()
+                self.servers = self._start()
+                if self.servers[0].info.spec_hash != self.info.spec_hash:
+                    raise SimulatorCrashError("the restarted simulator has another observation spec") from error
 
     def close(self) -> None:
         for server in self.servers:

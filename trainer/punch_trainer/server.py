@@ -4,11 +4,13 @@ has a timeout, and the process is killed by its own PID on close."""
 
 from __future__ import annotations
 
+import ctypes
 import os
 import selectors
 import signal
 import socket
 import subprocess
+import sys
 import time
 from dataclasses import dataclass
 
@@ -62,7 +64,8 @@ class TrainingServer:
         ]
         self._log: list[str] = []
         self._process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                         text=True, errors="replace", start_new_session=True)
+                                         text=True, errors="replace", start_new_session=True,
+                                         preexec_fn=_die_with_parent if sys.platform == "linux" else None)
         try:
             port = self.port = self._wait_until_ready(start_timeout_s)
             self._socket = socket.create_connection(("127.0.0.1", port), timeout=start_timeout_s)
@@ -102,6 +105,11 @@ class TrainingServer:
         return ServerInfo(f["slot_count"], f["decision_period"], f["physics_hz"], f["spec_hash"], f["spec_version"],
                           f["extension_version"], f["action_names"], f["action_lower_rad"], f["action_upper_rad"],
                           f["observation_names"], f["feature_names"])
+
+    @property
+    def pid(self) -> int | None:
+        """The Godot process's id (None once closed)."""
+        return self._process.pid if self._process is not None else None
 
     def send(self, message: Message) -> None:
         if self._socket is None:
@@ -185,6 +193,16 @@ def start_servers(processes: int, characters_per_process: int, decision_period: 
             server.close()
         raise
     return servers
+
+
+def _die_with_parent() -> None:
+    """Runs in the Godot child before exec: Linux kills it when the trainer dies, even by SIGKILL, so a crashed
+    trainer leaves no simulator behind (PR_SET_PDEATHSIG survives the exec of tools/godot and Godot)."""
+    PR_SET_PDEATHSIG = 1
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    except (OSError, AttributeError):
+        pass
 
 
 def exchange(servers: list[TrainingServer], messages: list[Message]) -> list[Message]:
