@@ -4,13 +4,43 @@
 
 use glam::Vec3;
 use godot::builtin::{Rid, Transform3D};
-use godot::classes::physics_server_3d::G6dofJointAxisParam;
+use godot::classes::physics_server_3d::{G6dofJointAxisFlag, G6dofJointAxisParam};
 use godot::classes::{Marker3D, Node3D, PhysicsDirectBodyState3D, PhysicsServer3D};
 use godot::obj::{Gd, Singleton};
-use punch_core::character::{JOINTS, joint_dofs};
+use punch_core::character::{Axis, JOINTS, engine_axis, joint_dofs};
 use punch_core::sensing::{BagContact, BodyState, CharacterGeometry, FrameReading, MAX_BAG_CONTACTS};
 
 use crate::convert::{godot_axis, quat, vec3};
+
+/// One joint axis's engine settings, for scene-node joints (`PunchCharacter`) and physics-server joints (the
+/// training world) alike, so that both build the same constraint: linear axes locked, the DOF table's angular
+/// limits and motor torque (`engine_axis`), springs off, motors at rest.
+pub struct AxisSettings {
+    pub params: [(G6dofJointAxisParam, f32); 6],
+    pub flags: [(G6dofJointAxisFlag, bool); 6],
+}
+
+pub fn joint_axis_settings(joint_index: usize, axis: Axis) -> AxisSettings {
+    let settings = engine_axis(joint_index, axis);
+    AxisSettings {
+        params: [
+            (G6dofJointAxisParam::LINEAR_LOWER_LIMIT, 0.0),
+            (G6dofJointAxisParam::LINEAR_UPPER_LIMIT, 0.0),
+            (G6dofJointAxisParam::ANGULAR_LOWER_LIMIT, settings.lower_rad),
+            (G6dofJointAxisParam::ANGULAR_UPPER_LIMIT, settings.upper_rad),
+            (G6dofJointAxisParam::ANGULAR_MOTOR_FORCE_LIMIT, settings.max_torque_nm),
+            (G6dofJointAxisParam::ANGULAR_MOTOR_TARGET_VELOCITY, 0.0),
+        ],
+        flags: [
+            (G6dofJointAxisFlag::ENABLE_LINEAR_LIMIT, true),
+            (G6dofJointAxisFlag::ENABLE_ANGULAR_LIMIT, true),
+            (G6dofJointAxisFlag::ENABLE_ANGULAR_SPRING, false),
+            (G6dofJointAxisFlag::ENABLE_LINEAR_SPRING, false),
+            (G6dofJointAxisFlag::ENABLE_LINEAR_MOTOR, false),
+            (G6dofJointAxisFlag::ENABLE_MOTOR, settings.motor),
+        ],
+    }
+}
 
 /// Sets each joint's motor target velocities (Godot's 6DOF convention, `JOINTS` order) on its actuated axes.
 pub fn drive_joints(joint_rids: &[Rid; 5], motor_velocities: &[Vec3; 5]) {

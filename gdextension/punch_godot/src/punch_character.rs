@@ -7,13 +7,13 @@ use godot::builtin::{Rid, Transform3D, Vector3};
 use godot::classes::generic6_dof_joint_3d::{Flag, Param};
 use godot::classes::{Generic6DofJoint3D, INode3D, Node3D, PhysicsBody3D, RigidBody3D};
 use godot::global::godot_error;
-use godot::obj::{Base, Gd, WithBaseField};
+use godot::obj::{Base, EngineEnum, Gd, WithBaseField};
 use godot::prelude::{GodotClass, godot_api};
-use punch_core::character::{Axis, Body, JOINTS, engine_axis};
+use punch_core::character::{Axis, Body, JOINTS};
 use punch_core::sensing::{BodyState, CharacterGeometry};
 
 use crate::convert::{quat, vec3};
-use crate::engine_io::{character_geometry, drive_joints};
+use crate::engine_io::{character_geometry, drive_joints, joint_axis_settings};
 
 /// A physics-based upper-body character: pelvis fixed in place, a welded head-neck-chest torso, and two
 /// arms with 10 actuated degrees of freedom (waist 2, shoulders 3 each, elbows 1 each), driven by joint
@@ -144,19 +144,14 @@ impl PunchCharacter {
     }
 }
 
-/// Limits and motors of one joint node from the DOF table (see `punch_core::character::engine_axis`).
-/// Only changed values are set: a limit change rebuilds the engine's constraint.
+/// Limits and motors of one joint node (`joint_axis_settings`, the same as the training world's joints). Only
+/// changed values are set: a limit change rebuilds the engine's constraint. The node's enums have the
+/// physics server's values.
 fn configure_joint(joint: &mut Gd<Generic6DofJoint3D>, joint_index: usize) {
     for axis in Axis::ALL {
-        let settings = engine_axis(joint_index, axis);
-        for (param, value) in [
-            (Param::LINEAR_LOWER_LIMIT, 0.0),
-            (Param::LINEAR_UPPER_LIMIT, 0.0),
-            (Param::ANGULAR_LOWER_LIMIT, settings.lower_rad),
-            (Param::ANGULAR_UPPER_LIMIT, settings.upper_rad),
-            (Param::ANGULAR_MOTOR_FORCE_LIMIT, settings.max_torque_nm),
-            (Param::ANGULAR_MOTOR_TARGET_VELOCITY, 0.0),
-        ] {
+        let settings = joint_axis_settings(joint_index, axis);
+        for (param, value) in settings.params {
+            let param = Param::from_ord(param.ord());
             let current = match axis {
                 Axis::X => joint.get_param_x(param),
                 Axis::Y => joint.get_param_y(param),
@@ -170,14 +165,8 @@ fn configure_joint(joint: &mut Gd<Generic6DofJoint3D>, joint_index: usize) {
                 }
             }
         }
-        for (flag, enabled) in [
-            (Flag::ENABLE_LINEAR_LIMIT, true),
-            (Flag::ENABLE_ANGULAR_LIMIT, true),
-            (Flag::ENABLE_ANGULAR_SPRING, false),
-            (Flag::ENABLE_LINEAR_SPRING, false),
-            (Flag::ENABLE_LINEAR_MOTOR, false),
-            (Flag::ENABLE_MOTOR, settings.motor),
-        ] {
+        for (flag, enabled) in settings.flags {
+            let flag = Flag::from_ord(flag.ord());
             let current = match axis {
                 Axis::X => joint.get_flag_x(flag),
                 Axis::Y => joint.get_flag_y(flag),

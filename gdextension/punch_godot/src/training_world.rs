@@ -14,21 +14,19 @@
 
 use glam::Vec3;
 use godot::builtin::{Rid, Transform3D, Vector3};
-use godot::classes::physics_server_3d::{
-    BodyMode, BodyParameter, BodyState as ServerBodyState, G6dofJointAxisFlag, G6dofJointAxisParam,
-};
+use godot::classes::physics_server_3d::{BodyMode, BodyParameter, BodyState as ServerBodyState};
 use godot::classes::{
     CollisionShape3D, CylinderShape3D, Generic6DofJoint3D, Node, Node3D, PackedScene, PhysicsDirectBodyState3D,
     PhysicsServer3D, PinJoint3D, RigidBody3D, Shape3D, World3D,
 };
 use godot::meta::ToGodot;
 use godot::obj::{Gd, NewGd, Singleton};
-use punch_core::character::{Axis, Body, JOINTS, engine_axis};
+use punch_core::character::{Axis, Body, JOINTS};
 use punch_core::sensing::{BodyState, CharacterGeometry, FrameReading, MAX_BAG_CONTACTS};
 use punch_core::session::{BagPlacement, World};
 
 use crate::convert::godot_axis;
-use crate::engine_io::{add_bag_contacts, character_geometry, drive_joints, read_state};
+use crate::engine_io::{add_bag_contacts, character_geometry, drive_joints, joint_axis_settings, read_state};
 
 /// Most slots per arena: a slot uses two of the 32 collision layers, one for its character and one for its bag.
 pub const MAX_SLOTS_PER_WORLD: usize = 16;
@@ -290,30 +288,15 @@ impl Drop for TrainingWorld {
     }
 }
 
-/// Limits and motors of a server joint from the DOF table; linear axes are locked.
+/// Limits and motors of a server joint (`joint_axis_settings`).
 fn configure_server_joint(server: &mut Gd<PhysicsServer3D>, joint: Rid, joint_index: usize) {
     for axis in Axis::ALL {
-        let settings = engine_axis(joint_index, axis);
-        let godot_axis = godot_axis(axis);
-        for (param, value) in [
-            (G6dofJointAxisParam::LINEAR_LOWER_LIMIT, 0.0),
-            (G6dofJointAxisParam::LINEAR_UPPER_LIMIT, 0.0),
-            (G6dofJointAxisParam::ANGULAR_LOWER_LIMIT, settings.lower_rad),
-            (G6dofJointAxisParam::ANGULAR_UPPER_LIMIT, settings.upper_rad),
-            (G6dofJointAxisParam::ANGULAR_MOTOR_FORCE_LIMIT, settings.max_torque_nm),
-            (G6dofJointAxisParam::ANGULAR_MOTOR_TARGET_VELOCITY, 0.0),
-        ] {
-            server.generic_6dof_joint_set_param(joint, godot_axis, param, value);
+        let settings = joint_axis_settings(joint_index, axis);
+        for (param, value) in settings.params {
+            server.generic_6dof_joint_set_param(joint, godot_axis(axis), param, value);
         }
-        for (flag, enabled) in [
-            (G6dofJointAxisFlag::ENABLE_LINEAR_LIMIT, true),
-            (G6dofJointAxisFlag::ENABLE_ANGULAR_LIMIT, true),
-            (G6dofJointAxisFlag::ENABLE_ANGULAR_SPRING, false),
-            (G6dofJointAxisFlag::ENABLE_LINEAR_SPRING, false),
-            (G6dofJointAxisFlag::ENABLE_LINEAR_MOTOR, false),
-            (G6dofJointAxisFlag::ENABLE_MOTOR, settings.motor),
-        ] {
-            server.generic_6dof_joint_set_flag(joint, godot_axis, flag, enabled);
+        for (flag, enabled) in settings.flags {
+            server.generic_6dof_joint_set_flag(joint, godot_axis(axis), flag, enabled);
         }
     }
 }
