@@ -198,9 +198,14 @@ pub struct FrameReader {
 }
 
 impl FrameReader {
-    /// Adds bytes read from the stream.
-    pub fn push(&mut self, bytes: &[u8]) {
-        self.buffer.extend_from_slice(bytes);
+    /// One `read` of at most `max_bytes` from `reader`, straight into the buffer (call it when the stream is
+    /// readable, so that it does not block). `Ok(0)` is the end of the stream.
+    pub fn read_available(&mut self, reader: &mut impl Read, max_bytes: usize) -> std::io::Result<usize> {
+        let start = self.buffer.len();
+        self.buffer.resize(start + max_bytes, 0);
+        let result = reader.read(&mut self.buffer[start..]);
+        self.buffer.truncate(start + result.as_ref().map_or(0, |n| *n));
+        result
     }
 
     /// The next complete message, if one has arrived. A `Framing` error means the stream cannot be

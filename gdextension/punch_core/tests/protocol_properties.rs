@@ -7,7 +7,7 @@ use proptest::prelude::*;
 use punch_core::protocol::{Array, FrameReader, MAX_PAYLOAD_BYTES, Message, ProtocolError};
 use serde_json::json;
 
-/// A reader that serves `bytes` and then reports the end of the stream, counting what was asked of it.
+/// A reader that serves `bytes` and then reports the end of the stream.
 struct Feed<'a> {
     bytes: &'a [u8],
 }
@@ -106,10 +106,9 @@ proptest! {
     fn frame_reader_cuts_any_chunking_of_a_stream_into_the_same_messages(
         messages in prop::collection::vec(message_strategy(), 1..4), chunk in 1usize..40) {
         let stream: Vec<u8> = messages.iter().flat_map(Message::encode).collect();
-        let mut reader = FrameReader::default();
+        let (mut reader, mut feed) = (FrameReader::default(), Feed { bytes: &stream });
         let mut decoded = Vec::new();
-        for piece in stream.chunks(chunk) {
-            reader.push(piece);
+        while reader.read_available(&mut feed, chunk).expect("reads") > 0 {
             while let Some(result) = reader.next_message() {
                 decoded.push(result.expect("valid frames"));
             }
@@ -122,9 +121,8 @@ proptest! {
 
     #[test]
     fn frame_reader_never_panics_on_random_bytes(bytes in prop::collection::vec(any::<u8>(), 0..512), chunk in 1usize..64) {
-        let mut reader = FrameReader::default();
-        for piece in bytes.chunks(chunk) {
-            reader.push(piece);
+        let (mut reader, mut feed) = (FrameReader::default(), Feed { bytes: &bytes });
+        while reader.read_available(&mut feed, chunk).expect("reads") > 0 {
             while let Some(result) = reader.next_message() {
                 if matches!(result, Err(ProtocolError::Framing(_))) {
                     return Ok(());

@@ -7,7 +7,7 @@
 //! Lockstep: while waiting for a command the server blocks inside `physics_process`, so no physics step
 //! happens between commands; a command that needs frames returns and lets Godot step.
 
-use std::io::{ErrorKind, Read};
+use std::io::ErrorKind;
 use std::net::{TcpListener, TcpStream};
 use std::os::fd::AsRawFd;
 use std::time::{Duration, Instant};
@@ -22,8 +22,8 @@ use punch_core::session::{BagPlacement, Outcome, Session, World};
 
 use crate::training_world::{MAX_SLOTS_PER_WORLD, TrainingWorld};
 
-/// Bytes read from a client at most per poll round.
-const RECEIVE_CHUNK_BYTES: usize = 1 << 20;
+/// Bytes read from a client at most per poll round (a rollout request of 64 characters is about 26 kB).
+const RECEIVE_CHUNK_BYTES: usize = 64 * 1024;
 
 /// A client: its socket and the bytes of its next message so far.
 struct Connection {
@@ -221,13 +221,12 @@ impl PunchTrainingServer {
 
     /// Reads what a readable client has sent (poll said it is readable, so this does not block).
     fn receive_bytes(&mut self, index: usize) {
-        let mut chunk = vec![0u8; RECEIVE_CHUNK_BYTES];
-        let connection = &mut self.connections[index];
-        match connection.stream.read(&mut chunk) {
+        let Connection { stream, frames } = &mut self.connections[index];
+        match frames.read_available(stream, RECEIVE_CHUNK_BYTES) {
             Ok(0) => {
                 self.connections.remove(index);
             }
-            Ok(n) => connection.frames.push(&chunk[..n]),
+            Ok(_) => {}
             Err(error) if matches!(error.kind(), ErrorKind::Interrupted | ErrorKind::WouldBlock) => {}
             Err(_) => {
                 self.connections.remove(index);
