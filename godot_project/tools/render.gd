@@ -1,10 +1,10 @@
 ## The scene `punch render` films in Movie Maker mode: one character and sandbag per noise sigma, side by side
-## (each pair on its own collision layers), every character punching again and again from its guard pose.
+## (each pair on its own collision layers, at most 16), every character punching again and again from its
+## guard pose.
 ## Arguments after `--`: --policy=PATH --sigmas=0,0.3,0.6 [--noise-decisions=-1] [--seed=0]
 extends Node3D
 
-const CHARACTER_SCENE := preload("res://addons/punch_controller/scenes/punch_character.tscn")
-const SANDBAG_SCENE := preload("res://addons/punch_controller/scenes/punch_sandbag.tscn")
+const PunchPair := preload("res://tools/punch_pair.gd")
 ## Metres between neighbouring pairs (arms and swinging bags never reach the next pair).
 const SPACING_M := 2.2
 ## Seconds of rest between punches.
@@ -31,17 +31,6 @@ func _ready() -> void:
 func _add_pair(index: int, count: int, sigma: float) -> void:
 	# The camera looks from behind the characters' right: ascending sigma from left to right on screen.
 	var x := ((count - 1) / 2.0 - index) * SPACING_M
-	var character: Node3D = CHARACTER_SCENE.instantiate()
-	character.position = Vector3(x, 0, 0)
-	var sandbag: Node3D = SANDBAG_SCENE.instantiate()
-	sandbag.position = Vector3(x, 1.35, 0.72)
-	var layer := 1 << (2 * index)
-	for body in character.find_children("*", "CollisionObject3D", true, false):
-		body.collision_layer = layer
-		body.collision_mask = layer << 1
-	var bag: RigidBody3D = sandbag.get_node("Bag")
-	bag.collision_layer = layer << 1
-	bag.collision_mask = layer
 	var stand := MeshInstance3D.new()
 	var stand_mesh := CylinderMesh.new()
 	stand_mesh.top_radius = 0.06
@@ -50,16 +39,10 @@ func _add_pair(index: int, count: int, sigma: float) -> void:
 	stand.mesh = stand_mesh
 	stand.position = Vector3(x, 0.48, 0)
 	add_child(stand)
-	add_child(character)
-	add_child(sandbag)
-	var controller: Node = ClassDB.instantiate("PunchController")
-	controller.set("character", character)
-	controller.set("target", bag)
-	controller.set("policy", _options.policy)
-	controller.set("noise_sigma", sigma)
-	controller.set("noise_decisions", int(_options["noise-decisions"]))
-	controller.set("seed", int(_options.seed) + index)
-	add_child(controller)
+	var controller := PunchPair.add(self, index, Vector3(x, 0, 0), Vector3(0, 1.35, 0.72), _options.policy, sigma,
+		int(_options["noise-decisions"]), int(_options.seed) + index)
+	var character: Node3D = controller.get("character")
+	var bag: RigidBody3D = controller.get("target")
 	var label := Label3D.new()
 	label.text = "sigma %.2f" % sigma
 	label.font_size = 64

@@ -16,8 +16,7 @@
 ## for `punch bench inference`). Progress lines: `REPLAY_PROGRESS done total`.
 extends SceneTree
 
-const CHARACTER_SCENE := "res://addons/punch_controller/scenes/punch_character.tscn"
-const SANDBAG_SCENE := "res://addons/punch_controller/scenes/punch_sandbag.tscn"
+const PunchPair := preload("res://tools/punch_pair.gd")
 
 var _options := {
 	"policy": "", "sigmas": "0", "episodes": "10", "out": "", "noise-decisions": "-1", "characters": "64",
@@ -31,8 +30,6 @@ var _arenas: Array[SubViewport] = []
 var _controllers: Array[Node] = []
 var _pending := 0
 var _files := {}
-var _character_scene: PackedScene
-var _sandbag_scene: PackedScene
 var _meta := {}
 var _inference := {"calls": 0, "rows": 0, "usec": 0.0}
 var _controller_frame_usec := []
@@ -55,8 +52,6 @@ func _initialize() -> void:
 		_fail("policy file not found: %s" % _options.policy)
 		return
 	DirAccess.make_dir_recursive_absolute(_options.out)
-	_character_scene = load(CHARACTER_SCENE)
-	_sandbag_scene = load(SANDBAG_SCENE)
 	_meta = {"policy": _options.policy, "sigmas": Array(_sigmas), "episodes": _episodes_total,
 		"noise_decisions": int(_options["noise-decisions"]), "seed": int(_options.seed), "bag": _options.bag,
 		"characters": int(_options.characters), "characters_per_world": int(_options["characters-per-world"]),
@@ -84,7 +79,7 @@ func _physics_process(_delta: float) -> bool:
 
 func _start_batch() -> void:
 	var count := mini(int(_options.characters), _episodes_total - _episodes_done)
-	var per_world := clampi(int(_options["characters-per-world"]), 1, 16)
+	var per_world := clampi(int(_options["characters-per-world"]), 1, PunchPair.MAX_PER_WORLD)
 	var bag: PackedFloat64Array = (_options.bag as String).split_floats(",")
 	var arena: SubViewport
 	for slot in count:
@@ -94,25 +89,11 @@ func _start_batch() -> void:
 			arena.render_target_update_mode = SubViewport.UPDATE_DISABLED
 			root.add_child(arena)
 			_arenas.append(arena)
-		var character_layer := 1 << (2 * (slot % per_world))
-		var bag_layer := character_layer << 1
-		var character: Node3D = _character_scene.instantiate()
-		_set_layers(character, character_layer, bag_layer)
-		arena.add_child(character)
-		var sandbag: Node3D = _sandbag_scene.instantiate()
-		sandbag.position = Vector3(bag[2], bag[1], bag[0])
-		_set_layers(sandbag, bag_layer, character_layer)
-		arena.add_child(sandbag)
-		var controller: Node = ClassDB.instantiate("PunchController")
-		controller.set("character", character)
-		controller.set("target", sandbag.get_node("Bag"))
-		controller.set("policy", _options.policy)
-		controller.set("noise_sigma", _sigmas[_sigma_index])
-		controller.set("noise_decisions", int(_options["noise-decisions"]))
-		controller.set("seed", int(_options.seed) * 1000003 + _sigma_index * 100003 + _episodes_done + slot)
+		var seed := int(_options.seed) * 1000003 + _sigma_index * 100003 + _episodes_done + slot
+		var controller := PunchPair.add(arena, slot % per_world, Vector3.ZERO, Vector3(bag[2], bag[1], bag[0]),
+			_options.policy, _sigmas[_sigma_index], int(_options["noise-decisions"]), seed)
 		controller.set("record", true)
 		controller.connect("punch_finished", func(_metrics): _pending -= 1)
-		arena.add_child(controller)
 		_controllers.append(controller)
 	_pending = count
 	ClassDB.class_call_static("PunchController", "take_inference_counts")
@@ -150,12 +131,6 @@ func _collect_batch() -> void:
 		_files.clear()
 		_episodes_done = 0
 		_sigma_index += 1
-
-
-func _set_layers(scene_root: Node, layer: int, mask: int) -> void:
-	for body in scene_root.find_children("*", "CollisionObject3D", true, false):
-		body.collision_layer = layer
-		body.collision_mask = mask
 
 
 func _fail(message: String) -> void:

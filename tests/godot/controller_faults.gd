@@ -18,7 +18,8 @@ func _initialize() -> void:
 	for argument in OS.get_cmdline_user_args():
 		var parts := argument.trim_prefix("--").split("=", true, 1)
 		_args[parts[0]] = parts[1]
-	_steps = [_bad_files, _nan_outputs, _target_freed, _character_freed, _sigma_clamped, _packed_policy]
+	_steps = [_bad_files, _nan_outputs, _freed_mid_punch.bind("target"), _freed_mid_punch.bind("character"),
+		_sigma_clamped, _packed_policy]
 
 
 func _physics_process(_delta: float) -> bool:
@@ -74,22 +75,13 @@ func _nan_outputs() -> void:
 	_wait = 3
 
 
-func _target_freed() -> void:
+## Frees the sandbag ("target") or the character ten frames into a punch; the punch must stop by itself.
+func _freed_mid_punch(what: String) -> void:
 	var controller := _scene()
 	controller.call("punch")
 	_steps.push_front(func():
-		_sandbag.free()
-		_steps.push_front(func(): _report["target_freed_stopped"] = not controller.call("is_punching"))
-		_wait = 2)
-	_wait = 10
-
-
-func _character_freed() -> void:
-	var controller := _scene()
-	controller.call("punch")
-	_steps.push_front(func():
-		_character.free()
-		_steps.push_front(func(): _report["character_freed_stopped"] = not controller.call("is_punching"))
+		(_sandbag if what == "target" else _character).free()
+		_steps.push_front(func(): _report[what + "_freed_stopped"] = not controller.call("is_punching"))
 		_wait = 2)
 	_wait = 10
 

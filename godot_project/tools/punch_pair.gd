@@ -1,0 +1,39 @@
+## A character, its sandbag and a PunchController, kept apart from other pairs in the same physics world by
+## two collision layers of their own (one for the character, one for the bag, masks two-sided as in the
+## training world). Shared by replay.gd and render.gd.
+extends RefCounted
+
+const CHARACTER_SCENE := preload("res://addons/punch_controller/scenes/punch_character.tscn")
+const SANDBAG_SCENE := preload("res://addons/punch_controller/scenes/punch_sandbag.tscn")
+## A world holds at most 16 pairs: two of its 32 collision layers each.
+const MAX_PER_WORLD := 16
+
+
+## Adds the pair under `parent`: the character at `origin`, the bag's centre at `origin + bag_offset`, on the
+## layers of `slot` (0 to 15) of their world. The controller plays `policy` with `sigma`; it is not started.
+static func add(parent: Node, slot: int, origin: Vector3, bag_offset: Vector3, policy: String, sigma: float,
+		noise_decisions: int, seed: int) -> Node:
+	var character_layer := 1 << (2 * slot)
+	var character: Node3D = CHARACTER_SCENE.instantiate()
+	character.position = origin
+	_set_layers(character, character_layer, character_layer << 1)
+	parent.add_child(character)
+	var sandbag: Node3D = SANDBAG_SCENE.instantiate()
+	sandbag.position = origin + bag_offset
+	_set_layers(sandbag, character_layer << 1, character_layer)
+	parent.add_child(sandbag)
+	var controller: Node = ClassDB.instantiate("PunchController")
+	controller.set("character", character)
+	controller.set("target", sandbag.get_node("Bag"))
+	controller.set("policy", policy)
+	controller.set("noise_sigma", sigma)
+	controller.set("noise_decisions", noise_decisions)
+	controller.set("seed", seed)
+	parent.add_child(controller)
+	return controller
+
+
+static func _set_layers(scene_root: Node, layer: int, mask: int) -> void:
+	for body in scene_root.find_children("*", "CollisionObject3D", true, false):
+		body.collision_layer = layer
+		body.collision_mask = mask
