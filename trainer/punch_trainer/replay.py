@@ -27,6 +27,7 @@ from tqdm import tqdm
 from punch_trainer.errors import GodotRunError, PunchError
 from punch_trainer.godot import FATAL_LOG_PATTERNS, GODOT_PROJECT, godot_command, tail
 from punch_trainer.rewards import evaluate, load_reward, total
+from punch_trainer.search import first_right_contact
 
 KINDS = ("features", "observations", "mean_actions", "actions")
 # Paths drawn per sigma in the Fig. 11 plot.
@@ -123,10 +124,7 @@ def analyse_sigma(features: np.ndarray, names: list[str], reward, chunk: int = 2
     returns = np.concatenate([total(evaluate(reward, np.asarray(features[i:i + chunk], dtype=np.float64), names)).sum(-1)
                               for i in range(0, len(features), chunk)])
     fist = np.asarray(features[:, :, col("fist_r_pos_x"):col("fist_r_pos_z") + 1], dtype=np.float64)
-    impulse = np.linalg.norm(features[:, :, col("fist_r_impulse_x"):col("fist_r_impulse_z") + 1], axis=-1)
-    touched = impulse > 1e-3
-    hit = touched.any(axis=1)
-    first = touched.argmax(axis=1)
+    hit, first = first_right_contact(features, names)
     impacts = fist[np.flatnonzero(hit), first[hit]]
     return {
         "returns": returns,

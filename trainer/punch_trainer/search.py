@@ -186,6 +186,18 @@ def replay_dataset(result: SearchResult, reward: Reward, args: SearchArgs) -> di
     }
 
 
+CONTACT_IMPULSE_NS = 1e-3
+"""A right-fist impulse on the bag above this (N s) counts as contact."""
+
+
+def first_right_contact(features: np.ndarray, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Of features [..., frames, F]: whether the right fist touched the bag, and the first frame it did (0 if never)."""
+    col = names.index
+    impulse = np.linalg.norm(features[..., col("fist_r_impulse_x"):col("fist_r_impulse_z") + 1], axis=-1)
+    touched = impulse > CONTACT_IMPULSE_NS
+    return touched.any(axis=-1), touched.argmax(axis=-1)
+
+
 def motion_report(dataset: dict[str, np.ndarray]) -> dict[str, float | list[float] | None]:
     """Peak fist speed, time to impact and contact point (relative to the bag's centre) of a trajectory."""
     names = [str(n) for n in dataset["feature_names"]]
@@ -193,8 +205,7 @@ def motion_report(dataset: dict[str, np.ndarray]) -> dict[str, float | list[floa
     col = names.index
     velocity = f[:, col("fist_r_vel_x"):col("fist_r_vel_z") + 1]
     speed = np.linalg.norm(velocity, axis=1)
-    impulse = np.linalg.norm(f[:, col("fist_r_impulse_x"):col("fist_r_impulse_z") + 1], axis=1)
-    contact = np.flatnonzero(impulse > 1e-3)
+    hit, first = first_right_contact(f, names)
     hz = float(dataset["physics_hz"])
     report: dict[str, float | list[float] | None] = {
         "peak_fist_speed_mps": float(speed.max()),
@@ -202,8 +213,8 @@ def motion_report(dataset: dict[str, np.ndarray]) -> dict[str, float | list[floa
         "closest_fist_bag_distance_m": float(f[:, col("fist_r_bag_distance")].min()),
         "impact_time_s": None, "impact_speed_mps": None, "contact_point_from_bag_centre_m": None,
     }
-    if contact.size:
-        first = int(contact[0])
+    if hit:
+        first = int(first)
         fist = f[first, col("fist_r_pos_x"):col("fist_r_pos_z") + 1]
         bag = f[first, col("bag_pos_x"):col("bag_pos_z") + 1]
         report.update(impact_time_s=(first + 1) / hz, impact_speed_mps=float(speed[max(first - 1, 0)]),
