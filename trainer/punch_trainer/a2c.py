@@ -13,14 +13,17 @@ from __future__ import annotations
 import copy
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import torch
 from tqdm import tqdm
 
+from punch_trainer.checkpoint import load_checkpoint, save_checkpoint
 from punch_trainer.env import PunchVectorEnv
 from punch_trainer.policy import ActorCritic
 from punch_trainer.rewards import Reward, evaluate, total
+from punch_trainer.rollouts import SimulatorRestarts
 
 
 @dataclass
@@ -61,54 +64,86 @@ def evaluate_noise_free(model: ActorCritic, env: PunchVectorEnv, reward: Reward)
             return episode
 
 
+def collect_episodes(model: ActorCritic, env: PunchVectorEnv, reward: Reward) -> dict[str, torch.Tensor]:
+    """One episode on every character with actions sampled from the policy: per decision [T, N, ...] the
+    observations, actions, log-probabilities, values and rewards."""
+    obs, _ = env.reset()
+    batch: dict[str, list[torch.Tensor]] = {"obs": [], "actions": [], "logp": [], "values": [], "rewards": []}
+    done = np.zeros(env.num_envs, dtype=bool)
+    while not done.all():
+        obs_t = torch.as_tensor(obs)
+        with torch.no_grad():
+            dist = model.distribution(obs_t)
+            action = dist.sample()
+            logp = dist.log_prob(action).sum(-1)
+            value = model.value(obs_t)
+        obs, _, terminated, truncated, info = env.step(action.clamp(-1, 1).numpy())
+        step_rewards = torch.as_tensor(decision_rewards(reward, info["features"], env.feature_names), dtype=torch.float32)
+        for key, item in zip(batch, (obs_t, action, logp, value, step_rewards)):
+            batch[key].append(item)
+        done = terminated | truncated
+    return {key: torch.stack(items) for key, items in batch.items()}
+
+
+def advantages_and_returns(rewards: torch.Tensor, values: torch.Tensor, best_episode_return: float,
+                           args: A2CArgs) -> tuple[torch.Tensor, torch.Tensor]:
+    """Per-decision advantages and critic targets [T, N] (module docstring: `advantage`)."""
+    if args.advantage == "paper":
+        advantages = (best_episode_return - rewards.sum(0)).expand_as(rewards).clone()
+        return advantages, torch.flip(torch.cumsum(torch.flip(rewards, [0]), 0), [0])
+    advantages = torch.zeros_like(rewards)
+    running = torch.zeros(rewards.shape[1])
+    for t in range(rewards.shape[0] - 1, -1, -1):
+        next_value = values[t + 1] if t + 1 < rewards.shape[0] else torch.zeros(rewards.shape[1])
+        delta = rewards[t] + args.gamma * next_value - values[t]
+        running = delta + args.gamma * args.gae_lambda * running
+        advantages[t] = running
+    return advantages, advantages + values
+
+
 def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVectorEnv, progress: bool = True,
-              start_rollouts: int = 0) -> tuple[ActorCritic, list[dict]]:
-    """Trains in place and returns the parameters with the best noise-free return, with the history."""
+              start_rollouts: int = 0, run_dir: Path | None = None, max_restarts: int = 3) -> tuple[ActorCritic, list[dict]]:
+    """Trains in place and returns the parameters with the best noise-free return, with the history.
+
+    With `run_dir` it checkpoints after every update (model, optimizer, best model, history and the random
+    state) and first continues from the checkpoint it finds there. A Godot process that crashes, is killed or
+    hangs during an update is restarted, and the update's episodes run again with the same random numbers, so
+    either way the result is the one an uninterrupted run gives."""
     torch.manual_seed(args.seed)
     optimizer = torch.optim.Adam(model.parameters(), lr=args.learning_rate)
-    names = env.feature_names
-    best_model, best_eval = copy.deepcopy(model), evaluate_noise_free(model, env, reward)
-    best_episode_return = -np.inf
-    history = [{"update": 0, "episodes": 0, "env_steps": start_rollouts, "elapsed_s": 0.0, "mean_return": float("nan"), "eval_return": best_eval}]
-    start, env_steps, episodes = time.perf_counter(), start_rollouts, 0
-    for update in tqdm(range(1, args.updates + 1), desc=f"a2c ({args.advantage})", unit="update", disable=not progress):
-        obs, _ = env.reset()
-        batch_obs, batch_actions, batch_logp, batch_values, batch_rewards = [], [], [], [], []
-        done = np.zeros(env.num_envs, dtype=bool)
-        while not done.all():
-            obs_t = torch.as_tensor(obs)
-            with torch.no_grad():
-                dist = model.distribution(obs_t)
-                action = dist.sample()
-                logp = dist.log_prob(action).sum(-1)
-                value = model.value(obs_t)
-            obs, _, terminated, truncated, info = env.step(action.clamp(-1, 1).numpy())
-            batch_obs.append(obs_t)
-            batch_actions.append(action)
-            batch_logp.append(logp)
-            batch_values.append(value)
-            batch_rewards.append(torch.as_tensor(decision_rewards(reward, info["features"], names), dtype=torch.float32))
-            done = terminated | truncated
-            env_steps += env.num_envs
-        episodes += env.num_envs
-        rewards = torch.stack(batch_rewards)  # [T, N]
-        values = torch.stack(batch_values)
-        episode_returns = rewards.sum(0)
+    restarts = SimulatorRestarts(env.restart, max_restarts)
+    saved = load_checkpoint(run_dir, "a2c") if run_dir is not None else None
+    if saved is None:
+        best_model, best_eval = copy.deepcopy(model), restarts.run(lambda: evaluate_noise_free(model, env, reward))
+        best_episode_return = -np.inf
+        history = [{"update": 0, "episodes": 0, "env_steps": start_rollouts, "elapsed_s": 0.0, "mean_return": float("nan"), "eval_return": best_eval}]
+        done_updates, elapsed_before, stopped = 0, 0.0, False
+    else:
+        model.load_state_dict(saved["model"])
+        optimizer.load_state_dict(saved["optimizer"])
+        best_model = copy.deepcopy(model)
+        best_model.load_state_dict(saved["best_model"])
+        best_eval, best_episode_return, history = saved["best_eval"], saved["best_episode_return"], saved["history"]
+        done_updates, elapsed_before, stopped = saved["update"], saved["elapsed_s"], saved["stopped"]
+        torch.set_rng_state(saved["torch_rng_state"])
+    if stopped:
+        return best_model, history
+
+    start = time.perf_counter() - elapsed_before
+    for update in tqdm(range(done_updates + 1, args.updates + 1), desc=f"a2c ({args.advantage})", unit="update",
+                       initial=done_updates, total=args.updates, disable=not progress):
+        rng_state = torch.get_rng_state()
+
+        def collect() -> dict[str, torch.Tensor]:
+            torch.set_rng_state(rng_state)  # a rerun after a restart samples the same actions
+            return collect_episodes(model, env, reward)
+
+        batch = restarts.run(collect)
+        episode_returns = batch["rewards"].sum(0)
         best_episode_return = max(best_episode_return, float(episode_returns.max()))
-        if args.advantage == "paper":
-            advantages = (best_episode_return - episode_returns).expand_as(rewards).clone()
-            returns = torch.flip(torch.cumsum(torch.flip(rewards, [0]), 0), [0])
-        else:
-            advantages = torch.zeros_like(rewards)
-            running = torch.zeros(env.num_envs)
-            for t in range(rewards.shape[0] - 1, -1, -1):
-                next_value = values[t + 1] if t + 1 < rewards.shape[0] else torch.zeros(env.num_envs)
-                delta = rewards[t] + args.gamma * next_value - values[t]
-                running = delta + args.gamma * args.gae_lambda * running
-                advantages[t] = running
-            returns = advantages + values
+        advantages, returns = advantages_and_returns(batch["rewards"], batch["values"], best_episode_return, args)
         flat = lambda x: x.reshape(-1, *x.shape[2:])  # noqa: E731
-        b_obs, b_actions, b_logp = flat(torch.stack(batch_obs)), flat(torch.stack(batch_actions)), flat(torch.stack(batch_logp))
+        b_obs, b_actions, b_logp = flat(batch["obs"]), flat(batch["actions"]), flat(batch["logp"])
         b_adv, b_returns = flat(advantages), flat(returns)
         b_adv = (b_adv - b_adv.mean()) / (b_adv.std() + 1e-8)
         for _ in range(args.epochs):
@@ -121,12 +156,20 @@ def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVecto
             loss.backward()
             torch.nn.utils.clip_grad_norm_(model.parameters(), 0.5)
             optimizer.step()
-        evaluation = evaluate_noise_free(model, env, reward)
+        evaluation = restarts.run(lambda: evaluate_noise_free(model, env, reward))
         if evaluation > best_eval:
             best_eval, best_model = evaluation, copy.deepcopy(model)
         elapsed = time.perf_counter() - start
-        history.append({"update": update, "episodes": episodes, "env_steps": env_steps, "elapsed_s": round(elapsed, 3),
+        steps = batch["rewards"].numel()
+        history.append({"update": update, "episodes": history[-1]["episodes"] + env.num_envs,
+                        "env_steps": history[-1]["env_steps"] + steps, "elapsed_s": round(elapsed, 3),
                         "mean_return": float(episode_returns.mean()), "eval_return": evaluation})
-        if args.time_budget_s is not None and elapsed >= args.time_budget_s:
+        stopped = update == args.updates or (args.time_budget_s is not None and elapsed >= args.time_budget_s)
+        if run_dir is not None:
+            save_checkpoint(run_dir, "a2c", {
+                "update": update, "model": model.state_dict(), "optimizer": optimizer.state_dict(),
+                "best_model": best_model.state_dict(), "best_eval": best_eval, "best_episode_return": best_episode_return,
+                "history": history, "elapsed_s": elapsed, "stopped": stopped, "torch_rng_state": torch.get_rng_state()})
+        if stopped:
             break
     return best_model, history

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
+import time
 from pathlib import Path
 
 from punch_trainer import __version__
@@ -58,10 +60,15 @@ def _bench_inference(args: argparse.Namespace) -> int:
 
 
 def _search(args: argparse.Namespace) -> int:
-    from punch_trainer.search import SearchArgs, run_search
+    from punch_trainer.search import SearchArgs, resume_args, run_search
 
-    fields = {k: getattr(args, k) for k in SearchArgs.__dataclass_fields__ if getattr(args, k, None) is not None}
-    out, result, report = run_search(SearchArgs(**fields))
+    if args.resume is not None:
+        search_args = resume_args(args.resume)
+    else:
+        search_args = SearchArgs(**{k: getattr(args, k) for k in SearchArgs.__dataclass_fields__ if getattr(args, k, None) is not None})
+    out = search_args.out = search_args.out or _default_run_dir(search_args.reward, search_args.seed)
+    with _resume_hint("search", out):
+        out, result, report = run_search(search_args, resume=args.resume is not None)
     print(f"best return {result.best_return:.4f} after {len(result.history)} iterations; "
           f"peak fist speed {report['peak_fist_speed_mps']:.2f} m/s")
     print(f"run directory: {out} (report: {out / 'report.md'})")
@@ -95,13 +102,34 @@ def _bench_search(args: argparse.Namespace) -> int:
 
 
 def _train(args: argparse.Namespace) -> int:
-    from punch_trainer.train import TrainArgs, run_train
+    from punch_trainer.train import TrainArgs, resume_args, run_train
 
-    fields = {k: getattr(args, k) for k in TrainArgs.__dataclass_fields__ if getattr(args, k, None) is not None}
-    out = run_train(TrainArgs(**fields))
+    if args.resume is not None:
+        train_args = resume_args(args.resume)
+    else:
+        train_args = TrainArgs(**{k: getattr(args, k) for k in TrainArgs.__dataclass_fields__ if getattr(args, k, None) is not None})
+    out = train_args.out = train_args.out or _default_run_dir(f"train_{train_args.reward}", train_args.seed)
+    with _resume_hint("train", out):
+        out = run_train(train_args, resume=args.resume is not None)
     print((out / "report.md").read_text())
     print(f"report: {out / 'report.md'}")
     return 0
+
+
+def _default_run_dir(name: str, seed: int) -> Path:
+    return Path("runs") / f"{name.replace('/', '_').replace(':', '_').replace('.py', '')}__{seed}__{int(time.time())}"
+
+
+@contextlib.contextmanager
+def _resume_hint(command: str, out: Path):
+    """Ctrl-C ends the command with the run directory consistent (the last checkpoint is whole) and says how
+    to continue."""
+    try:
+        yield
+    except KeyboardInterrupt:
+        print(f"\npunch: interrupted; the run directory {out} holds the last checkpoint. "
+              f"Continue with: punch {command} --resume {out}", file=sys.stderr)
+        raise SystemExit(130) from None
 
 
 def _fig6(args: argparse.Namespace) -> int:
@@ -133,7 +161,7 @@ def _pretrain(args: argparse.Namespace) -> int:
     from punch_trainer.pretrain import PretrainArgs, load_datasets, pretrain
 
     data = load_datasets(args.datasets)
-    model = ActorCritic(data["observations"].shape[1], data["actions"].shape[1])
+    model = ActorCritic(data["observations"].shape[1], data["actions"].shape[1], seed=args.seed)
     history = pretrain(model, data, PretrainArgs(epochs=args.epochs, seed=args.seed))
     metadata = {"punch_spec_hash": str(data["spec_hash"]), "punch_training_summary":
                 f"pretrained on {len(args.datasets)} dataset(s), {len(data['actions'])} decisions, final actor MSE {history[-1]['actor_mse']:.3g}"}
@@ -190,6 +218,8 @@ def build_parser() -> argparse.ArgumentParser:
     search.add_argument("--time-budget-s", dest="time_budget_s", type=float)
     search.add_argument("--processes", type=int, default=defaults.processes)
     search.add_argument("--characters-per-process", dest="characters_per_process", type=int, default=defaults.characters_per_process)
+    search.add_argument("--resume", type=Path, metavar="RUN_DIR",
+                        help="continue an interrupted search from its checkpoint, with its own arguments (other options are ignored)")
     search.set_defaults(run=_search)
 
     train = commands.add_parser("train", help="search, pretraining, A2C and ONNX export for a reward")
@@ -200,6 +230,13 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--search-iterations", dest="search_iterations", type=int)
     train.add_argument("--a2c-updates", dest="a2c_updates", type=int)
     train.add_argument("--advantage", choices=["gae", "paper"])
+    train.add_argument("--search-rollouts", dest="search_rollouts", type=int)
+    train.add_argument("--pretrain-epochs", dest="pretrain_epochs", type=int)
+    train.add_argument("--a2c-characters", dest="a2c_characters", type=int)
+    train.add_argument("--a2c-time-budget-s", dest="a2c_time_budget_s", type=float,
+                       help="stop A2C after this much wall time (default 60; 0: no limit, which makes runs reproducible)")
+    train.add_argument("--resume", type=Path, metavar="RUN_DIR",
+                       help="continue an interrupted run from its checkpoints, with its own arguments (other options are ignored)")
     train.set_defaults(run=_train)
 
     pre = commands.add_parser("pretrain", help="pretrain a policy on one or several trajectory datasets (no simulation)")

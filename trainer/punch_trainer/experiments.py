@@ -88,7 +88,7 @@ def fig6(reward_name: str = "straight", seeds=(0, 1, 2), search_iterations: int 
             a2c_args = A2CArgs(updates=a2c_updates, characters=characters, smoothing_window=smoothing_window, seed=seed,
                                advantage="paper" if "paper" in method else "gae")
             if method == "A2C only":
-                model = ActorCritic(45, 10)  # identity normalisation: nothing is known before simulating
+                model = ActorCritic(45, 10, seed=seed)  # identity normalisation: nothing is known before simulating
                 a2c_args.updates = scratch_updates
                 _, history = train_a2c(model, reward, a2c_args, env, progress=False)
                 curves[(method, seed)] = _a2c_curve(history, 0, 0, 0.0)
@@ -101,7 +101,7 @@ def fig6(reward_name: str = "straight", seeds=(0, 1, 2), search_iterations: int 
                 dataset = replay_dataset(result, reward, search_args)
                 data = {"observations": dataset["observations"], "actions": dataset["actions"],
                         "rewards": dataset["rewards"], "returns_to_go": returns_to_go(dataset["rewards"], 1.0)}
-                model = ActorCritic(45, 10)
+                model = ActorCritic(45, 10, seed=seed)
                 pretrain(model, data, PretrainArgs(epochs=1500, seed=seed), progress=False)
                 search_rollouts = result.history[-1]["rollouts"]
                 _, history = train_a2c(model, reward, a2c_args, env, progress=False)

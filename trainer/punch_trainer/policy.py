@@ -19,14 +19,17 @@ def layer(inputs: int, outputs: int, gain: float = np.sqrt(2)) -> nn.Linear:
 
 
 class ActorCritic(nn.Module):
-    def __init__(self, obs_dim: int, act_dim: int, hidden: int = 128):
+    def __init__(self, obs_dim: int, act_dim: int, hidden: int = 128, *, seed: int = 0):
+        """The initial weights depend on `seed` only (not on the global random state), so runs reproduce."""
         super().__init__()
         self.register_buffer("obs_mean", torch.zeros(obs_dim))
         self.register_buffer("obs_std", torch.ones(obs_dim))
-        self.actor = nn.Sequential(layer(obs_dim, hidden), nn.Tanh(), layer(hidden, hidden), nn.Tanh())
-        self.mean_head = layer(hidden, act_dim, gain=0.01)
-        self.log_sigma_head = layer(hidden, act_dim, gain=0.01)
-        self.critic = nn.Sequential(layer(obs_dim, hidden), nn.Tanh(), layer(hidden, hidden), nn.Tanh(), layer(hidden, 1, gain=1.0))
+        with torch.random.fork_rng():
+            torch.manual_seed(seed)
+            self.actor = nn.Sequential(layer(obs_dim, hidden), nn.Tanh(), layer(hidden, hidden), nn.Tanh())
+            self.mean_head = layer(hidden, act_dim, gain=0.01)
+            self.log_sigma_head = layer(hidden, act_dim, gain=0.01)
+            self.critic = nn.Sequential(layer(obs_dim, hidden), nn.Tanh(), layer(hidden, hidden), nn.Tanh(), layer(hidden, 1, gain=1.0))
 
     def set_normalization(self, observations: np.ndarray) -> None:
         """Fixes the observation normalisation from sample observations [n, obs_dim]."""

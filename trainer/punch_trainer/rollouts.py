@@ -8,19 +8,45 @@ would."""
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable
+from typing import TypeVar
 
 import numpy as np
 
 from punch_trainer.errors import PunchError
 from punch_trainer.protocol import Message, ProtocolError, ServerClosedError, ServerTimeoutError
-from punch_trainer.server import exchange, start_servers
+from punch_trainer.server import ServerInfo, exchange, start_servers
 
 # Failures that a fresh Godot process fixes (a server's error reply is not one of them: it would repeat).
 SIMULATOR_FAILURES = (ServerClosedError, ServerTimeoutError, ProtocolError, ConnectionError)
 
+T = TypeVar("T")
+
 
 class SimulatorCrashError(PunchError):
     """The simulator kept failing after the allowed number of restarts."""
+
+
+class SimulatorRestarts:
+    """Runs work against Godot processes; when one crashes, is killed or hangs, calls `restart` (fresh
+    processes, handshake made again) and runs the work again from its start, at most `limit` times in all."""
+
+    def __init__(self, restart: Callable[[], None], limit: int = 3):
+        self.restart = restart
+        self.limit = limit
+        self.count = 0
+
+    def run(self, attempt: Callable[[], T]) -> T:
+        while True:
+            try:
+                return attempt()
+            except SIMULATOR_FAILURES as error:
+                if self.count >= self.limit:
+                    raise SimulatorCrashError(f"the simulator failed again after {self.count} restarts: {error}") from error
+                self.count += 1
+                print(f"punch: a Godot process failed ({type(error).__name__}: {error}); restarting it "
+                      f"({self.count}/{self.limit}) and running the work again", file=sys.stderr)
+                self.restart()
 
 
 class RolloutPool:
@@ -33,8 +59,12 @@ class RolloutPool:
         self.info = self.servers[0].info
         self.characters_per_process = characters_per_process
         self.slots = processes * characters_per_process
-        self.max_restarts = max_restarts
-        self.restarts = 0
+        self._restarts = SimulatorRestarts(self._restart_servers, max_restarts)
+
+    @property
+    def restarts(self) -> int:
+        """How many times the Godot processes were restarted."""
+        return self._restarts.count
 
     def run(self, actions: np.ndarray, smoothing_window: int = 1) -> tuple[np.ndarray, np.ndarray]:
         """Raw actions [M, decisions, 10] -> (features [M, frames, F], executed actions [M, decisions, 10])."""
@@ -46,25 +76,16 @@ class RolloutPool:
             padded = np.zeros((self.slots, *actions.shape[1:]), dtype=np.float32)
             padded[:len(chunk)] = chunk  # unused slots run the guard pose; their results are dropped
             parts = np.split(padded, len(self.servers))
-            replies = self._exchange([Message("rollout", {"smoothing_window": smoothing_window}, {"actions": part}) for part in parts])
+            messages = [Message("rollout", {"smoothing_window": smoothing_window}, {"actions": part}) for part in parts]
+            replies = self._restarts.run(lambda: exchange(self.servers, messages))
             features.append(np.concatenate([r.arrays["features"] for r in replies])[:len(chunk)])
             executed.append(np.concatenate([r.arrays["executed_actions"] for r in replies])[:len(chunk)])
         return np.concatenate(features), np.concatenate(executed)
 
-    def _exchange(self, messages: list[Message]) -> list:
-        while True:
-            try:
-                return exchange(self.servers, messages)
-            except SIMULATOR_FAILURES as error:
-                if self.restarts >= self.max_restarts:
-                    raise SimulatorCrashError(f"the simulator failed again after {self.restarts} restarts: {error}") from error
-                self.restarts += 1
-                print(f"punch: a Godot process failed ({type(error).__name__}: {error}); restarting it "
-                      f"({self.restarts}/{self.max_restarts}) and running the batch again", file=sys.stderr)
-                self.close()
-                self.servers = self._start()
-                if self.servers[0].info.spec_hash != self.info.spec_hash:
-                    raise SimulatorCrashError("the restarted simulator has another observation spec") from error
+    def _restart_servers(self) -> None:
+        self.close()
+        self.servers = self._start()
+        check_same_spec(self.servers[0].info, self.info)
 
     def close(self) -> None:
         for server in self.servers:
@@ -75,3 +96,8 @@ class RolloutPool:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def check_same_spec(restarted: ServerInfo, original: ServerInfo) -> None:
+    if restarted.spec_hash != original.spec_hash:
+        raise SimulatorCrashError("the restarted simulator has another observation spec")

@@ -26,13 +26,14 @@ from __future__ import annotations
 import csv
 import json
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
 
 from punch_trainer import __version__
+from punch_trainer.checkpoint import CHECKPOINT_FILE, CheckpointError, load_checkpoint, read_config, save_checkpoint, write_config
 from punch_trainer.rewards import Reward, evaluate, load_reward, total
 from punch_trainer.rollouts import RolloutPool
 from punch_trainer.server import TrainingServer
@@ -100,24 +101,42 @@ def evaluate_actions(pool: RolloutPool, reward: Reward, actions: np.ndarray, smo
     return total(terms).sum(axis=-1), terms, features, executed
 
 
-def trajectory_search(args: SearchArgs, reward: Reward, pool: RolloutPool, progress: bool = True) -> SearchResult:
-    """Runs TTR on `pool` until a stopping rule fires."""
+def trajectory_search(args: SearchArgs, reward: Reward, pool: RolloutPool, progress: bool = True,
+                      run_dir: Path | None = None) -> SearchResult:
+    """Runs TTR on `pool` until a stopping rule fires. With `run_dir` it checkpoints after every iteration
+    and first continues from the checkpoint it finds there: mu, sigma, the best so far and the sampler's
+    state, so a resumed search ends exactly where an uninterrupted one would."""
     rng = np.random.default_rng(args.seed)
     names = pool.info.feature_names
     clip_epsilon = args.clip_epsilon if args.clip_epsilon is not None else reward.search_clip_epsilon
     decisions = reward.frames // args.decision_period
-    mu = np.zeros((decisions, DOF_COUNT), dtype=np.float32)
-    sigma = np.full((decisions, DOF_COUNT), args.sigma_init, dtype=np.float64)
 
     def returns_of(actions: np.ndarray):
         return evaluate_actions(pool, reward, actions, args.smoothing_window)
 
-    start = time.perf_counter()
-    returns, terms, features, executed = returns_of(mu[None])
-    best = SearchResult(mu.copy(), executed[0], float(returns[0]), features[0],
-                        {k: float(v[0].sum()) for k, v in terms.items()}, feature_names=names)
-    rollouts_done, last_improvement = 1, 0
-    bar = tqdm(range(1, args.iterations + 1), desc=f"search {reward.name}", unit="it", disable=not progress)
+    saved = load_checkpoint(run_dir, "search") if run_dir is not None else None
+    if saved is None:
+        mu = np.zeros((decisions, DOF_COUNT), dtype=np.float32)
+        sigma = np.full((decisions, DOF_COUNT), args.sigma_init, dtype=np.float64)
+        returns, terms, features, executed = returns_of(mu[None])
+        best = SearchResult(mu.copy(), executed[0], float(returns[0]), features[0],
+                            {k: float(v[0].sum()) for k, v in terms.items()}, feature_names=names)
+        done_iterations, rollouts_done, last_improvement, elapsed_before, stopped = 0, 1, 0, 0.0, False
+    else:
+        mu, sigma = saved["mu"].numpy(), saved["sigma"].numpy()
+        if mu.shape != (decisions, DOF_COUNT):
+            raise CheckpointError(f"the checkpoint in {run_dir} holds {mu.shape[0]} decisions; this search has {decisions}")
+        rng.bit_generator.state = saved["rng_state"]
+        best = SearchResult(saved["best_actions"].numpy(), saved["best_executed"].numpy(), saved["best_return"],
+                            saved["best_features"].numpy(), saved["best_terms"], saved["history"], names, saved["best_slot"])
+        done_iterations, rollouts_done, last_improvement = saved["iteration"], saved["rollouts"], saved["last_improvement"]
+        elapsed_before, stopped = saved["elapsed_s"], saved["stopped"]
+    if stopped:
+        return best
+
+    start = time.perf_counter() - elapsed_before
+    bar = tqdm(range(done_iterations + 1, args.iterations + 1), desc=f"search {reward.name}", unit="it",
+               initial=done_iterations, total=args.iterations, disable=not progress)
     for iteration in bar:
         samples = np.clip(mu + sigma * rng.standard_normal((args.rollouts, decisions, DOF_COUNT)), -1.0, 1.0).astype(np.float32)
         returns, terms, features, executed = returns_of(samples)
@@ -137,9 +156,17 @@ def trajectory_search(args: SearchArgs, reward: Reward, pool: RolloutPool, progr
             **{f"best_{k}": v for k, v in best.best_terms.items()},
         })
         bar.set_postfix(best=f"{best.best_return:.3f}", rollouts_per_s=f"{rollouts_done / elapsed:.0f}")
-        if args.plateau_iterations and iteration - last_improvement >= args.plateau_iterations:
-            break
-        if args.time_budget_s is not None and elapsed >= args.time_budget_s:
+        stopped = (iteration == args.iterations
+                   or bool(args.plateau_iterations and iteration - last_improvement >= args.plateau_iterations)
+                   or (args.time_budget_s is not None and elapsed >= args.time_budget_s))
+        if run_dir is not None:
+            save_checkpoint(run_dir, "search", {
+                "iteration": iteration, "mu": mu, "sigma": sigma, "rng_state": rng.bit_generator.state,
+                "best_actions": best.best_actions, "best_executed": best.best_executed, "best_return": best.best_return,
+                "best_features": best.best_features, "best_terms": best.best_terms, "best_slot": best.best_slot,
+                "history": best.history, "rollouts": rollouts_done, "last_improvement": last_improvement,
+                "elapsed_s": elapsed, "stopped": stopped})
+        if stopped:
             break
     bar.close()
     return best
@@ -224,10 +251,9 @@ def motion_report(dataset: dict[str, np.ndarray]) -> dict[str, float | list[floa
 
 def write_run(out: Path, args: SearchArgs, reward: Reward, result: SearchResult, dataset: dict, report: dict, info) -> None:
     out.mkdir(parents=True, exist_ok=True)
-    config = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(args).items()}
-    config.update(frames=reward.frames, punch_version=__version__, spec_hash=info.spec_hash, extension_version=info.extension_version,
-                  clip_epsilon=args.clip_epsilon if args.clip_epsilon is not None else reward.search_clip_epsilon)
-    (out / "config.json").write_text(json.dumps(config, indent=2) + "\n")
+    write_config(out, args, frames=reward.frames, punch_version=__version__, spec_hash=info.spec_hash,
+                 extension_version=info.extension_version,
+                 clip_epsilon=args.clip_epsilon if args.clip_epsilon is not None else reward.search_clip_epsilon)
     with open(out / "metrics.csv", "w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=list(result.history[0]) if result.history else ["iteration"])
         writer.writeheader()
@@ -264,16 +290,25 @@ def write_run(out: Path, args: SearchArgs, reward: Reward, result: SearchResult,
     (out / "motion.json").write_text(json.dumps(report, indent=2) + "\n")
 
 
-def run_search(args: SearchArgs, progress: bool = True) -> tuple[Path, SearchResult, dict]:
-    """The whole `punch search` command: search, dataset, run directory."""
+def run_search(args: SearchArgs, progress: bool = True, resume: bool = False) -> tuple[Path, SearchResult, dict]:
+    """The whole `punch search` command: search, dataset, run directory. `resume` continues the run in
+    `args.out` from its checkpoint (the CLI reads its arguments back with `resume_args`)."""
     reward = load_reward(args.reward, args.frames)
     if reward.frames % args.decision_period:
         raise ValueError(f"frames ({reward.frames}) must be a multiple of the decision period ({args.decision_period})")
     out = args.out or Path("runs") / f"{reward.name.replace('/', '_').replace(':', '_')}__{args.seed}__{int(time.time())}"
+    if not resume and (out / CHECKPOINT_FILE).exists():
+        raise CheckpointError(f"{out} already holds a search; continue it with `punch search --resume {out}` or choose another --out")
+    write_config(out, args, frames=reward.frames)  # first, so that an interrupted run can be resumed
     with RolloutPool(args.processes, args.characters_per_process, decision_period=args.decision_period) as pool:
-        result = trajectory_search(args, reward, pool, progress)
+        result = trajectory_search(args, reward, pool, progress, run_dir=out)
         info = pool.info
     dataset = replay_dataset(result, reward, args)
     report = motion_report(dataset)
     write_run(out, args, reward, result, dataset, report, info)
     return out, result, report
+
+
+def resume_args(run_dir: Path) -> SearchArgs:
+    """The arguments of the search in `run_dir`, for `run_search(..., resume=True)`."""
+    return read_config(run_dir, SearchArgs)

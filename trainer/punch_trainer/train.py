@@ -7,7 +7,7 @@ from __future__ import annotations
 import csv
 import json
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +15,7 @@ import onnxruntime
 
 from punch_trainer import __version__
 from punch_trainer.a2c import A2CArgs, decision_rewards, evaluate_noise_free, train_a2c
+from punch_trainer.checkpoint import CONFIG_FILE, CheckpointError, load_checkpoint, read_config, save_checkpoint, write_config
 from punch_trainer.env import PunchVectorEnv
 from punch_trainer.export import export_policy
 from punch_trainer.policy import Actor, ActorCritic
@@ -37,6 +38,7 @@ class TrainArgs:
     a2c_characters: int = 32
     advantage: str = "gae"
     a2c_time_budget_s: float | None = 60.0
+    """stop A2C after this much wall time (None or 0: no limit, which makes a run reproducible)"""
 
 
 def replay_onnx(path: Path, env: PunchVectorEnv, reward, sigma: float = 0.0, seed: int = 0) -> tuple[float, np.ndarray]:
@@ -56,29 +58,41 @@ def replay_onnx(path: Path, env: PunchVectorEnv, reward, sigma: float = 0.0, see
             return total_return, np.concatenate(frames)
 
 
-def run_train(args: TrainArgs, progress: bool = True) -> Path:
+def run_train(args: TrainArgs, progress: bool = True, resume: bool = False) -> Path:
+    """The whole `punch train` command. Every stage checkpoints in its own folder of the run directory
+    (search/, pretrain/, a2c/); `resume` continues the run in `args.out` from them."""
     started = time.perf_counter()
     reward = load_reward(args.reward, args.frames)
     out = args.out or Path("runs") / f"train_{reward.name.replace('/', '_').replace(':', '_')}__{args.seed}__{int(time.time())}"
+    if not resume and (out / CONFIG_FILE).exists():
+        raise CheckpointError(f"{out} already holds a training run; continue it with `punch train --resume {out}` or choose another --out")
+    write_config(out, args)
     timings = {}
 
     search_args = SearchArgs(reward=args.reward, frames=reward.frames, seed=args.seed, out=out / "search",
                              iterations=args.search_iterations, rollouts=args.search_rollouts,
                              characters_per_process=min(64, args.search_rollouts), smoothing_window=args.smoothing_window)
-    _, search, _ = run_search(search_args, progress)
+    _, search, _ = run_search(search_args, progress, resume=resume)
     timings["search_s"] = time.perf_counter() - started
 
     data = load_datasets([out / "search" / "dataset.npz"])
-    model = ActorCritic(data["observations"].shape[1], data["actions"].shape[1])
-    pretrain_history = pretrain(model, data, PretrainArgs(epochs=args.pretrain_epochs, seed=args.seed), progress)
+    model = ActorCritic(data["observations"].shape[1], data["actions"].shape[1], seed=args.seed)
+    pretrained = load_checkpoint(out / "pretrain", "pretrain") if resume else None
+    if pretrained is None:
+        pretrain_history = pretrain(model, data, PretrainArgs(epochs=args.pretrain_epochs, seed=args.seed), progress)
+        save_checkpoint(out / "pretrain", "pretrain", {"model": model.state_dict(), "history": pretrain_history})
+    else:
+        model.load_state_dict(pretrained["model"])
+        pretrain_history = pretrained["history"]
     timings["pretrain_s"] = time.perf_counter() - started - timings["search_s"]
 
     env = PunchVectorEnv(1, args.a2c_characters, frames=reward.frames, smoothing_window=args.smoothing_window)
     try:
         pretrained_return = evaluate_noise_free(model, env, reward)
         a2c_args = A2CArgs(updates=args.a2c_updates, characters=args.a2c_characters, advantage=args.advantage,
-                           smoothing_window=args.smoothing_window, time_budget_s=args.a2c_time_budget_s, seed=args.seed)
-        model, a2c_history = train_a2c(model, reward, a2c_args, env, progress, start_rollouts=search.history[-1]["rollouts"] if search.history else 0)
+                           smoothing_window=args.smoothing_window, time_budget_s=args.a2c_time_budget_s or None, seed=args.seed)
+        model, a2c_history = train_a2c(model, reward, a2c_args, env, progress, run_dir=out / "a2c",
+                                       start_rollouts=search.history[-1]["rollouts"] if search.history else 0)
         timings["a2c_s"] = time.perf_counter() - started - timings["search_s"] - timings["pretrain_s"]
 
         metadata = {
@@ -104,7 +118,6 @@ def run_train(args: TrainArgs, progress: bool = True) -> Path:
         writer = csv.DictWriter(handle, fieldnames=list(a2c_history[0]))
         writer.writeheader()
         writer.writerows(a2c_history)
-    (out / "config.json").write_text(json.dumps({k: str(v) if isinstance(v, Path) else v for k, v in asdict(args).items()}, indent=2) + "\n")
     ratio = exported_return / search.best_return if search.best_return > 0 else float("nan")
     motion = motion_report({"features": features, "feature_names": np.array(env.feature_names), "physics_hz": np.array(env.info.physics_hz)})
     impact = (f"first contact at {motion['impact_time_s']:.3f} s at {motion['impact_speed_mps']:.2f} m/s, contact point "
@@ -127,3 +140,8 @@ def run_train(args: TrainArgs, progress: bool = True) -> Path:
     (out / "summary.json").write_text(json.dumps({"search_best_return": search.best_return, "pretrained_return": pretrained_return,
                                                   "exported_return": exported_return, "ratio": ratio, "motion": motion, **timings}, indent=2) + "\n")
     return out
+
+
+def resume_args(run_dir: Path) -> TrainArgs:
+    """The arguments of the training run in `run_dir`, for `run_train(..., resume=True)`."""
+    return read_config(run_dir, TrainArgs)
