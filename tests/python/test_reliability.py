@@ -1,5 +1,6 @@
-"""Faults of the simulator and the trainer: a Godot process killed in the middle of a search is restarted and
-the search ends exactly as an uninterrupted one; a trainer killed by SIGKILL leaves no Godot behind."""
+"""Faults and resources of the simulator and the trainer: a Godot process killed in the middle of a search is
+restarted and the search ends exactly as an uninterrupted one; a trainer killed by SIGKILL leaves no Godot
+behind; the training server's memory stays flat over a million character-frames and its port is freed."""
 
 import os
 import signal
@@ -7,6 +8,7 @@ import subprocess
 import sys
 import textwrap
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,6 +17,7 @@ from conftest import PROJECT_ROOT, godot_processes
 from punch_trainer.rewards import load_reward
 from punch_trainer.rollouts import RolloutPool
 from punch_trainer.search import SearchArgs, trajectory_search
+from punch_trainer.server import TrainingServer
 
 pytestmark = pytest.mark.godot
 
@@ -65,3 +68,43 @@ def test_a_killed_trainer_leaves_no_godot_behind(tmp_path):
         time.sleep(0.1)
     assert godot_pid not in godot_processes(), "the Godot of a killed trainer is still running"
     assert godot_processes() <= before
+
+
+def resident_kb(pid: int) -> int:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1])
+    raise AssertionError(f"no VmRSS for process {pid}")
+
+
+def sockets_on_port(port: int) -> list[str]:
+    """Local TCP sockets (IPv4 and IPv6) bound to `port`, other than ones already closed (TIME_WAIT, CLOSE)."""
+    found = []
+    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
+        for row in Path(table).read_text().splitlines()[1:]:
+            local, state = row.split()[1], row.split()[3]
+            if int(local.rsplit(":", 1)[1], 16) == port and state not in ("06", "07"):
+                found.append(row.strip())
+    return found
+
+
+def test_a_million_character_frames_grow_no_memory_and_the_port_is_freed():
+    """A million character-frames (64 characters, open and closed loop): the server's resident memory after the
+    warm-up may not grow by more than 1 MB, i.e. under one byte per character-frame."""
+    actions = np.random.default_rng(0).uniform(-1, 1, (64, 10, 10)).astype(np.float32)
+    samples = []
+    with TrainingServer(64) as server:
+        port = server.port
+        assert sockets_on_port(port), "the server should be listening"
+        for rollout in range(1, 321):  # 320 x 64 x 50 frames: 1,024,000 character-frames
+            if rollout % 20:
+                server.rollout(actions, smoothing_window=3)
+            else:
+                server.reset(50, smoothing_window=3)
+                for decision in range(10):
+                    server.step(actions[:, decision])
+                samples.append(resident_kb(server.pid))
+    growth_kb = samples[-1] - samples[1]
+    print(f"resident memory every 64,000 character-frames (kB): {samples}")
+    assert growth_kb < 1024, f"the training server grew by {growth_kb} kB after warm-up: {samples}"
+    assert not sockets_on_port(port), f"port {port} is still in use after close: {sockets_on_port(port)}"
