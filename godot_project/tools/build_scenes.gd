@@ -53,6 +53,9 @@ func _material(color: Color) -> StandardMaterial3D:
 
 
 func _save(root: Node, file_name: String) -> bool:
+	if root == null:
+		printerr("could not build %s" % file_name)
+		return false
 	var packed := PackedScene.new()
 	var error := packed.pack(root)
 	if error == OK:
@@ -231,6 +234,9 @@ func _build_character() -> Node3D:
 		forearm.add_child(marker)
 		_joint("Elbow" + suffix, elbow, upper, forearm, root)
 
+	# Limits and motors from the Rust core's DOF table, stored in the scene (PunchCharacter explains why).
+	if not root.call("store_joint_settings"):
+		return null
 	_own(root, root)
 	return root
 

@@ -70,9 +70,10 @@ def test_parity_of_godot_controller_and_torch_policy(trained, tmp_path):
             obs, _, _, _, info = env.step(np.clip(mean, -1, 1))
             torch_return += float(decision_rewards(reward, info["features"], env.feature_names)[0])
     godot_return = rows[0]["mean_return"]
-    # Node-built and server-built characters differ in Jolt's solve order, not in any of our code (docs/env.md).
+    # The same bodies and constraints in the same order: the frames agree to about 1e-5 (rounding in how each
+    # side composes transforms) until the fist meets the bag, where contact amplifies it (README FAQ).
     print(f'sigma-0 return: Godot {godot_return:.5f}, torch in the training server {torch_return:.5f}')
-    assert godot_return == pytest.approx(torch_return, rel=0.05, abs=0.05)
+    assert godot_return == pytest.approx(torch_return, rel=0.01)
 
 
 def test_replay_reports_and_plots_every_sigma(trained, tmp_path):

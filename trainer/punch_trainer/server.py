@@ -76,10 +76,6 @@ class TrainingServer:
             self.close()
             raise
 
-    @property
-    def pid(self) -> int | None:
-        return self._process.pid if self._process else None
-
     def _wait_until_ready(self, timeout_s: float) -> int:
         assert self._process is not None and self._process.stdout is not None
         selector = selectors.DefaultSelector()

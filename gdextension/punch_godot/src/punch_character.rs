@@ -102,6 +102,25 @@ impl PunchCharacter {
         rig.drive(&[Vec3::ZERO; 5]);
     }
 
+    /// Writes the limits and motors of the core's DOF table into this character's joint nodes, before it is
+    /// in a scene tree. The scene builder calls it so the saved scene holds them: each joint is then created
+    /// once, in scene order, as in the training server, instead of being rebuilt at `ready` (a rebuild moves
+    /// the constraint in Jolt's solve order). Returns false, with an error, if a joint is missing.
+    #[func]
+    fn store_joint_settings(&mut self) -> bool {
+        let base = self.base().clone();
+        for (joint_index, joint) in JOINTS.iter().enumerate() {
+            match base.get_node_or_null(joint.node_name).and_then(|n| n.try_cast::<Generic6DofJoint3D>().ok()) {
+                Some(mut node) => configure_joint(&mut node, joint_index),
+                None => {
+                    godot_error!("PunchCharacter: missing Generic6DOFJoint3D '{}'", joint.node_name);
+                    return false;
+                }
+            }
+        }
+        true
+    }
+
     pub fn rig(&self) -> Option<&Rig> {
         self.rig.as_ref()
     }
@@ -145,8 +164,9 @@ impl PunchCharacter {
 }
 
 /// Limits and motors of one joint node (`joint_axis_settings`, the same as the training world's joints). Only
-/// changed values are set: a limit change rebuilds the engine's constraint. The node's enums have the
-/// physics server's values.
+/// changed values are set: a limit change rebuilds the engine's constraint, which moves it in Jolt's solve
+/// order. The addon's scene already holds these values (`store_joint_settings`), so at `ready` this changes
+/// nothing; it matters only for a hand-edited scene. The node's enums have the physics server's values.
 fn configure_joint(joint: &mut Gd<Generic6DofJoint3D>, joint_index: usize) {
     for axis in Axis::ALL {
         let settings = joint_axis_settings(joint_index, axis);
