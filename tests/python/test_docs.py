@@ -19,5 +19,5 @@ def test_env_card_and_protocol_doc_cover_the_spec():
         stem = name.rstrip("xyz").rstrip("_") if name[-2:] in ("_x", "_y", "_z") else name
         assert stem in env_card, f"docs/env.md does not mention {name}"
     assert f"{len(info.feature_names)} floats per physics frame" in env_card
-    assert f"F per-frame features" in protocol and f"{len(info.feature_names)} in spec" in protocol
+    assert "F per-frame features" in protocol and f"{len(info.feature_names)} in spec" in protocol
     assert f"spec version {info.spec_version}" in env_card

@@ -63,7 +63,7 @@ def test_a_search_stopped_by_ctrl_c_resumes_to_the_uninterrupted_result(tmp_path
     assert sorted(p.name for p in cut.iterdir()) == ["checkpoint.pt", "config.json"]
 
     with pytest.raises(CheckpointError, match="--resume"):
-        run_search(dataclasses.replace(resume_args(cut)), progress=False)
+        run_search(resume_args(cut), progress=False)
     resumed = punch("search", "--resume", str(cut))
     stdout, stderr = resumed.communicate(timeout=300)
     assert resumed.returncode == 0, stderr

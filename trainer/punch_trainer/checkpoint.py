@@ -14,6 +14,7 @@ from __future__ import annotations
 import io
 import json
 import os
+import time
 from dataclasses import asdict, fields
 from pathlib import Path
 from typing import Any, TypeVar
@@ -32,6 +33,13 @@ ArgsT = TypeVar("ArgsT")
 
 class CheckpointError(PunchError):
     """A run directory cannot be resumed: no checkpoint or config, or one that is unreadable or of another run."""
+
+
+def default_run_dir(name: str, seed: int) -> Path:
+    """runs/<name>__<seed>__<unix time>, with a reward file's path made into a plain folder name."""
+    for character in "/:":
+        name = name.replace(character, "_")
+    return Path("runs") / f"{name.removesuffix('.py')}__{seed}__{int(time.time())}"
 
 
 def atomic_write_bytes(path: Path, data: bytes) -> None:

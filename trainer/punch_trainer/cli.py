@@ -6,10 +6,10 @@ import argparse
 import contextlib
 import os
 import sys
-import time
 from pathlib import Path
 
 from punch_trainer import __version__
+from punch_trainer.checkpoint import default_run_dir
 from punch_trainer.errors import PunchError
 from punch_trainer.godot import GODOT_PROJECT
 
@@ -66,7 +66,7 @@ def _search(args: argparse.Namespace) -> int:
         search_args = resume_args(args.resume)
     else:
         search_args = SearchArgs(**{k: getattr(args, k) for k in SearchArgs.__dataclass_fields__ if getattr(args, k, None) is not None})
-    out = search_args.out = search_args.out or _default_run_dir(search_args.reward, search_args.seed)
+    out = search_args.out = search_args.out or default_run_dir(search_args.reward, search_args.seed)
     with _resume_hint("search", out):
         out, result, report = run_search(search_args, resume=args.resume is not None)
     print(f"best return {result.best_return:.4f} after {len(result.history)} iterations; "
@@ -108,16 +108,12 @@ def _train(args: argparse.Namespace) -> int:
         train_args = resume_args(args.resume)
     else:
         train_args = TrainArgs(**{k: getattr(args, k) for k in TrainArgs.__dataclass_fields__ if getattr(args, k, None) is not None})
-    out = train_args.out = train_args.out or _default_run_dir(f"train_{train_args.reward}", train_args.seed)
+    out = train_args.out = train_args.out or default_run_dir(f"train_{train_args.reward}", train_args.seed)
     with _resume_hint("train", out):
         out = run_train(train_args, resume=args.resume is not None)
     print((out / "report.md").read_text())
     print(f"report: {out / 'report.md'}")
     return 0
-
-
-def _default_run_dir(name: str, seed: int) -> Path:
-    return Path("runs") / f"{name.replace('/', '_').replace(':', '_').replace('.py', '')}__{seed}__{int(time.time())}"
 
 
 @contextlib.contextmanager

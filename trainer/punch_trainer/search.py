@@ -33,7 +33,7 @@ import numpy as np
 from tqdm import tqdm
 
 from punch_trainer import __version__
-from punch_trainer.checkpoint import CHECKPOINT_FILE, CheckpointError, load_checkpoint, read_config, save_checkpoint, write_config
+from punch_trainer.checkpoint import CHECKPOINT_FILE, CheckpointError, default_run_dir, load_checkpoint, read_config, save_checkpoint, write_config
 from punch_trainer.rewards import Reward, evaluate, load_reward, total
 from punch_trainer.rollouts import RolloutPool
 from punch_trainer.server import TrainingServer
@@ -296,7 +296,7 @@ def run_search(args: SearchArgs, progress: bool = True, resume: bool = False) ->
     reward = load_reward(args.reward, args.frames)
     if reward.frames % args.decision_period:
         raise ValueError(f"frames ({reward.frames}) must be a multiple of the decision period ({args.decision_period})")
-    out = args.out or Path("runs") / f"{reward.name.replace('/', '_').replace(':', '_')}__{args.seed}__{int(time.time())}"
+    out = args.out or default_run_dir(args.reward, args.seed)
     if not resume and (out / CHECKPOINT_FILE).exists():
         raise CheckpointError(f"{out} already holds a search; continue it with `punch search --resume {out}` or choose another --out")
     write_config(out, args, frames=reward.frames)  # first, so that an interrupted run can be resumed

@@ -15,7 +15,7 @@ import onnxruntime
 
 from punch_trainer import __version__
 from punch_trainer.a2c import A2CArgs, decision_rewards, evaluate_noise_free, train_a2c
-from punch_trainer.checkpoint import CONFIG_FILE, CheckpointError, load_checkpoint, read_config, save_checkpoint, write_config
+from punch_trainer.checkpoint import CONFIG_FILE, CheckpointError, default_run_dir, load_checkpoint, read_config, save_checkpoint, write_config
 from punch_trainer.env import PunchVectorEnv
 from punch_trainer.export import export_policy
 from punch_trainer.policy import Actor, ActorCritic
@@ -63,7 +63,7 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False) -> P
     (search/, pretrain/, a2c/); `resume` continues the run in `args.out` from them."""
     started = time.perf_counter()
     reward = load_reward(args.reward, args.frames)
-    out = args.out or Path("runs") / f"train_{reward.name.replace('/', '_').replace(':', '_')}__{args.seed}__{int(time.time())}"
+    out = args.out or default_run_dir(f"train_{args.reward}", args.seed)
     if not resume and (out / CONFIG_FILE).exists():
         raise CheckpointError(f"{out} already holds a training run; continue it with `punch train --resume {out}` or choose another --out")
     write_config(out, args)
