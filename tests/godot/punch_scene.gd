@@ -1,12 +1,15 @@
 ## A game scene as a user would build it: the addon's character and sandbag, and a PunchController with a
 ## trained policy (--policy=PATH) and no noise; three such pairs, 3 m apart, sharing the policy, so their
-## decisions run batched. Prints `PUNCH_SCENE <json>` with the signals seen and the inference counts, then quits.
+## decisions run batched. Then all three punch again from their guard pose, and a few frames into that punch
+## pair 1's `noise_sigma` is set to 0.8, as a designer dragging the inspector's slider while the game runs
+## would. Prints `PUNCH_SCENE <json>` with the signals seen and the first round's inference counts, then quits.
 extends SceneTree
 
 const PAIRS := 3
 var _controllers: Array[Node] = []
 var _report := {"started": 0, "hits": [], "finished": [], "inference": {}}
 var _frames := 0
+var _second_round_frame := -1
 
 
 func _initialize() -> void:
@@ -28,7 +31,7 @@ func _initialize() -> void:
 		root.add_child(controller)
 		controller.connect("punch_started", func(): _report.started += 1)
 		controller.connect("hit", func(impulse, speed, position): _report.hits.append([pair, impulse, speed, position.x]))
-		controller.connect("punch_finished", func(metrics): _report.finished.append(metrics))
+		controller.connect("punch_finished", func(metrics): metrics["pair"] = pair; _report.finished.append(metrics))
 		_controllers.append(controller)
 
 
@@ -38,8 +41,15 @@ func _physics_process(_delta: float) -> bool:
 		ClassDB.class_call_static("PunchController", "take_inference_counts")
 		for controller in _controllers:
 			controller.call("punch")
-	if _report.finished.size() == PAIRS or _frames > 400:
+	if _report.finished.size() == PAIRS and _second_round_frame < 0:
 		_report.inference = ClassDB.class_call_static("PunchController", "take_inference_counts")
+		_second_round_frame = _frames
+		for pair in PAIRS:
+			_controllers[pair].get("character").call("reset_pose")
+			_controllers[pair].call("punch")
+	if _second_round_frame > 0 and _frames == _second_round_frame + 6:
+		_controllers[1].set("noise_sigma", 0.8)  # mid-punch, between decisions 1 and 2
+	if _report.finished.size() == 2 * PAIRS or _frames > 600:
 		print("PUNCH_SCENE ", JSON.stringify(_report))
 		quit(0)
 	return false

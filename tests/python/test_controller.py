@@ -35,13 +35,21 @@ def test_punch_controllers_play_a_shared_policy_batched_in_a_game_scene(policy):
     assert run.fatal_lines() == [] and "ERROR" not in run.log, run.log[-3000:]
     line = next(l for l in run.log.splitlines() if l.startswith("PUNCH_SCENE "))
     report = json.loads(line[len("PUNCH_SCENE "):])
-    assert report["started"] == 3 and len(report["finished"]) == 3, run.log[-3000:]
-    for finished in report["finished"]:
+    assert report["started"] == 6 and len(report["finished"]) == 6, run.log[-3000:]
+    first_round, second_round = report["finished"][:3], sorted(report["finished"][3:], key=lambda m: m["pair"])
+    for finished in first_round:
         assert finished["frames"] == 50 and finished["hits"] >= 1, "every punch should reach its bag"
         assert 3.0 < finished["peak_fist_speed_mps"] < 15.0
         # No noise: alike, though not bitwise, as each sits at other world coordinates.
-        assert finished["peak_fist_speed_mps"] == pytest.approx(report["finished"][0]["peak_fist_speed_mps"], rel=0.05)
+        assert finished["peak_fist_speed_mps"] == pytest.approx(first_round[0]["peak_fist_speed_mps"], rel=0.05)
     assert {hit[0] for hit in report["hits"]} == {0, 1, 2}
+    # Second round, against still-swinging bags: pairs 0 and 2 punch alike again, while sigma raised on pair 1
+    # in the middle of its punch takes effect at its next decision and makes its punch depart from theirs.
+    noise_free, noisy, control = second_round
+    print("second round (peak fist speed, strongest hit):", [(m["peak_fist_speed_mps"], m["strongest_hit_ns"]) for m in second_round])
+    assert noise_free["peak_fist_speed_mps"] == pytest.approx(control["peak_fist_speed_mps"], rel=0.01)
+    assert abs(noisy["peak_fist_speed_mps"] - noise_free["peak_fist_speed_mps"]) > 0.1 or \
+        abs(noisy["strongest_hit_ns"] - noise_free["strongest_hit_ns"]) > 0.1 * noise_free["strongest_hit_ns"], second_round
     # One ONNX Runtime call per decision tick for all three controllers.
     assert (report["inference"]["calls"], report["inference"]["rows"]) == (10, 30)
 
