@@ -24,8 +24,8 @@ import gymnasium as gym
 import numpy as np
 
 from punch_trainer.protocol import Message
-from punch_trainer.rollouts import check_same_spec
-from punch_trainer.server import TrainingServer, exchange, start_servers
+from punch_trainer.rollouts import ServerGroup
+from punch_trainer.server import TrainingServer, exchange
 
 RewardFn = Callable[[np.ndarray], float]
 
@@ -101,9 +101,8 @@ class PunchVectorEnv(gym.vector.VectorEnv):
     def __init__(self, processes: int = 1, characters_per_process: int = 16, *, frames: int = 50,
                  decision_period: int = 5, smoothing_window: int = 1, reward_fn: RewardFn | None = None,
                  bag_jitter_m: float = 0.0):
-        self._start = lambda: start_servers(processes, characters_per_process, decision_period)
-        self.servers = self._start()
-        self.info = info = self.servers[0].info  # the handshake: rates, names, spec hash
+        self.group = ServerGroup(processes, characters_per_process, decision_period)
+        self.info = info = self.group.info
         self.characters_per_process = characters_per_process
         self.num_envs = processes * characters_per_process
         self.frames = frames
@@ -145,16 +144,17 @@ class PunchVectorEnv(gym.vector.VectorEnv):
         self._needs_reset = bool(np.all(terminated | truncated))
         return np.concatenate([r.arrays["observations"] for r in replies]), rewards, terminated, truncated, {"features": features}
 
+    @property
+    def servers(self) -> list[TrainingServer]:
+        return self.group.servers
+
     def restart(self) -> None:
         """Replaces the Godot processes with fresh ones (after one crashed); the next step starts new episodes."""
-        self.close_extras()
-        self.servers = self._start()
-        check_same_spec(self.servers[0].info, self.info)
+        self.group.restart()
         self._needs_reset = True
 
     def close_extras(self, **kwargs):
-        for server in self.servers:
-            server.close()
+        self.group.close()
 
     def __enter__(self) -> PunchVectorEnv:
         return self

@@ -15,7 +15,7 @@ import numpy as np
 
 from punch_trainer.errors import PunchError
 from punch_trainer.protocol import Message, ProtocolError, ServerClosedError, ServerTimeoutError
-from punch_trainer.server import ServerInfo, exchange, start_servers
+from punch_trainer.server import TrainingServer, exchange, start_servers
 
 # Failures that a fresh Godot process fixes (a server's error reply is not one of them: it would repeat).
 SIMULATOR_FAILURES = (ServerClosedError, ServerTimeoutError, ProtocolError, ConnectionError)
@@ -49,17 +49,41 @@ class SimulatorRestarts:
                 self.restart()
 
 
+class ServerGroup:
+    """K training servers with N characters each, started, restarted and closed together: what the rollout
+    pool and the vector env hold."""
+
+    def __init__(self, processes: int, characters_per_process: int, decision_period: int = 5):
+        self._start = lambda: start_servers(processes, characters_per_process, decision_period)
+        self.servers = self._start()
+        self.info = self.servers[0].info  # the handshake: rates, names, spec hash
+
+    def restart(self) -> None:
+        """Replaces every process with a fresh one (after one failed); the handshake is made again."""
+        self.close()
+        self.servers = self._start()
+        if self.servers[0].info.spec_hash != self.info.spec_hash:
+            raise SimulatorCrashError("the restarted simulator has another observation spec")
+
+    def close(self) -> None:
+        for server in self.servers:
+            server.close()
+
+
 class RolloutPool:
     """Runs any number of open-loop action sequences, `slots` at a time in parallel processes."""
 
     def __init__(self, processes: int = 1, characters_per_process: int = 32, *, decision_period: int = 5,
                  max_restarts: int = 3):
-        self._start = lambda: start_servers(processes, characters_per_process, decision_period)
-        self.servers = self._start()
-        self.info = self.servers[0].info
+        self.group = ServerGroup(processes, characters_per_process, decision_period)
+        self.info = self.group.info
         self.characters_per_process = characters_per_process
         self.slots = processes * characters_per_process
-        self._restarts = SimulatorRestarts(self._restart_servers, max_restarts)
+        self._restarts = SimulatorRestarts(self.group.restart, max_restarts)
+
+    @property
+    def servers(self) -> list[TrainingServer]:
+        return self.group.servers
 
     @property
     def restarts(self) -> int:
@@ -82,22 +106,11 @@ class RolloutPool:
             executed.append(np.concatenate([r.arrays["executed_actions"] for r in replies])[:len(chunk)])
         return np.concatenate(features), np.concatenate(executed)
 
-    def _restart_servers(self) -> None:
-        self.close()
-        self.servers = self._start()
-        check_same_spec(self.servers[0].info, self.info)
-
     def close(self) -> None:
-        for server in self.servers:
-            server.close()
+        self.group.close()
 
     def __enter__(self) -> RolloutPool:
         return self
 
     def __exit__(self, *exc) -> None:
         self.close()
-
-
-def check_same_spec(restarted: ServerInfo, original: ServerInfo) -> None:
-    if restarted.spec_hash != original.spec_hash:
-        raise SimulatorCrashError("the restarted simulator has another observation spec")
