@@ -17,11 +17,11 @@ import torch
 
 from conftest import PROJECT_ROOT
 from punch_trainer.a2c import A2CArgs, train_a2c
-from punch_trainer.checkpoint import CHECKPOINT_FILE, CheckpointError, load_checkpoint
+from punch_trainer.checkpoint import CHECKPOINT_FILE, CheckpointError, load_checkpoint, read_config
 from punch_trainer.env import PunchVectorEnv
 from punch_trainer.policy import ActorCritic
 from punch_trainer.rewards import load_reward
-from punch_trainer.search import SearchArgs, resume_args, run_search
+from punch_trainer.search import SearchArgs, run_search
 
 pytestmark = pytest.mark.godot
 
@@ -63,7 +63,7 @@ def test_a_search_stopped_by_ctrl_c_resumes_to_the_uninterrupted_result(tmp_path
     assert sorted(p.name for p in cut.iterdir()) == ["checkpoint.pt", "config.json"]
 
     with pytest.raises(CheckpointError, match="--resume"):
-        run_search(resume_args(cut), progress=False)
+        run_search(read_config(cut, SearchArgs), progress=False)
     resumed = punch("search", "--resume", str(cut))
     stdout, stderr = resumed.communicate(timeout=300)
     assert resumed.returncode == 0, stderr

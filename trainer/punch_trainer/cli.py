@@ -7,13 +7,15 @@ import contextlib
 import os
 import sys
 from pathlib import Path
+from typing import TypeVar
 
 from punch_trainer import __version__
-from punch_trainer.checkpoint import default_run_dir
+from punch_trainer.checkpoint import read_config
 from punch_trainer.errors import PunchError
 from punch_trainer.godot import GODOT_PROJECT
 
 DEMO_POLICY = GODOT_PROJECT / "demo" / "policies" / "straight.onnx"
+RunArgs = TypeVar("RunArgs")
 
 
 def _selfcheck(args: argparse.Namespace) -> int:
@@ -60,14 +62,10 @@ def _bench_inference(args: argparse.Namespace) -> int:
 
 
 def _search(args: argparse.Namespace) -> int:
-    from punch_trainer.search import SearchArgs, resume_args, run_search
+    from punch_trainer.search import SearchArgs, run_search
 
-    if args.resume is not None:
-        search_args = resume_args(args.resume)
-    else:
-        search_args = SearchArgs(**{k: getattr(args, k) for k in SearchArgs.__dataclass_fields__ if getattr(args, k, None) is not None})
-    out = search_args.out = search_args.out or default_run_dir(search_args.reward, search_args.seed)
-    with _resume_hint("search", out):
+    search_args = _run_args(args, SearchArgs)
+    with _resume_hint("search", search_args.out):
         out, result, report = run_search(search_args, resume=args.resume is not None)
     print(f"best return {result.best_return:.4f} after {len(result.history)} iterations; "
           f"peak fist speed {report['peak_fist_speed_mps']:.2f} m/s")
@@ -102,18 +100,24 @@ def _bench_search(args: argparse.Namespace) -> int:
 
 
 def _train(args: argparse.Namespace) -> int:
-    from punch_trainer.train import TrainArgs, resume_args, run_train
+    from punch_trainer.train import TrainArgs, run_train
 
-    if args.resume is not None:
-        train_args = resume_args(args.resume)
-    else:
-        train_args = TrainArgs(**{k: getattr(args, k) for k in TrainArgs.__dataclass_fields__ if getattr(args, k, None) is not None})
-    out = train_args.out = train_args.out or default_run_dir(f"train_{train_args.reward}", train_args.seed)
-    with _resume_hint("train", out):
+    train_args = _run_args(args, TrainArgs)
+    with _resume_hint("train", train_args.out):
         out = run_train(train_args, resume=args.resume is not None)
     print((out / "report.md").read_text())
     print(f"report: {out / 'report.md'}")
     return 0
+
+
+def _run_args(args: argparse.Namespace, args_type: type[RunArgs]) -> RunArgs:
+    """The arguments of `punch search` or `punch train`: the run's own when resuming, else the command line's,
+    with the run directory fixed now, so that an interruption can name it."""
+    if args.resume is not None:
+        return read_config(args.resume, args_type)
+    run_args = args_type(**{k: getattr(args, k) for k in args_type.__dataclass_fields__ if getattr(args, k, None) is not None})
+    run_args.out = run_args.run_dir()
+    return run_args
 
 
 @contextlib.contextmanager

@@ -33,7 +33,7 @@ import numpy as np
 from tqdm import tqdm
 
 from punch_trainer import __version__
-from punch_trainer.checkpoint import CHECKPOINT_FILE, CheckpointError, default_run_dir, load_checkpoint, read_config, save_checkpoint, write_config
+from punch_trainer.checkpoint import CHECKPOINT_FILE, CheckpointError, default_run_dir, load_checkpoint, save_checkpoint, write_config
 from punch_trainer.rewards import Reward, evaluate, load_reward, total
 from punch_trainer.rollouts import RolloutPool
 from punch_trainer.server import TrainingServer
@@ -68,6 +68,10 @@ class SearchArgs:
     processes: int = 1
     characters_per_process: int = 64
     decision_period: int = 5
+
+    def run_dir(self) -> Path:
+        """`out`, or a new runs/<reward>__<seed>__<time>."""
+        return self.out or default_run_dir(self.reward, self.seed)
 
 
 @dataclass
@@ -292,11 +296,11 @@ def write_run(out: Path, args: SearchArgs, reward: Reward, result: SearchResult,
 
 def run_search(args: SearchArgs, progress: bool = True, resume: bool = False) -> tuple[Path, SearchResult, dict]:
     """The whole `punch search` command: search, dataset, run directory. `resume` continues the run in
-    `args.out` from its checkpoint (the CLI reads its arguments back with `resume_args`)."""
+    `args.out` from its checkpoint (the CLI reads its arguments back with `checkpoint.read_config`)."""
     reward = load_reward(args.reward, args.frames)
     if reward.frames % args.decision_period:
         raise ValueError(f"frames ({reward.frames}) must be a multiple of the decision period ({args.decision_period})")
-    out = args.out or default_run_dir(args.reward, args.seed)
+    out = args.run_dir()
     if not resume and (out / CHECKPOINT_FILE).exists():
         raise CheckpointError(f"{out} already holds a search; continue it with `punch search --resume {out}` or choose another --out")
     write_config(out, args, frames=reward.frames)  # first, so that an interrupted run can be resumed
@@ -308,7 +312,3 @@ def run_search(args: SearchArgs, progress: bool = True, resume: bool = False) ->
     write_run(out, args, reward, result, dataset, report, info)
     return out, result, report
 
-
-def resume_args(run_dir: Path) -> SearchArgs:
-    """The arguments of the search in `run_dir`, for `run_search(..., resume=True)`."""
-    return read_config(run_dir, SearchArgs)

@@ -15,7 +15,7 @@ import onnxruntime
 
 from punch_trainer import __version__
 from punch_trainer.a2c import A2CArgs, decision_rewards, evaluate_noise_free, train_a2c
-from punch_trainer.checkpoint import CONFIG_FILE, CheckpointError, default_run_dir, load_checkpoint, read_config, save_checkpoint, write_config
+from punch_trainer.checkpoint import CONFIG_FILE, CheckpointError, default_run_dir, load_checkpoint, save_checkpoint, write_config
 from punch_trainer.env import PunchVectorEnv
 from punch_trainer.export import export_policy
 from punch_trainer.policy import Actor, ActorCritic
@@ -40,6 +40,10 @@ class TrainArgs:
     a2c_time_budget_s: float | None = 60.0
     """stop A2C after this much wall time (None or 0: no limit, which makes a run reproducible)"""
 
+    def run_dir(self) -> Path:
+        """`out`, or a new runs/train_<reward>__<seed>__<time>."""
+        return self.out or default_run_dir(f"train_{self.reward}", self.seed)
+
 
 def replay_onnx(path: Path, env: PunchVectorEnv, reward, sigma: float = 0.0, seed: int = 0) -> tuple[float, np.ndarray]:
     """Runs the exported policy with onnxruntime in the simulator (noise `sigma` on its mean); returns
@@ -63,7 +67,7 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False) -> P
     (search/, pretrain/, a2c/); `resume` continues the run in `args.out` from them."""
     started = time.perf_counter()
     reward = load_reward(args.reward, args.frames)
-    out = args.out or default_run_dir(f"train_{args.reward}", args.seed)
+    out = args.run_dir()
     if not resume and (out / CONFIG_FILE).exists():
         raise CheckpointError(f"{out} already holds a training run; continue it with `punch train --resume {out}` or choose another --out")
     write_config(out, args)
@@ -141,7 +145,3 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False) -> P
                                                   "exported_return": exported_return, "ratio": ratio, "motion": motion, **timings}, indent=2) + "\n")
     return out
 
-
-def resume_args(run_dir: Path) -> TrainArgs:
-    """The arguments of the training run in `run_dir`, for `run_train(..., resume=True)`."""
-    return read_config(run_dir, TrainArgs)
