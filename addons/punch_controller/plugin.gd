@@ -8,8 +8,6 @@ extends EditorPlugin
 const MENU_ITEM := "Add Punching Character"
 const CHARACTER_SCENE := "res://addons/punch_controller/scenes/punch_character.tscn"
 const SANDBAG_SCENE := "res://addons/punch_controller/scenes/punch_sandbag.tscn"
-## Where the sandbag hangs relative to the character: as in training (distance 0.72 m, height 1.35 m).
-const SANDBAG_OFFSET := Vector3(0, 1.35, 0.72)
 const DEFAULT_POLICY := "res://demo/policies/straight.onnx"
 
 
@@ -36,7 +34,8 @@ func add_punching_character() -> void:
 		return
 	var character: Node3D = load(CHARACTER_SCENE).instantiate()
 	var sandbag: Node3D = load(SANDBAG_SCENE).instantiate()
-	sandbag.position = SANDBAG_OFFSET
+	# Where the policies train the bag's centre to be, relative to the character (the spec's default).
+	sandbag.position = ClassDB.class_call_static("PunchController", "default_target_offset")
 	var controller: Node = ClassDB.instantiate("PunchController")
 	controller.name = "PunchController"
 	if ResourceLoader.exists(DEFAULT_POLICY) or FileAccess.file_exists(DEFAULT_POLICY):

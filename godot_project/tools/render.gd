@@ -39,7 +39,7 @@ func _add_pair(index: int, count: int, sigma: float) -> void:
 	stand.mesh = stand_mesh
 	stand.position = Vector3(x, 0.48, 0)
 	add_child(stand)
-	var controller := PunchPair.add(self, index, Vector3(x, 0, 0), Vector3(0, 1.35, 0.72), _options.policy, sigma,
+	var controller := PunchPair.add(self, index, Vector3(x, 0, 0), PunchController.default_target_offset(), _options.policy, sigma,
 		int(_options["noise-decisions"]), int(_options.seed) + index)
 	var character: Node3D = controller.get("character")
 	var bag: RigidBody3D = controller.get("target")

@@ -20,7 +20,7 @@ const PunchPair := preload("res://tools/punch_pair.gd")
 
 var _options := {
 	"policy": "", "sigmas": "0", "episodes": "10", "out": "", "noise-decisions": "-1", "characters": "64",
-	"characters-per-world": "16", "seed": "0", "bag": "0.72,1.35,0.0",
+	"characters-per-world": "16", "seed": "0", "bag": "",
 }
 var _sigmas := PackedFloat32Array()
 var _sigma_index := 0
@@ -80,7 +80,11 @@ func _physics_process(_delta: float) -> bool:
 func _start_batch() -> void:
 	var count := mini(int(_options.characters), _episodes_total - _episodes_done)
 	var per_world := clampi(int(_options["characters-per-world"]), 1, PunchPair.MAX_PER_WORLD)
-	var bag: PackedFloat64Array = (_options.bag as String).split_floats(",")
+	# --bag=distance,height,side in metres; by default the placement the policies train at.
+	var offset := PunchController.default_target_offset()
+	var bag := PackedFloat64Array([offset.z, offset.y, offset.x])
+	if _options.bag != "":
+		bag = (_options.bag as String).split_floats(",")
 	var arena: SubViewport
 	for slot in count:
 		if slot % per_world == 0:

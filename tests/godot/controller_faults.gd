@@ -2,6 +2,7 @@
 ## policy that outputs NaN, the target or the character freed mid-punch, out-of-range sigma from code, and a
 ## policy loaded from inside a .pck. Each must give its clear error (or a clamp) and the game must go on.
 ## Args: --policy=GOOD.onnx --nan-policy=NAN.onnx --corrupt=FILE --tiny=TINY.onnx --pck=OUT.pck
+## [--incomplete=POLICY.onnx: a policy whose metadata lacks a key of the contract]
 ## Prints `FAULTS <json>` and quits 0.
 extends SceneTree
 
@@ -41,7 +42,7 @@ func _scene() -> Node:
 	_character = load("res://addons/punch_controller/scenes/punch_character.tscn").instantiate()
 	root.add_child(_character)
 	_sandbag = load("res://addons/punch_controller/scenes/punch_sandbag.tscn").instantiate()
-	_sandbag.position = Vector3(0, 1.35, 0.72)
+	_sandbag.position = PunchController.default_target_offset()
 	root.add_child(_sandbag)
 	var controller: Node = ClassDB.instantiate("PunchController")
 	controller.set("character", _character)
@@ -64,6 +65,10 @@ func _bad_files() -> void:
 	controller.set("decision_period", 5)
 	refused["good_policy_afterwards_punches"] = controller.call("punch")
 	_report["refused"] = refused
+	if _args.has("incomplete"):
+		var incomplete := _scene()
+		incomplete.set("policy", _args.incomplete)
+		_report["incomplete_refused"] = not incomplete.call("punch")
 	_wait = 5
 
 

@@ -22,7 +22,7 @@ func _initialize() -> void:
 		character.position = Vector3(3.0 * pair, 0, 0)
 		root.add_child(character)
 		var sandbag: Node3D = load("res://addons/punch_controller/scenes/punch_sandbag.tscn").instantiate()
-		sandbag.position = Vector3(3.0 * pair, 1.35, 0.72)
+		sandbag.position = Vector3(3.0 * pair, 0, 0) + PunchController.default_target_offset()
 		root.add_child(sandbag)
 		var controller: Node = ClassDB.instantiate("PunchController")
 		controller.set("character", character)

@@ -1,5 +1,5 @@
 """Shared pytest setup. Tests marked `godot` start the real headless Godot through tools/godot; the
-README's test command (./dev test) sets it up first."""
+README's test command (./dev check) sets it up first."""
 
 import time
 from pathlib import Path

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 import torch
 
-from punch_trainer.export import export_policy
-from punch_trainer.godot import GODOT_PROJECT, PROJECT_ROOT, run_godot
-from punch_trainer.replay import policy_metadata
-from punch_trainer.train import TrainArgs, run_train
+from punch_trainer.cli.replay import policy_metadata
+from punch_trainer.cli.train import TrainArgs, run_train
+from punch_trainer.learn.export import export_onnx
+from punch_trainer.sim.godot import GODOT_PROJECT, PROJECT_ROOT, run_godot
 
 pytestmark = pytest.mark.godot
 FIXTURES = PROJECT_ROOT / "tests" / "fixtures"
@@ -33,7 +33,7 @@ def run_script(name: str, *args: str):
 def test_punch_controllers_play_a_shared_policy_batched_in_a_game_scene(policy):
     run = run_script("punch_scene.gd", f"--policy={policy}")
     assert run.fatal_lines() == [] and "ERROR" not in run.log, run.log[-3000:]
-    line = next(l for l in run.log.splitlines() if l.startswith("PUNCH_SCENE "))
+    line = next(line for line in run.log.splitlines() if line.startswith("PUNCH_SCENE "))
     report = json.loads(line[len("PUNCH_SCENE "):])
     assert report["started"] == 6 and len(report["finished"]) == 6, run.log[-3000:]
     first_round, second_round = report["finished"][:3], sorted(report["finished"][3:], key=lambda m: m["pair"])
@@ -54,23 +54,25 @@ def test_punch_controllers_play_a_shared_policy_batched_in_a_game_scene(policy):
     assert (report["inference"]["calls"], report["inference"]["rows"]) == (10, 30)
 
 
-def nan_policy(path, spec_hash: str):
+def nan_policy(path, contract: dict[str, str]):
     class NanActor(torch.nn.Module):
         def forward(self, obs):
             mean = obs[:, :10] * torch.tensor(float("nan"))
             return mean, torch.ones_like(mean)
 
-    return export_policy(NanActor(), 45, path, metadata={"punch_spec_hash": spec_hash}, verify=False)
+    return export_onnx(NanActor(), 45, path, metadata=contract, verify=False)
 
 
 def test_controller_faults_give_clear_errors_and_the_game_goes_on(policy, tmp_path):
     corrupt = tmp_path / "corrupt.onnx"
     corrupt.write_bytes(np.random.default_rng(0).bytes(3000))
-    nan = nan_policy(tmp_path / "nan.onnx", policy_metadata(policy)["punch_spec_hash"])
+    nan = nan_policy(tmp_path / "nan.onnx", policy_metadata(policy))
+    contract = policy_metadata(policy)
+    incomplete = nan_policy(tmp_path / "incomplete.onnx", {k: v for k, v in contract.items() if k != "punch_smoothing_window"})
     run = run_script("controller_faults.gd", f"--policy={policy}", f"--nan-policy={nan}", f"--corrupt={corrupt}",
-                     f"--tiny={FIXTURES / 'tiny_actor.onnx'}", f"--pck={tmp_path / 'game.pck'}")
+                     f"--tiny={FIXTURES / 'tiny_actor.onnx'}", f"--pck={tmp_path / 'game.pck'}", f"--incomplete={incomplete}")
     assert run.fatal_lines() == [], run.log[-3000:]
-    line = next((l for l in run.log.splitlines() if l.startswith("FAULTS ")), None)
+    line = next((line for line in run.log.splitlines() if line.startswith("FAULTS ")), None)
     assert line, f"the game did not reach its end:\n{run.log[-3000:]}"
     report = json.loads(line[len("FAULTS "):])
     assert report["refused"] == {"missing": True, "corrupt": True, "incompatible": True, "empty": True,
@@ -80,6 +82,9 @@ def test_controller_faults_give_clear_errors_and_the_game_goes_on(policy, tmp_pa
                     "the character was freed", "noise_sigma 5 is outside 0..1; using 1"]:
         assert message in run.log, message
     assert report["nan_started"] and report["nan_stopped"]
+    # A policy without the whole contract is refused, naming the missing key and how to re-export.
+    assert report["incomplete_refused"]
+    assert "has no 'punch_smoothing_window' metadata; export it again with `punch train` or `punch pretrain`" in run.log
     assert report["target_freed_stopped"] and report["character_freed_stopped"]
     assert report["sigma_after_set"] == [1.0, 0.0, 0.0, 0.25]
     assert report["pck_mounted"] and report["pck_started"] and report["pck_punch"]["frames"] == 50

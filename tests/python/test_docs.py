@@ -3,7 +3,7 @@
 import pytest
 
 from conftest import PROJECT_ROOT
-from punch_trainer.server import TrainingServer
+from punch_trainer.sim.server import TrainingServer
 
 pytestmark = pytest.mark.godot
 

@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-from punch_trainer.env import PunchEnv, PunchVectorEnv
-from punch_trainer.server import TrainingServer
+from punch_trainer.sim.env import PunchEnv, PunchVectorEnv
+from punch_trainer.sim.rewards import Reward
+from punch_trainer.sim.server import TrainingServer
 
 pytestmark = pytest.mark.godot
 
@@ -29,8 +30,8 @@ def test_gymnasium_env_checker_passes():
 
 
 def test_episode_shape_features_and_reward():
-    feature_sum = lambda features: float(features[:, 0].sum())  # noqa: E731 (any function of the features)
-    with PunchEnv(frames=50, reward_fn=feature_sum) as env:
+    feature_sum = Reward("feature_sum", lambda f: f.features[..., 0], frames=50)  # any function of the features
+    with PunchEnv(frames=50, reward=feature_sum) as env:
         observation, info = env.reset(seed=3)
         assert observation.shape == (45,) and observation.dtype == np.float32
         assert info["features"].shape == (len(env.feature_names),)
@@ -79,6 +80,7 @@ def test_close_is_idempotent_and_kills_the_process():
 
 
 def test_env_is_registered_with_the_right_spaces():
-    with PunchEnv() as env:
+    # Importing punch_trainer (here through its env module) registers the envs.
+    with gym.make("punch/Punch-v0") as env:
         assert isinstance(env.action_space, gym.spaces.Box)
         assert env.action_space.low.min() == -1.0 and env.action_space.high.max() == 1.0

@@ -6,7 +6,7 @@ import stat
 import pytest
 
 from punch_trainer.errors import GodotNotFoundError, GodotRunError
-from punch_trainer.godot import GODOT_PROJECT, GODOT_WRAPPER, GodotRun, run_godot
+from punch_trainer.sim.godot import GODOT_PROJECT, GODOT_WRAPPER, GodotRun, run_godot
 
 
 @pytest.mark.parametrize(

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from punch_trainer.godot import GODOT_PROJECT, run_godot
+from punch_trainer.sim.godot import GODOT_PROJECT, run_godot
 
 GODOT_TESTS = sorted((Path(__file__).resolve().parents[1] / "godot").glob("test_*.gd"))
 

@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 from conftest import PROJECT_ROOT, godot_processes
-from punch_trainer.rewards import load_reward
-from punch_trainer.rollouts import RolloutPool
-from punch_trainer.search import SearchArgs, trajectory_search
-from punch_trainer.server import TrainingServer
+from punch_trainer.learn.search import SearchArgs, trajectory_search
+from punch_trainer.sim.rewards import load_reward
+from punch_trainer.sim.rollouts import RolloutPool
+from punch_trainer.sim.server import TrainingServer
 
 pytestmark = pytest.mark.godot
 
@@ -52,7 +52,7 @@ def test_a_killed_trainer_leaves_no_godot_behind(tmp_path):
     script = tmp_path / "trainer.py"
     script.write_text(textwrap.dedent("""
         import sys, time
-        from punch_trainer.server import TrainingServer
+        from punch_trainer.sim.server import TrainingServer
         server = TrainingServer(2)
         print(server.pid, flush=True)
         time.sleep(600)

@@ -5,8 +5,8 @@ import shutil
 import pytest
 from PIL import Image
 
-from punch_trainer.godot import GODOT_PROJECT, run_godot
-from punch_trainer.render import RenderArgs, RenderError, render
+from punch_trainer.cli.render import RenderArgs, RenderError, render
+from punch_trainer.sim.godot import GODOT_PROJECT, run_godot
 
 pytestmark = pytest.mark.godot
 POLICY = GODOT_PROJECT / "demo" / "policies" / "straight.onnx"

@@ -10,14 +10,15 @@ import numpy as np
 import pytest
 import torch
 
-from punch_trainer.a2c import decision_rewards
-from punch_trainer.env import PunchVectorEnv
-from punch_trainer.export import export_policy
-from punch_trainer.policy import Actor, ActorCritic
-from punch_trainer.pretrain import PretrainArgs, load_datasets, pretrain
-from punch_trainer.replay import ReplayArgs, ReplayError, parse_sigmas, replay_frames, run_replay
-from punch_trainer.rewards import load_reward
-from punch_trainer.search import SearchArgs, run_search
+from punch_trainer.cli.replay import ReplayArgs, ReplayError, parse_sigmas, replay_frames, run_replay
+from punch_trainer.cli.search import run_search
+from punch_trainer.learn.dataset import load_datasets
+from punch_trainer.learn.export import export_policy
+from punch_trainer.learn.policy import ActorCritic
+from punch_trainer.learn.pretrain import PretrainArgs, pretrain
+from punch_trainer.learn.search import SearchArgs
+from punch_trainer.sim.env import PunchVectorEnv
+from punch_trainer.sim.rewards import load_reward, score
 
 pytestmark = pytest.mark.godot
 SMOOTHING_WINDOW = 3
@@ -32,10 +33,8 @@ def trained(tmp_path_factory):
     data = load_datasets([out / "dataset.npz"])
     model = ActorCritic(data["observations"].shape[1], data["actions"].shape[1])
     pretrain(model, data, PretrainArgs(epochs=600, seed=0), progress=False)
-    metadata = {"punch_spec_hash": str(data["spec_hash"]), "punch_decision_period": "5",
-                "punch_smoothing_window": str(SMOOTHING_WINDOW), "punch_frames": "50", "punch_reward": "straight",
-                "punch_training_summary": json.dumps({"search_best_return": result.best_return})}
-    path = export_policy(Actor(model), data["observations"].shape[1], root / "policy.onnx", metadata=metadata)
+    path = export_policy(model, root / "policy.onnx", contract=data["policy_metadata"], reward="straight",
+                         summary={"search_best_return": result.best_return})
     return path, model.eval(), result.best_return
 
 
@@ -68,7 +67,7 @@ def test_parity_of_godot_controller_and_torch_policy(trained, tmp_path):
             with torch.no_grad():
                 mean = model(torch.as_tensor(obs))[0].numpy()
             obs, _, _, _, info = env.step(np.clip(mean, -1, 1))
-            torch_return += float(decision_rewards(reward, info["features"], env.feature_names)[0])
+            torch_return += float(score(reward, info["features"], env.feature_names)[0])
     godot_return = rows[0]["mean_return"]
     # The same bodies and constraints in the same order: the frames agree to about 1e-5 (rounding in how each
     # side composes transforms) until the fist meets the bag, where contact amplifies it (README FAQ).

@@ -16,12 +16,13 @@ import pytest
 import torch
 
 from conftest import PROJECT_ROOT
-from punch_trainer.a2c import A2CArgs, train_a2c
-from punch_trainer.checkpoint import CHECKPOINT_FILE, CheckpointError, load_checkpoint, read_config
-from punch_trainer.env import PunchVectorEnv
-from punch_trainer.policy import ActorCritic
-from punch_trainer.rewards import load_reward
-from punch_trainer.search import SearchArgs, run_search
+from punch_trainer.cli.search import run_search
+from punch_trainer.learn.a2c import A2CArgs, train_a2c
+from punch_trainer.learn.checkpoint import CHECKPOINT_FILE, CheckpointError, load_checkpoint, read_config
+from punch_trainer.learn.policy import ActorCritic
+from punch_trainer.learn.search import SearchArgs
+from punch_trainer.sim.env import PunchVectorEnv
+from punch_trainer.sim.rewards import load_reward
 
 pytestmark = pytest.mark.godot
 
@@ -30,7 +31,7 @@ SEARCH_OPTIONS = ["--reward", "straight", "--seed", "3", "--iterations", "40", "
 
 
 def punch(*arguments: str, **kwargs) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "punch_trainer.cli", *arguments], cwd=PROJECT_ROOT,
+    return subprocess.Popen([sys.executable, "-m", "punch_trainer.cli.main", *arguments], cwd=PROJECT_ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kwargs)
 
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from punch_trainer.rewards import RewardError, evaluate, load_reward, total
+from punch_trainer.sim.rewards import RewardError, evaluate, load_reward, total
 
 NAMES = ["fist_r_bag_distance", "fist_r_vel_x", "fist_r_vel_z", "fist_r_vel_y", "exploit_flags"]
 
@@ -56,7 +56,7 @@ def test_bad_rewards_are_named_in_the_error(tmp_path, body, message):
 @pytest.mark.parametrize("spec, message", [
     ("nonsense", "unknown reward"),
     ("missing_file.py:r", "not found"),
-    ("punch_trainer.rewards:no_such_function", "has no function"),
+    ("punch_trainer.sim.rewards:no_such_function", "has no function"),
 ])
 def test_unloadable_rewards(spec, message):
     with pytest.raises(RewardError, match=message):

@@ -5,7 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from punch_trainer.search import SearchArgs, run_search, update_sigma
+from punch_trainer.cli.search import run_search
+from punch_trainer.learn.search import SearchArgs, update_sigma
 
 
 def test_sigma_stays_wide_while_nothing_stands_out_and_shrinks_around_a_clear_best():
@@ -52,7 +53,7 @@ def test_a_reward_written_from_scratch_drives_the_search(tmp_path):
 
 
 def test_capture_clip_reads_as_a_punch():
-    from punch_trainer.mocap import DEFAULT_BVH, captured_punch
+    from punch_trainer.report.mocap import DEFAULT_BVH, captured_punch
 
     if not DEFAULT_BVH.is_file():
         pytest.skip(f"{DEFAULT_BVH} is not there")
@@ -65,9 +66,9 @@ def test_capture_clip_reads_as_a_punch():
 
 @pytest.mark.godot
 def test_baselines_run_on_the_same_environment():
-    from punch_trainer.baselines import cem, cma_es
-    from punch_trainer.rewards import load_reward
-    from punch_trainer.rollouts import RolloutPool
+    from punch_trainer.learn.baselines import cem, cma_es
+    from punch_trainer.sim.rewards import load_reward
+    from punch_trainer.sim.rollouts import RolloutPool
 
     args = SearchArgs(iterations=3, rollouts=16, characters_per_process=16)
     with RolloutPool(1, 16) as pool:

@@ -7,8 +7,8 @@ import struct
 import numpy as np
 import pytest
 
-from punch_trainer.protocol import Message, ProtocolError, ServerError, receive
-from punch_trainer.server import TrainingServer
+from punch_trainer.sim.protocol import Message, ProtocolError, ServerError, hello_message, receive
+from punch_trainer.sim.server import TrainingServer
 
 pytestmark = pytest.mark.godot
 
@@ -96,7 +96,7 @@ def test_garbage_json_gets_an_error_on_a_living_connection(server):
         client.sendall(struct.pack("<II", len(header), 0) + header)
         with pytest.raises(ServerError, match="not JSON"):
             receive(client)
-        client.sendall(Message("hello", {"protocol_version": 1}).encode())
+        client.sendall(hello_message().encode())
         assert receive(client).type == "hello"
     still_serving(server)
 

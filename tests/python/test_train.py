@@ -5,9 +5,9 @@ import json
 import onnx
 import pytest
 
-from punch_trainer.env import PunchVectorEnv
-from punch_trainer.rewards import load_reward
-from punch_trainer.train import TrainArgs, replay_onnx, run_train
+from punch_trainer.cli.train import TrainArgs, run_exported_policy, run_train
+from punch_trainer.sim.env import PunchVectorEnv
+from punch_trainer.sim.rewards import load_reward
 
 pytestmark = pytest.mark.godot
 
@@ -28,14 +28,14 @@ def test_small_training_run_exports_a_policy_that_repeats_its_punch(tmp_path):
     assert summary["exported_return"] == pytest.approx(summary["exported_return"])  # a number, not NaN
     # With sigma = 0 the exported policy repeats the same punch exactly.
     with PunchVectorEnv(1, 2, frames=50, smoothing_window=3) as env:
-        first, features_a = replay_onnx(out / "policy.onnx", env, load_reward("straight"))
-        second, features_b = replay_onnx(out / "policy.onnx", env, load_reward("straight"))
+        first, features_a = run_exported_policy(out / "policy.onnx", env, load_reward("straight"))
+        second, features_b = run_exported_policy(out / "policy.onnx", env, load_reward("straight"))
     assert first == second and (features_a == features_b).all()
     assert first == pytest.approx(summary["exported_return"])
 
 
 def test_fig6_experiment_runs_every_method_with_honest_axes(tmp_path):
-    from punch_trainer.experiments import METHODS, fig6
+    from punch_trainer.cli.experiments import METHODS, fig6
 
     out, rows = fig6("straight", seeds=(0,), search_iterations=2, a2c_updates=2, characters=4, out=tmp_path)
     assert [r["method"] for r in rows] == METHODS
@@ -58,7 +58,8 @@ def test_pretraining_on_several_datasets(tmp_path):
     import sys
     from pathlib import Path
 
-    from punch_trainer.search import SearchArgs, run_search
+    from punch_trainer.cli.search import run_search
+    from punch_trainer.learn.search import SearchArgs
 
     datasets = []
     for seed in (0, 1):

@@ -4,7 +4,7 @@ contact sensing against the bag's momentum, and bitwise determinism across slots
 import numpy as np
 import pytest
 
-from punch_trainer.server import TrainingServer
+from punch_trainer.sim.server import TrainingServer
 
 pytestmark = pytest.mark.godot
 

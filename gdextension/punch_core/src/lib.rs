@@ -1,20 +1,31 @@
-//! Godot-free core of the punch controller.
+//! Godot-free core of the punch controller: everything the training server and the in-game controller
+//! share, so that training and game cannot drift.
 //!
-//! Everything here is plain Rust and unit-tested with `cargo test`: the Godot layer (`punch_godot`) only
-//! converts engine types and reports errors. Policy inference lives here so that the training server and
-//! the in-game controller run the exact same code.
+//! - `spec`: the policy contract (sizes, names, rates, timing, default target), defined once.
+//! - `character`, `sensing`, `observation`, `smoothing`, `controller`: the character's control spec, what
+//!   it senses each frame, the policy's observation, Eq. 1 smoothing, and the motor law.
+//! - `punch`: one punch in a game (decision clock, runtime noise, hits, its end); `session`: the training
+//!   server's episodes over N slots; `protocol`: the trainer's wire format.
+//! - `policy`, `runtime`, `noise`: ONNX Runtime inference and seeded Gaussian noise.
+//!
+//! Everything here is plain Rust and unit-tested with `cargo test` (with a fake world standing in for the
+//! engine); the Godot layer (`punch_godot`) only moves engine data in and out and reports errors.
 
 pub mod character;
 pub mod controller;
 pub mod error;
+#[cfg(test)]
+mod fake_world;
 pub mod noise;
 pub mod observation;
 pub mod policy;
 pub mod protocol;
+pub mod punch;
 pub mod runtime;
 pub mod sensing;
 pub mod session;
 pub mod smoothing;
+pub mod spec;
 
 pub use error::CoreError;
 pub use policy::{Policy, Tensor};

@@ -333,20 +333,7 @@ impl Sensor {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn rest_geometry() -> CharacterGeometry {
-        CharacterGeometry {
-            rest_rotations: [Quat::IDENTITY; 6],
-            fist_offsets: [Vec3::new(0.0, -0.155, 0.0); 2],
-            fist_radius_m: 0.045,
-            joint_anchors: [(Vec3::ZERO, Vec3::ZERO); 5],
-            bag_radius_m: 0.175,
-            bag_height_m: 1.0,
-            bag_mass_kg: 35.0,
-            root_rotation: Quat::IDENTITY,
-            root_position: Vec3::ZERO,
-        }
-    }
+    use crate::fake_world::rest_geometry;
 
     fn reading_at_rest() -> FrameReading {
         let mut reading = FrameReading::default();

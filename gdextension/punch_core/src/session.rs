@@ -4,35 +4,16 @@
 use glam::Vec3;
 use serde_json::{Value, json};
 
-use crate::character::{DOF_COUNT, DOFS, PHYSICS_HZ};
+use crate::character::DOF_COUNT;
 use crate::controller::CharacterController;
-use crate::observation::{OBS_DIM, OBS_SPEC_VERSION, observation, observation_names, spec_hash};
+use crate::observation::{OBS_DIM, observation};
 use crate::protocol::{Array, Message, PROTOCOL_VERSION, error_reply};
-use crate::sensing::{CharacterGeometry, FEATURE_COUNT, FEATURE_NAMES, FrameReading, guard};
-
-/// Where a slot's bag hangs, in the character's frame: `distance_m` ahead (+Z), `height_m` of its centre
-/// of mass above the ground, `side_m` to the character's left (+X).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct BagPlacement {
-    pub distance_m: f32,
-    pub height_m: f32,
-    pub side_m: f32,
-}
-
-impl Default for BagPlacement {
-    fn default() -> Self {
-        Self { distance_m: 0.72, height_m: 1.35, side_m: 0.0 }
-    }
-}
-
-impl BagPlacement {
-    /// Centre of mass of the bag in the character's frame.
-    pub fn position(&self) -> Vec3 {
-        Vec3::new(self.side_m, self.height_m, self.distance_m)
-    }
-}
+use crate::sensing::{CharacterGeometry, FEATURE_COUNT, FrameReading, guard};
+pub use crate::spec::BagPlacement;
+use crate::spec::{DEFAULT_FRAMES, PolicySpec, handshake_fields};
 
 /// The physics the session drives: N character slots, each with its own bag, never touching each other.
+/// The Godot layer's `TrainingWorld` is the real one; the unit tests use a fake one.
 pub trait World {
     fn slot_count(&self) -> usize;
     /// Rebuilds every slot in its initial state (a fresh physics world, so every reset is identical).
@@ -93,7 +74,7 @@ impl Session {
         Self {
             slots: Vec::new(),
             decision_period: decision_period.max(1),
-            frames_per_episode: 50,
+            frames_per_episode: DEFAULT_FRAMES as usize,
             frame_index: 0,
             last_features: Vec::new(),
             broken: Vec::new(),
@@ -102,21 +83,15 @@ impl Session {
         }
     }
 
-    /// The handshake: versions, the spec and its hash, slot count, rates, and every name.
+    /// The handshake: the protocol and extension versions, the slot count, and the spec (`spec::handshake_fields`:
+    /// its version and hash, rates, every name, the default bag).
     pub fn hello(&self, slot_count: usize) -> Message {
-        Message::new("hello")
+        let mut message = Message::new("hello")
             .with("protocol_version", json!(PROTOCOL_VERSION))
-            .with("spec_version", json!(OBS_SPEC_VERSION))
-            .with("spec_hash", json!(spec_hash(self.decision_period as u32)))
             .with("extension_version", json!(crate::VERSION))
-            .with("slot_count", json!(slot_count))
-            .with("physics_hz", json!(PHYSICS_HZ))
-            .with("decision_period", json!(self.decision_period))
-            .with("action_names", json!(DOFS.iter().map(|d| d.name).collect::<Vec<_>>()))
-            .with("action_lower_rad", json!(DOFS.iter().map(|d| d.lower_rad).collect::<Vec<_>>()))
-            .with("action_upper_rad", json!(DOFS.iter().map(|d| d.upper_rad).collect::<Vec<_>>()))
-            .with("observation_names", json!(observation_names()))
-            .with("feature_names", json!(FEATURE_NAMES.to_vec()))
+            .with("slot_count", json!(slot_count));
+        message.header.extend(handshake_fields(self.decision_period as u32));
+        message
     }
 
     /// Handles one message. Bad requests get an error reply and change nothing.
@@ -144,26 +119,21 @@ impl Session {
 
     fn reset(&mut self, message: &Message, world: &mut impl World) -> Result<Message, String> {
         let slot_count = world.slot_count();
-        let frames = match message.header.get("frames") {
-            None => 50,
-            Some(value) => {
-                value.as_u64().filter(|&f| f > 0 && f <= 10_000).ok_or("'frames' must be an integer in 1..=10000")?
-                    as usize
+        let whole = |key: &str, default: u32| -> Result<u32, String> {
+            match message.header.get(key) {
+                None => Ok(default),
+                Some(value) => value
+                    .as_u64()
+                    .and_then(|v| u32::try_from(v).ok())
+                    .ok_or_else(|| format!("'{key}' must be an integer, not {value}")),
             }
         };
-        if frames % self.decision_period != 0 {
-            return Err(format!(
-                "'frames' ({frames}) must be a multiple of the decision period ({})",
-                self.decision_period
-            ));
-        }
-        let smoothing_window = match message.header.get("smoothing_window") {
-            None => 1,
-            Some(value) => value
-                .as_u64()
-                .filter(|&n| (1..=50).contains(&n))
-                .ok_or("'smoothing_window' must be an integer in 1..=50")? as usize,
-        };
+        let spec = PolicySpec::new(
+            self.decision_period as u32,
+            whole("frames", DEFAULT_FRAMES)?,
+            whole("smoothing_window", 1)?,
+        )?;
+        let (frames, smoothing_window) = (spec.frames as usize, spec.smoothing_window as usize);
         let placements = parse_placements(message.header.get("bags"), slot_count)?;
         world.reset(&placements)?;
         self.frames_per_episode = frames;
@@ -182,6 +152,7 @@ impl Session {
         Ok(Message::new("reset_done")
             .with("frames", json!(frames))
             .with("decisions", json!(self.decisions_per_episode()))
+            .with("policy_metadata", spec.metadata_json())
             .with_array(Array::new("observations", vec![slot_count, OBS_DIM], observations))
             .with_array(Array::new("features", vec![slot_count, FEATURE_COUNT], features)))
     }
@@ -358,5 +329,116 @@ fn parse_placements(value: Option<&Value>, slot_count: usize) -> Result<Vec<BagP
         Some(Value::Array(list)) if list.len() == slot_count => list.iter().map(parse_one).collect(),
         Some(Value::Array(list)) => Err(format!("'bags' lists {} placements for {slot_count} slots", list.len())),
         Some(one) => Ok(vec![parse_one(one)?; slot_count]),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fake_world::FakeWorld;
+    use crate::spec::{DOFS, keys};
+
+    fn message(text: serde_json::Value, actions: Option<Array>) -> Message {
+        let mut message = Message::new(text["type"].as_str().expect("type"));
+        for (key, value) in text.as_object().expect("object") {
+            message.header.insert(key.clone(), value.clone());
+        }
+        message.arrays.extend(actions);
+        message
+    }
+
+    fn reply(outcome: Outcome) -> Message {
+        match outcome {
+            Outcome::Reply(reply) | Outcome::Close(reply) => reply,
+            Outcome::Running => panic!("expected a reply, the session is running"),
+        }
+    }
+
+    /// Steps the fake world until the session replies; returns the reply and the frames it took.
+    fn run(session: &mut Session, world: &mut FakeWorld) -> (Message, usize) {
+        for frames in 1..=10_000 {
+            world.step();
+            if let Some(reply) = session.physics_frame(world) {
+                return (reply, frames);
+            }
+        }
+        panic!("the session never replied");
+    }
+
+    #[test]
+    fn the_handshake_carries_the_spec() {
+        let (mut session, mut world) = (Session::new(5), FakeWorld::new(3));
+        let hello = reply(
+            session.handle(&message(json!({"type": "hello", "protocol_version": PROTOCOL_VERSION}), None), &mut world),
+        );
+        assert_eq!(hello.header["slot_count"], json!(3));
+        assert_eq!(hello.header["spec_hash"], json!(crate::spec::spec_hash(5)));
+        assert_eq!(hello.header["default_bag"], BagPlacement::DEFAULT.to_json());
+        let old = reply(session.handle(&message(json!({"type": "hello", "protocol_version": 1}), None), &mut world));
+        assert_eq!(old.message_type(), "error");
+    }
+
+    #[test]
+    fn reset_announces_the_policy_contract_of_its_episodes() {
+        let (mut session, mut world) = (Session::new(5), FakeWorld::new(2));
+        let reset = reply(
+            session.handle(&message(json!({"type": "reset", "frames": 100, "smoothing_window": 3}), None), &mut world),
+        );
+        assert_eq!(reset.message_type(), "reset_done");
+        let contract = &reset.header["policy_metadata"];
+        assert_eq!(contract[keys::FRAMES], json!("100"));
+        assert_eq!(contract[keys::SMOOTHING_WINDOW], json!("3"));
+        assert_eq!(contract[keys::DECISION_PERIOD], json!("5"));
+        assert_eq!(reset.array("observations", &[2, OBS_DIM]).expect("observations").data[OBS_DIM - 1], 0.0);
+        for bad in [
+            json!({"type": "reset", "frames": 7}),
+            json!({"type": "reset", "smoothing_window": 0}),
+            json!({"type": "reset", "bags": {"height_m": 9.0}}),
+        ] {
+            assert_eq!(reply(session.handle(&message(bad.clone(), None), &mut world)).message_type(), "error", "{bad}");
+        }
+    }
+
+    #[test]
+    fn a_step_runs_one_decision_period_and_the_episode_ends_after_its_frames() {
+        let (mut session, mut world) = (Session::new(5), FakeWorld::new(2));
+        let step = || {
+            message(json!({"type": "step"}), Some(Array::new("actions", vec![2, DOF_COUNT], vec![0.5; 2 * DOF_COUNT])))
+        };
+        assert_eq!(reply(session.handle(&step(), &mut world)).message_type(), "error", "no episode yet");
+        reply(session.handle(&message(json!({"type": "reset", "frames": 10}), None), &mut world));
+        for decision in 1..=2 {
+            assert!(matches!(session.handle(&step(), &mut world), Outcome::Running));
+            let (done, frames) = run(&mut session, &mut world);
+            assert_eq!((done.message_type(), frames), ("step_done", 5));
+            assert_eq!(done.header["decision"], json!(decision));
+            assert_eq!(done.header["terminated"], json!([decision == 2, decision == 2]));
+            assert_eq!(
+                done.array("features", &[2, 5, FEATURE_COUNT]).expect("features").shape,
+                vec![2, 5, FEATURE_COUNT]
+            );
+        }
+        assert_eq!(reply(session.handle(&step(), &mut world)).message_type(), "error", "the episode is over");
+    }
+
+    #[test]
+    fn a_rollout_plays_its_actions_open_loop_from_a_fresh_reset() {
+        let (mut session, mut world) = (Session::new(5), FakeWorld::new(2));
+        let mut actions = vec![0.0; 2 * 4 * DOF_COUNT];
+        actions[..4 * DOF_COUNT].fill(0.8); // slot 0 punches, slot 1 holds its guard
+        let rollout = message(
+            json!({"type": "rollout", "smoothing_window": 2}),
+            Some(Array::new("actions", vec![2, 4, DOF_COUNT], actions)),
+        );
+        assert!(matches!(session.handle(&rollout, &mut world), Outcome::Running));
+        let (done, frames) = run(&mut session, &mut world);
+        assert_eq!((done.message_type(), frames, world.resets), ("rollout_done", 20, 1));
+        let features = done.array("features", &[2, 20, FEATURE_COUNT]).expect("features");
+        let fist_z = |slot: usize, frame: usize| features.data[(slot * 20 + frame) * FEATURE_COUNT + 2];
+        assert!(fist_z(0, 19) > fist_z(0, 0) + 0.1 && fist_z(1, 19) == fist_z(1, 0));
+        let executed = done.array("executed_actions", &[2, 4, DOF_COUNT]).expect("executed");
+        assert_eq!(executed.data[0], 0.8, "smoothing starts from the first action itself");
+        assert_eq!(world.driven.len(), 2 * 20, "every slot driven once per frame");
+        assert_eq!(DOFS.len(), DOF_COUNT);
     }
 }

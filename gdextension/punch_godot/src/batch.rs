@@ -1,67 +1,40 @@
-//! Batched inference for every `PunchController` in the game. Controllers whose `policy` is the same file
-//! share one ONNX session, and once per physics frame (on the scene tree's `physics_frame` signal, before
-//! any node's `_physics_process`) all punching controllers are run together: each senses its character,
-//! then every shared policy runs once on the observations of all controllers that decide this frame, then
-//! each controller acts. Signals are emitted last, outside any borrow, so handlers may call back freely.
+//! `PunchInference`: batched inference for every `PunchController` in the game, as an engine singleton that
+//! owns the shared state (loaded policies, the controllers punching, the counters).
+//!
+//! Controllers whose `policy` is the same file share one ONNX session, and once per physics frame (on the
+//! scene tree's `physics_frame` signal, before any node's `_physics_process`) all punching controllers are
+//! run together: each senses its character, then every shared policy runs once on the observations of all
+//! controllers that decide this frame, then each controller acts. Signals are emitted last, with no borrow of
+//! this singleton or of the controller held, so handlers may call back freely.
 
-use std::cell::{Cell, RefCell};
 use std::collections::HashMap;
 use std::rc::Rc;
 use std::time::Instant;
 
 use godot::builtin::{Callable, GString, StringName, Variant};
-use godot::classes::{FileAccess, Node};
-use godot::obj::{Gd, InstanceId};
+use godot::classes::{FileAccess, Node, Object};
+use godot::obj::{Base, Gd, InstanceId, Singleton};
+use godot::prelude::{GodotClass, godot_api};
 use punch_core::Policy;
 use punch_core::observation::{OBS_DIM, spec_hash};
+use punch_core::spec::PolicySpec;
 
 use crate::punch_controller::PunchController;
 use crate::punch_runtime::ensure_onnx_runtime;
 
+/// A controller's request for a decision: the policy to ask and the observation to decide on.
+pub type DecisionRequest = (Rc<SharedPolicy>, [f32; OBS_DIM]);
+
 /// One loaded policy file, shared by every controller that plays it.
 pub struct SharedPolicy {
-    policy: RefCell<Policy>,
-    /// Actions are smoothed over this many decisions, as in training.
-    pub smoothing_window: usize,
-    /// Physics frames of one punch, as in training.
-    pub frames: usize,
+    policy: std::cell::RefCell<Policy>,
+    /// The timing the policy was trained with (from its metadata).
+    pub spec: PolicySpec,
     /// The observation spec hash the policy was trained with.
     pub spec_hash: String,
 }
 
-thread_local! {
-    /// Loaded policies by path, with the file's modification time: a changed file is loaded again.
-    static POLICIES: RefCell<HashMap<String, (u64, Rc<SharedPolicy>)>> = RefCell::new(HashMap::new());
-    static ACTIVE: RefCell<Vec<Gd<PunchController>>> = const { RefCell::new(Vec::new()) };
-    static CONNECTED_TREE: Cell<Option<InstanceId>> = const { Cell::new(None) };
-    /// Controller work since the last `take_frame_cost`: (microseconds, frames).
-    static COST: Cell<(f64, u64)> = const { Cell::new((0.0, 0)) };
-    /// Policy calls, the rows they ran, and their time (µs) since the last `take_inference_counts`.
-    static INFERENCE: Cell<(u64, u64, f64)> = const { Cell::new((0, 0, 0.0)) };
-}
-
 impl SharedPolicy {
-    /// The policy at `path` (read through Godot's file system, so it works inside a .pck), loaded once per
-    /// version of the file and shared by every controller that plays it.
-    pub fn get(path: &GString) -> Result<Rc<Self>, String> {
-        if path.is_empty() {
-            return Err("no policy file set".into());
-        }
-        if !FileAccess::file_exists(path) {
-            return Err(format!("policy file not found: '{path}'"));
-        }
-        let key = path.to_string();
-        let modified = FileAccess::get_modified_time(path);
-        if let Some(shared) =
-            POLICIES.with(|p| p.borrow().get(&key).filter(|(m, _)| *m == modified).map(|(_, s)| s.clone()))
-        {
-            return Ok(shared);
-        }
-        let shared = Rc::new(Self::load(path)?);
-        POLICIES.with(|p| p.borrow_mut().insert(key, (modified, shared.clone())));
-        Ok(shared)
-    }
-
     fn load(path: &GString) -> Result<Self, String> {
         if !ensure_onnx_runtime() {
             return Err("ONNX Runtime could not be loaded (see the error above)".into());
@@ -74,19 +47,19 @@ impl SharedPolicy {
                 policy.input_width()
             ));
         }
-        let number = |key: &str, default: usize| policy.metadata(key).and_then(|v| v.parse().ok()).unwrap_or(default);
+        let spec =
+            PolicySpec::from_metadata(|key| policy.metadata(key)).map_err(|e| format!("policy '{path}': {e}"))?;
         Ok(Self {
-            smoothing_window: number("punch_smoothing_window", 1),
-            frames: number("punch_frames", 50),
-            spec_hash: policy.metadata("punch_spec_hash").unwrap_or_default(),
-            policy: RefCell::new(policy),
+            spec,
+            spec_hash: policy.metadata(punch_core::spec::keys::SPEC_HASH).unwrap_or_default(),
+            policy: std::cell::RefCell::new(policy),
         })
     }
 
     /// Checks that the policy was trained for this character's observation with `decision_period`.
     pub fn check_spec(&self, decision_period: u32) -> Result<(), String> {
         let expected = spec_hash(decision_period);
-        if self.spec_hash != expected {
+        if self.spec_hash != expected || self.spec.decision_period != decision_period {
             return Err(format!(
                 "incompatible policy: it was trained for spec {:?}; this character with decision period {decision_period} needs {expected}",
                 self.spec_hash
@@ -103,103 +76,151 @@ impl SharedPolicy {
     }
 }
 
-/// Puts a controller on the list run every physics frame (it leaves by itself when its punch ends).
-pub fn enlist(controller: Gd<PunchController>) {
-    connect_tick(&controller.clone().upcast::<Node>());
-    ACTIVE.with(|active| {
-        let mut active = active.borrow_mut();
-        // Comparing handles needs live objects: drop freed controllers first.
-        active.retain(|c| c.is_instance_valid());
-        if !active.contains(&controller) {
-            active.push(controller);
+/// Runs every punching `PunchController` once per physics frame, batching their policy calls. An engine
+/// singleton the extension registers itself; games need not touch it.
+#[derive(GodotClass)]
+#[class(init, singleton, base = Object)]
+pub struct PunchInference {
+    /// Loaded policies by path, with the file's modification time: a changed file is loaded again.
+    policies: HashMap<String, (u64, Rc<SharedPolicy>)>,
+    /// The controllers with a punch running (or just started).
+    active: Vec<Gd<PunchController>>,
+    /// The scene tree whose `physics_frame` signal runs the batch.
+    connected_tree: Option<InstanceId>,
+    /// Controller work since the last `take_frame_cost_usec`: (microseconds, frames).
+    cost: (f64, u64),
+    /// Policy calls, the rows they ran, and their time (µs) since the last `take_inference_counts`.
+    inference: (u64, u64, f64),
+    base: Base<Object>,
+}
+
+#[godot_api]
+impl PunchInference {
+    /// Mean time (µs) all controllers together spent per physics frame (sensing, batched inference,
+    /// driving) since the last call: for benchmarks.
+    #[func]
+    pub fn take_frame_cost_usec(&mut self) -> f64 {
+        let (usec, frames) = std::mem::take(&mut self.cost);
+        if frames == 0 { 0.0 } else { usec / frames as f64 }
+    }
+}
+
+impl PunchInference {
+    /// The policy at `path` (read through Godot's file system, so it works inside a .pck), loaded once per
+    /// version of the file and shared by every controller that plays it.
+    pub fn policy(path: &GString) -> Result<Rc<SharedPolicy>, String> {
+        if path.is_empty() {
+            return Err("no policy file set".into());
         }
-    });
-}
-
-/// Mean controller work per physics frame (µs, all controllers together) since the last call.
-pub fn take_frame_cost_usec() -> f64 {
-    let (usec, frames) = COST.replace((0.0, 0));
-    if frames == 0 { 0.0 } else { usec / frames as f64 }
-}
-
-/// Policy calls, rows and inference time (µs) since the last call.
-pub fn take_inference_counts() -> (u64, u64, f64) {
-    INFERENCE.replace((0, 0, 0.0))
-}
-
-fn connect_tick(node: &Gd<Node>) {
-    if !node.is_inside_tree() {
-        return;
+        if !FileAccess::file_exists(path) {
+            return Err(format!("policy file not found: '{path}'"));
+        }
+        let key = path.to_string();
+        let modified = FileAccess::get_modified_time(path);
+        let mut hub = Self::singleton();
+        if let Some((_, shared)) = hub.bind().policies.get(&key).filter(|(m, _)| *m == modified) {
+            return Ok(shared.clone());
+        }
+        let shared = Rc::new(SharedPolicy::load(path)?);
+        hub.bind_mut().policies.insert(key, (modified, shared.clone()));
+        Ok(shared)
     }
-    let mut tree = node.get_tree();
-    if CONNECTED_TREE.get() == Some(tree.instance_id()) {
-        return;
-    }
-    let tick = Callable::from_fn("punch_controller_tick", |_| {
-        tick();
-        Variant::nil()
-    });
-    tree.connect(&StringName::from("physics_frame"), &tick);
-    CONNECTED_TREE.set(Some(tree.instance_id()));
-}
 
-fn tick() {
-    let started = Instant::now();
-    let mut controllers: Vec<Gd<PunchController>> = ACTIVE.with(|a| a.take());
-    controllers.retain(|c| c.is_instance_valid());
-    if controllers.is_empty() {
-        return;
+    /// Puts a controller on the list run every physics frame (it leaves by itself when its punch ends).
+    pub fn enlist(controller: Gd<PunchController>) {
+        let mut hub = Self::singleton();
+        hub.bind_mut().connect_tick(&controller.clone().upcast::<Node>());
+        let mut hub = hub.bind_mut();
+        // Comparing handles needs live objects: drop freed controllers first.
+        hub.active.retain(|c| c.is_instance_valid());
+        if !hub.active.contains(&controller) {
+            hub.active.push(controller);
+        }
     }
-    let running: Vec<bool> = controllers.iter().map(|c| c.can_process()).collect();
 
-    // Sense: who decides this frame, with which policy and observation.
-    let mut requests: Vec<(usize, Rc<SharedPolicy>, [f32; OBS_DIM])> = Vec::new();
-    for (index, controller) in controllers.iter_mut().enumerate() {
-        if running[index] {
-            if let Some((policy, observation)) = controller.bind_mut().sense() {
+    /// Policy calls, rows and inference time (µs) since the last call.
+    pub fn take_inference_counts() -> (u64, u64, f64) {
+        std::mem::take(&mut Self::singleton().bind_mut().inference)
+    }
+
+    fn connect_tick(&mut self, node: &Gd<Node>) {
+        if !node.is_inside_tree() {
+            return;
+        }
+        let mut tree = node.get_tree();
+        if self.connected_tree == Some(tree.instance_id()) {
+            return;
+        }
+        let tick = Callable::from_fn("punch_controller_tick", |_| {
+            Self::tick();
+            Variant::nil()
+        });
+        tree.connect(&StringName::from("physics_frame"), &tick);
+        self.connected_tree = Some(tree.instance_id());
+    }
+
+    fn tick() {
+        let started = Instant::now();
+        let mut hub = Self::singleton();
+        let mut controllers = std::mem::take(&mut hub.bind_mut().active);
+        controllers.retain(|c| c.is_instance_valid());
+        if controllers.is_empty() {
+            return;
+        }
+        let running: Vec<bool> = controllers.iter().map(|c| c.can_process()).collect();
+
+        // Sense: who decides this frame, with which policy and observation.
+        let mut requests: Vec<(usize, Rc<SharedPolicy>, [f32; OBS_DIM])> = Vec::new();
+        for (index, controller) in controllers.iter_mut().enumerate() {
+            if running[index]
+                && let Some((policy, observation)) = controller.bind_mut().sense()
+            {
                 requests.push((index, policy, observation));
             }
         }
-    }
 
-    // Decide: one call per shared policy.
-    let mut means: Vec<Option<Result<Vec<f32>, String>>> = (0..controllers.len()).map(|_| None).collect();
-    while let Some((_, policy, _)) = requests.first() {
-        let policy = policy.clone();
-        let (group, rest): (Vec<_>, Vec<_>) = requests.into_iter().partition(|(_, p, _)| Rc::ptr_eq(p, &policy));
-        requests = rest;
-        let observations: Vec<f32> = group.iter().flat_map(|(_, _, obs)| *obs).collect();
-        let inference_started = Instant::now();
-        let result = policy.mean_actions(&observations, group.len());
-        let (calls, rows, usec) = INFERENCE.get();
-        INFERENCE.set((calls + 1, rows + group.len() as u64, usec + inference_started.elapsed().as_secs_f64() * 1e6));
-        let width = result.as_ref().map_or(0, |m| m.len() / group.len());
-        for (row, (index, _, _)) in group.iter().enumerate() {
-            means[*index] = Some(match &result {
-                Ok(mean) => Ok(mean[row * width..(row + 1) * width].to_vec()),
-                Err(error) => Err(error.clone()),
-            });
+        // Decide: one call per shared policy.
+        let mut means: Vec<Option<Result<Vec<f32>, String>>> = (0..controllers.len()).map(|_| None).collect();
+        while let Some((_, policy, _)) = requests.first() {
+            let policy = policy.clone();
+            let (group, rest): (Vec<_>, Vec<_>) = requests.into_iter().partition(|(_, p, _)| Rc::ptr_eq(p, &policy));
+            requests = rest;
+            let observations: Vec<f32> = group.iter().flat_map(|(_, _, obs)| *obs).collect();
+            let inference_started = Instant::now();
+            let result = policy.mean_actions(&observations, group.len());
+            {
+                let mut hub = hub.bind_mut();
+                let (calls, rows, usec) = hub.inference;
+                hub.inference =
+                    (calls + 1, rows + group.len() as u64, usec + inference_started.elapsed().as_secs_f64() * 1e6);
+            }
+            let width = result.as_ref().map_or(0, |m| m.len() / group.len());
+            for (row, (index, _, _)) in group.iter().enumerate() {
+                means[*index] = Some(match &result {
+                    Ok(mean) => Ok(mean[row * width..(row + 1) * width].to_vec()),
+                    Err(error) => Err(error.clone()),
+                });
+            }
         }
-    }
 
-    // Act, then emit each controller's signals with no borrow held.
-    for (index, controller) in controllers.iter_mut().enumerate() {
-        if running[index] {
-            controller.bind_mut().act(means[index].take());
-            PunchController::emit_events(controller);
+        // Act, then emit each controller's signals with no borrow held.
+        for (index, controller) in controllers.iter_mut().enumerate() {
+            if running[index] {
+                controller.bind_mut().act(means[index].take());
+                PunchController::emit_events(controller);
+            }
         }
-    }
 
-    controllers.retain(|c| c.is_instance_valid() && c.bind().is_punching());
-    ACTIVE.with(|active| {
-        let added = active.take();
-        for controller in added.into_iter().filter(|c| c.is_instance_valid()) {
+        controllers.retain(|c| c.is_instance_valid() && c.bind().is_punching());
+        let mut hub = hub.bind_mut();
+        // Controllers that started a punch during this tick (from a signal handler) joined `active` meanwhile.
+        for controller in std::mem::take(&mut hub.active).into_iter().filter(|c| c.is_instance_valid()) {
             if !controllers.contains(&controller) {
                 controllers.push(controller);
             }
         }
-        *active.borrow_mut() = controllers;
-    });
-    let (usec, frames) = COST.get();
-    COST.set((usec + started.elapsed().as_secs_f64() * 1e6, frames + 1));
+        hub.active = controllers;
+        let (usec, frames) = hub.cost;
+        hub.cost = (usec + started.elapsed().as_secs_f64() * 1e6, frames + 1);
+    }
 }

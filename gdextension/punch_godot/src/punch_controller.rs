@@ -1,6 +1,7 @@
-//! `PunchController`: plays a trained punching policy on a `PunchCharacter` in a game. Every decision it
-//! builds the observation, runs the ONNX policy, adds the designer's noise to the mean action, and hands
-//! the action to the same controller code (smoothing, targets, motor law) the training server runs.
+//! `PunchController`: plays a trained punching policy on a `PunchCharacter` in a game. The punch itself
+//! (decision clock, observation, runtime noise, smoothing, motor law, hits, its end) is `punch_core::punch`;
+//! this class moves engine readings in and motor commands and signals out, and `PunchInference` batches the
+//! policy calls of every controller.
 
 use std::rc::Rc;
 
@@ -9,19 +10,16 @@ use godot::classes::{CylinderShape3D, INode, Node, Node3D, PhysicsServer3D, Rigi
 use godot::global::{godot_error, godot_warn};
 use godot::obj::{Base, Gd, Singleton, WithBaseField, WithUserSignals};
 use godot::prelude::{GodotClass, godot_api};
-use punch_core::character::{Body, DEFAULT_DECISION_PERIOD};
-use punch_core::controller::CharacterController;
-use punch_core::noise::GaussianNoise;
-use punch_core::observation::{OBS_DIM, observation};
-use punch_core::sensing::{BodyState, FEATURE_COUNT, FEATURE_NAMES, FrameReading, columns, feature_vector};
+use punch_core::character::DEFAULT_DECISION_PERIOD;
+use punch_core::observation::OBS_DIM;
+use punch_core::punch::{Hit, Punch, PunchRecord, PunchSummary, RuntimeNoise, Sensed};
+use punch_core::sensing::{BodyState, FEATURE_COUNT, FEATURE_NAMES, FrameReading};
+use punch_core::spec::BagPlacement;
 
-use crate::batch::{self, SharedPolicy};
+use crate::batch::{DecisionRequest, PunchInference, SharedPolicy};
 use crate::convert::{quat, vec3};
 use crate::engine_io::add_bag_contacts;
 use crate::punch_character::PunchCharacter;
-
-/// Impulse (N s) on the target above which a fist counts as hitting it.
-const HIT_IMPULSE_NS: f32 = 0.05;
 
 /// Makes a `PunchCharacter` punch a target with a trained policy (an .onnx file made by `punch train`).
 /// Each punch differs when `noise_sigma` > 0: Gaussian noise of that standard deviation is added to the
@@ -64,45 +62,21 @@ pub struct PunchController {
     #[export]
     record: bool,
 
-    state: Option<Running>,
+    state: Option<Punch>,
     loaded: Option<Loaded>,
     events: Vec<Event>,
-    last_record: Record,
+    last_record: PunchRecord,
     base: Base<Node>,
 }
 
 struct Loaded {
     policy: Rc<SharedPolicy>,
-    noise: GaussianNoise,
-}
-
-struct Running {
-    controller: CharacterController,
-    fist_offsets: [glam::Vec3; 2],
-    frame: usize,
-    /// Frames of this punch (from the policy).
-    frames: usize,
-    /// The current frame's reading, kept from sensing to acting.
-    reading: FrameReading,
-    touching: bool,
-    peak_speed_mps: f32,
-    hits: i64,
-    strongest_hit_ns: f32,
-    record: Option<Record>,
-}
-
-/// What a punch did, frame by frame (see `record`).
-#[derive(Default)]
-struct Record {
-    features: Vec<f32>,
-    observations: Vec<f32>,
-    mean_actions: Vec<f32>,
-    actions: Vec<f32>,
+    noise: RuntimeNoise,
 }
 
 enum Event {
-    Hit { impulse_ns: f32, speed_mps: f32, position: Vector3 },
-    Finished(VarDictionary),
+    Hit(Hit),
+    Finished(PunchSummary),
 }
 
 #[godot_api]
@@ -135,7 +109,7 @@ impl PunchController {
     fn punch(&mut self) -> bool {
         match self.start() {
             Ok(()) => {
-                batch::enlist(self.to_gd());
+                PunchInference::enlist(self.to_gd());
                 self.signals().punch_started().emit();
                 true
             }
@@ -179,14 +153,14 @@ impl PunchController {
     /// driving) since the last call: for benchmarks.
     #[func]
     fn take_frame_cost_usec() -> f64 {
-        batch::take_frame_cost_usec()
+        PunchInference::singleton().bind_mut().take_frame_cost_usec()
     }
 
     /// How batched the inference was since the last call, over all controllers: `calls` to ONNX Runtime,
     /// the `rows` (controller decisions) they ran, and the time they took, `usec` (for benchmarks).
     #[func]
     fn take_inference_counts() -> VarDictionary {
-        let (calls, rows, usec) = batch::take_inference_counts();
+        let (calls, rows, usec) = PunchInference::take_inference_counts();
         let mut counts = VarDictionary::new();
         counts.set("calls", calls as i64);
         counts.set("rows", rows as i64);
@@ -200,12 +174,22 @@ impl PunchController {
         FEATURE_NAMES.iter().map(|name| GString::from(*name)).collect()
     }
 
+    /// Where the training puts the target's centre relative to the character's root, in the character's
+    /// frame (+Z ahead, +Y up, +X the character's left): place a target here for the trained punch.
+    #[func]
+    fn default_target_offset() -> Vector3 {
+        let position = BagPlacement::DEFAULT.position();
+        Vector3::new(position.x, position.y, position.z)
+    }
+
+    /// Sets the policy file; the next punch loads it.
     #[func]
     fn set_policy(&mut self, policy: GString) {
         self.policy = policy;
         self.loaded = None;
     }
 
+    /// Sets `noise_sigma`, clamped to 0..1 with a warning.
     #[func]
     fn set_noise_sigma(&mut self, sigma: f32) {
         let clamped = if sigma.is_finite() { sigma.clamp(0.0, 1.0) } else { 0.0 };
@@ -222,8 +206,9 @@ impl PunchController {
 impl PunchController {
     fn start(&mut self) -> Result<(), String> {
         if self.loaded.is_none() {
-            let policy = SharedPolicy::get(&self.policy)?;
-            self.loaded = Some(Loaded { policy, noise: GaussianNoise::new(self.seed as u64) });
+            let policy = PunchInference::policy(&self.policy)?;
+            let noise = RuntimeNoise::new(self.seed as u64, self.noise_sigma, self.noise_decisions);
+            self.loaded = Some(Loaded { policy, noise });
         }
         let loaded = self.loaded.as_ref().ok_or("no policy")?;
         loaded.policy.check_spec(self.decision_period.max(1) as u32)?;
@@ -240,18 +225,7 @@ impl PunchController {
         let root = character.get_global_transform();
         geometry.root_rotation = quat(root.basis.get_quaternion());
         geometry.root_position = vec3(root.origin);
-        self.state = Some(Running {
-            controller: CharacterController::new(geometry, loaded.policy.smoothing_window),
-            fist_offsets: geometry.fist_offsets,
-            frame: 0,
-            frames: loaded.policy.frames,
-            reading: FrameReading::default(),
-            touching: false,
-            peak_speed_mps: 0.0,
-            hits: 0,
-            strongest_hit_ns: 0.0,
-            record: self.record.then(Record::default),
-        });
+        self.state = Some(Punch::new(geometry, loaded.policy.spec, self.record));
         Ok(())
     }
 
@@ -263,7 +237,7 @@ impl PunchController {
 
     /// First half of a frame: reads the frame just simulated and, when a decision is due, returns the
     /// observation to decide on (with the policy to ask). Ends the punch after its last frame.
-    pub(crate) fn sense(&mut self) -> Option<(Rc<SharedPolicy>, [f32; OBS_DIM])> {
+    pub(crate) fn sense(&mut self) -> Option<DecisionRequest> {
         match self.try_sense() {
             Ok(request) => request,
             Err(error) => {
@@ -273,35 +247,23 @@ impl PunchController {
         }
     }
 
-    fn try_sense(&mut self) -> Result<Option<(Rc<SharedPolicy>, [f32; OBS_DIM])>, String> {
+    fn try_sense(&mut self) -> Result<Option<DecisionRequest>, String> {
         let character = live(&self.character).ok_or("the character was freed")?;
         let target = live(&self.target).ok_or("the target was freed")?;
         let reading = read(&character, &target)?;
-        let period = self.decision_period.max(1) as usize;
-        let (Some(state), Some(loaded)) = (self.state.as_mut(), self.loaded.as_ref()) else { return Ok(None) };
-        let features = state.controller.features(&reading);
-        if let Some(hit) = track_hits(state, &features, &reading) {
-            self.events.push(hit);
+        let (Some(punch), Some(loaded)) = (self.state.as_mut(), self.loaded.as_ref()) else { return Ok(None) };
+        let (hit, sensed) = punch.sense(reading);
+        self.events.extend(hit.map(Event::Hit));
+        match sensed {
+            Sensed::Hold => Ok(None),
+            Sensed::Decide(observation) => Ok(Some((loaded.policy.clone(), *observation))),
+            Sensed::Finished(summary, record) => {
+                self.state = None;
+                self.events.push(Event::Finished(summary));
+                self.last_record = record.unwrap_or_default();
+                Ok(None)
+            }
         }
-        if let Some(record) = state.record.as_mut().filter(|_| state.frame > 0) {
-            record.features.extend_from_slice(&features);
-        }
-        state.reading = reading;
-        if state.frame >= state.frames {
-            let mut finished = self.state.take().expect("checked above");
-            self.events.push(Event::Finished(finish_metrics(&finished)));
-            self.last_record = finished.record.take().unwrap_or_default();
-            return Ok(None);
-        }
-        if state.frame % period != 0 {
-            return Ok(None);
-        }
-        let decision = (state.frame / period) as u32;
-        let observation = observation(&features, decision, (state.frames / period) as u32);
-        if let Some(record) = state.record.as_mut() {
-            record.observations.extend_from_slice(&observation);
-        }
-        Ok(Some((loaded.policy.clone(), observation)))
     }
 
     /// Second half of a frame: takes the decision's mean action (when one was due), adds the noise, and
@@ -313,31 +275,16 @@ impl PunchController {
     }
 
     fn try_act(&mut self, mean: Option<Result<Vec<f32>, String>>) -> Result<(), String> {
-        let (sigma, noisy_decisions, period) = (self.noise_sigma, self.noise_decisions, self.decision_period.max(1));
         if self.state.is_none() {
             return Ok(());
         }
         let character = live(&self.character).ok_or("the character was freed")?;
-        let (Some(state), Some(loaded)) = (self.state.as_mut(), self.loaded.as_mut()) else { return Ok(()) };
-        if let Some(mean) = mean {
-            let mean = mean?;
-            if mean.iter().any(|v| !v.is_finite()) {
-                return Err("the policy returned NaN or infinite actions".into());
-            }
-            let decision = state.frame as i32 / period;
-            let noisy = noisy_decisions < 0 || decision < noisy_decisions;
-            let action: Vec<f32> = mean
-                .iter()
-                .map(|m| if noisy && sigma > 0.0 { m + sigma * loaded.noise.sample() } else { *m })
-                .collect();
-            state.controller.set_action(&action).map_err(|e| e.to_string())?;
-            if let Some(record) = state.record.as_mut() {
-                record.mean_actions.extend_from_slice(&mean);
-                record.actions.extend_from_slice(&action);
-            }
-        }
-        let commands = state.controller.motor_commands(&state.reading);
-        state.frame += 1;
+        let (Some(punch), Some(loaded)) = (self.state.as_mut(), self.loaded.as_mut()) else { return Ok(()) };
+        // The inspector may change these at any time: they apply from the next decision.
+        loaded.noise.sigma = self.noise_sigma;
+        loaded.noise.noisy_decisions = self.noise_decisions;
+        let mean = mean.transpose()?;
+        let commands = punch.act(mean.as_deref(), &mut loaded.noise).map_err(|e| e.to_string())?;
         if let Some(rig) = character.bind().rig() {
             rig.drive(&commands);
         }
@@ -349,10 +296,12 @@ impl PunchController {
         let events = std::mem::take(&mut controller.bind_mut().events);
         for event in events {
             match event {
-                Event::Hit { impulse_ns, speed_mps, position } => {
-                    controller.signals().hit().emit(impulse_ns, speed_mps, position)
-                }
-                Event::Finished(metrics) => controller.signals().punch_finished().emit(&metrics),
+                Event::Hit(hit) => controller.signals().hit().emit(
+                    hit.impulse_ns,
+                    hit.speed_mps,
+                    Vector3::new(hit.position.x, hit.position.y, hit.position.z),
+                ),
+                Event::Finished(summary) => controller.signals().punch_finished().emit(&finish_metrics(&summary)),
             }
         }
     }
@@ -384,37 +333,12 @@ fn read(character: &Gd<PunchCharacter>, target: &Gd<Node3D>) -> Result<FrameRead
     Ok(reading)
 }
 
-/// Updates the punch's statistics; returns a hit when a fist starts touching the target this frame.
-fn track_hits(state: &mut Running, features: &[f32; FEATURE_COUNT], reading: &FrameReading) -> Option<Event> {
-    let length = |column: usize| feature_vector(features, column).length();
-    let speeds = [length(columns::FIST_R_VEL), length(columns::FIST_L_VEL)];
-    let impulses = [length(columns::FIST_R_IMPULSE), length(columns::FIST_L_IMPULSE)];
-    let previous_peak = state.peak_speed_mps;
-    state.peak_speed_mps = state.peak_speed_mps.max(speeds[0]).max(speeds[1]);
-    let side = if impulses[0] >= impulses[1] { 0 } else { 1 };
-    let touching = impulses[side] > HIT_IMPULSE_NS;
-    let started = touching && !state.touching;
-    state.touching = touching;
-    if !started {
-        return None;
-    }
-    state.hits += 1;
-    state.strongest_hit_ns = state.strongest_hit_ns.max(impulses[side]);
-    let forearm = &reading.bodies[[Body::ForearmR, Body::ForearmL][side].index()];
-    let fist = forearm.position + forearm.rotation * state.fist_offsets[side];
-    Some(Event::Hit {
-        impulse_ns: impulses[side],
-        speed_mps: previous_peak.max(speeds[side]),
-        position: Vector3::new(fist.x, fist.y, fist.z),
-    })
-}
-
-fn finish_metrics(state: &Running) -> VarDictionary {
+fn finish_metrics(summary: &PunchSummary) -> VarDictionary {
     let mut metrics = VarDictionary::new();
-    metrics.set("frames", state.frame as i64);
-    metrics.set("peak_fist_speed_mps", state.peak_speed_mps);
-    metrics.set("hits", state.hits);
-    metrics.set("strongest_hit_ns", state.strongest_hit_ns);
+    metrics.set("frames", summary.frames as i64);
+    metrics.set("peak_fist_speed_mps", summary.peak_fist_speed_mps);
+    metrics.set("hits", summary.hits);
+    metrics.set("strongest_hit_ns", summary.strongest_hit_ns);
     metrics
 }
 

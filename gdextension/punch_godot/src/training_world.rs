@@ -312,8 +312,9 @@ impl World for TrainingWorld {
         for first in (0..self.slot_count).step_by(self.slots_per_world) {
             let arena = World3D::new_gd();
             let space = arena.get_space();
-            for slot in first..(first + self.slots_per_world).min(self.slot_count) {
-                let built = self.build_slot(&mut server, space, slot, &placements[slot]);
+            let end = (first + self.slots_per_world).min(self.slot_count);
+            for (slot, placement) in placements.iter().enumerate().take(end).skip(first) {
+                let built = self.build_slot(&mut server, space, slot, placement);
                 self.slots.push(built);
             }
             self.arenas.push(arena);

@@ -14,16 +14,17 @@ import copy
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
 from tqdm import tqdm
 
-from punch_trainer.checkpoint import load_checkpoint, save_checkpoint
-from punch_trainer.env import PunchVectorEnv
-from punch_trainer.policy import ActorCritic
-from punch_trainer.rewards import Reward, evaluate, total
-from punch_trainer.rollouts import SimulatorRestarts
+from punch_trainer.learn.checkpoint import load_checkpoint, save_checkpoint
+from punch_trainer.learn.policy import ActorCritic
+from punch_trainer.sim.env import PunchVectorEnv
+from punch_trainer.sim.rewards import Reward, score
+from punch_trainer.sim.server_group import SimulatorRestarts
 
 
 @dataclass
@@ -46,11 +47,6 @@ class A2CArgs:
     seed: int = 0
 
 
-def decision_rewards(reward: Reward, features: np.ndarray, names: list[str]) -> np.ndarray:
-    """Rewards per character for one decision: features [N, frames_per_decision, F] -> [N]."""
-    return total(evaluate(reward, features, names)).sum(axis=-1)
-
-
 def evaluate_noise_free(model: ActorCritic, env: PunchVectorEnv, reward: Reward) -> float:
     """Return of the policy's mean actions (every character does the same, so character 0 is enough)."""
     obs, _ = env.reset()
@@ -59,7 +55,7 @@ def evaluate_noise_free(model: ActorCritic, env: PunchVectorEnv, reward: Reward)
         with torch.no_grad():
             mean, _ = model(torch.as_tensor(obs))
         obs, _, terminated, truncated, info = env.step(mean.numpy())
-        episode += float(decision_rewards(reward, info["features"][:1], env.feature_names)[0])
+        episode += float(score(reward, info["features"][:1], env.feature_names)[0])
         if terminated[0] or truncated[0]:
             return episode
 
@@ -78,7 +74,7 @@ def collect_episodes(model: ActorCritic, env: PunchVectorEnv, reward: Reward) ->
             logp = dist.log_prob(action).sum(-1)
             value = model.value(obs_t)
         obs, _, terminated, truncated, info = env.step(action.clamp(-1, 1).numpy())
-        step_rewards = torch.as_tensor(decision_rewards(reward, info["features"], env.feature_names), dtype=torch.float32)
+        step_rewards = torch.as_tensor(score(reward, info["features"], env.feature_names), dtype=torch.float32)
         for key, item in zip(batch, (obs_t, action, logp, value, step_rewards)):
             batch[key].append(item)
         done = terminated | truncated
@@ -102,7 +98,7 @@ def advantages_and_returns(rewards: torch.Tensor, values: torch.Tensor, best_epi
 
 
 def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVectorEnv, progress: bool = True,
-              start_rollouts: int = 0, run_dir: Path | None = None, max_restarts: int = 3) -> tuple[ActorCritic, list[dict]]:
+              start_rollouts: int = 0, run_dir: Path | None = None, max_restarts: int = 3) -> tuple[ActorCritic, list[dict[str, Any]]]:
     """Trains in place and returns the parameters with the best noise-free return, with the history.
 
     With `run_dir` it checkpoints after every update (model, optimizer, best model, history and the random
@@ -134,7 +130,7 @@ def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVecto
                        initial=done_updates, total=args.updates, disable=not progress):
         rng_state = torch.get_rng_state()
 
-        def collect() -> dict[str, torch.Tensor]:
+        def collect(rng_state: torch.Tensor = rng_state) -> dict[str, torch.Tensor]:
             torch.set_rng_state(rng_state)  # a rerun after a restart samples the same actions
             return collect_episodes(model, env, reward)
 
@@ -142,7 +138,7 @@ def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVecto
         episode_returns = batch["rewards"].sum(0)
         best_episode_return = max(best_episode_return, float(episode_returns.max()))
         advantages, returns = advantages_and_returns(batch["rewards"], batch["values"], best_episode_return, args)
-        flat = lambda x: x.reshape(-1, *x.shape[2:])  # noqa: E731
+        flat = lambda x: x.reshape(-1, *x.shape[2:])
         b_obs, b_actions, b_logp = flat(batch["obs"]), flat(batch["actions"]), flat(batch["logp"])
         b_adv, b_returns = flat(advantages), flat(returns)
         b_adv = (b_adv - b_adv.mean()) / (b_adv.std() + 1e-8)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from punch_trainer.godot import PROJECT_ROOT
+from punch_trainer.sim.godot import PROJECT_ROOT
 
 DEFAULT_BVH = PROJECT_ROOT.parent / "shared" / "data" / "cmu_143_23.bvh"
 # Shoulder joint to fist centre of the simulated character (docs/env.md).
@@ -32,7 +32,11 @@ class Skeleton:
 
 def read_bvh(path: Path) -> Skeleton:
     tokens = path.read_text().split()
-    names, parents, offsets, channels, stack = [], [], [], [], []
+    names: list[str] = []
+    parents: list[int] = []
+    offsets: list[list[float]] = []
+    channels: list[list[str]] = []
+    stack: list[int] = []
     i = tokens.index("HIERARCHY") + 1
     while tokens[i] != "MOTION":
         token = tokens[i]
@@ -115,6 +119,7 @@ def captured_punch(path: Path = DEFAULT_BVH, reach_frame: int = 140, lead_s: flo
         reach = np.linalg.norm(positions[reach_frame, hand] - positions[reach_frame, shoulder]) / arm_length
         if best is None or reach > best[0]:
             best = (reach, side, shoulder, hand, arm_length)
+    assert best is not None  # both sides were measured
     _, side, shoulder, hand, arm_length = best
     start = max(1, reach_frame - int(round(lead_s / skeleton.frame_time_s)))  # frame 0 is the T-pose
     relative = positions[start:reach_frame + 1, hand] - positions[start:reach_frame + 1, shoulder]
@@ -128,7 +133,7 @@ def captured_punch(path: Path = DEFAULT_BVH, reach_frame: int = 140, lead_s: flo
             "peak_speed_mps": np.array(speed.max())}
 
 
-def plot_against_capture(out: Path, dataset: dict, bvh: Path = DEFAULT_BVH) -> Path | None:
+def plot_against_capture(out: Path, dataset: dict[str, np.ndarray], bvh: Path = DEFAULT_BVH) -> Path | None:
     """Side and top views of the searched right-fist path and the captured punch (paper Fig. 4), or None
     when the capture file is not there."""
     if not bvh.is_file():

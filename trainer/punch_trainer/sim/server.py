@@ -4,21 +4,28 @@ has a timeout, and the process is killed by its own PID on close."""
 
 from __future__ import annotations
 
-import ctypes
-import os
 import selectors
-import signal
 import socket
 import subprocess
-import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from punch_trainer.errors import GodotRunError, PunchError
-from punch_trainer.godot import GODOT_PROJECT, godot_command
-from punch_trainer.protocol import PROTOCOL_VERSION, Message, ServerError, receive
+from punch_trainer.sim.godot import GODOT_PROJECT, start_godot, stop_godot
+from punch_trainer.sim.protocol import (
+    PROTOCOL_VERSION,
+    Bags,
+    Message,
+    ServerError,
+    close_message,
+    hello_message,
+    receive,
+    reset_message,
+    rollout_message,
+    step_message,
+)
 
 SERVER_SCENE = "res://training/training_server.tscn"
 READY_PREFIX = "PUNCH_SERVER_READY "
@@ -30,7 +37,8 @@ class ProtocolVersionError(PunchError):
 
 @dataclass(frozen=True)
 class ServerInfo:
-    """What the server said in its handshake."""
+    """What the server said in its handshake: the policy spec (defined once, in punch_core::spec) and the
+    server's own settings."""
 
     slot_count: int
     decision_period: int
@@ -43,6 +51,16 @@ class ServerInfo:
     action_upper_rad: list[float]
     observation_names: list[str]
     feature_names: list[str]
+    default_bag: dict[str, float] = field(default_factory=dict)
+    """where the bag hangs unless a reset says otherwise (distance_m, height_m, side_m)"""
+
+    @property
+    def observation_size(self) -> int:
+        return len(self.observation_names)
+
+    @property
+    def action_size(self) -> int:
+        return len(self.action_names)
 
 
 class TrainingServer:
@@ -52,20 +70,17 @@ class TrainingServer:
                  start_timeout_s: float = 60.0, reply_timeout_s: float = 120.0, idle_timeout_s: float = 120.0):
         """`slots_per_world` = 1 puts every character in a physics world of its own: bitwise-identical results
         whatever the slot, at about 2.7 times the cost (docs/env.md, Episodes)."""
-        self._process: subprocess.Popen | None = None
+        self._process: subprocess.Popen[str] | None = None
         self._socket: socket.socket | None = None
         self.reply_timeout_s = reply_timeout_s
-        command = godot_command() + [
+        self._log: list[str] = []
+        self._process = start_godot([
             # --fixed-fps: run frames back to back without waiting for the wall clock. The server checks the
             # physics rate itself and blocks between commands, so this value only sets steps per frame.
             "--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), SERVER_SCENE, "--",
             "--port=0", f"--slots={slot_count}", f"--decision-period={decision_period}",
             f"--slots-per-world={slots_per_world}", f"--idle-timeout-s={idle_timeout_s}",
-        ]
-        self._log: list[str] = []
-        self._process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                         text=True, errors="replace", start_new_session=True,
-                                         preexec_fn=_die_with_parent if sys.platform == "linux" else None)
+        ])
         try:
             port = self.port = self._wait_until_ready(start_timeout_s)
             self._socket = socket.create_connection(("127.0.0.1", port), timeout=start_timeout_s)
@@ -94,13 +109,17 @@ class TrainingServer:
         raise GodotRunError(f"the training server was not ready within {timeout_s:.0f} s:\n{''.join(self._log[-30:])}", "".join(self._log))
 
     def _handshake(self) -> ServerInfo:
-        reply = self.request(Message("hello", {"protocol_version": PROTOCOL_VERSION}))
+        try:
+            reply = self.request(hello_message())
+        except ServerError as error:
+            raise ProtocolVersionError(f"the server refused our protocol version {PROTOCOL_VERSION}: {error} "
+                                       "(rebuild the extension: ./dev setup)") from None
         if reply.fields.get("protocol_version") != PROTOCOL_VERSION:
             raise ProtocolVersionError(f"server speaks protocol {reply.fields.get('protocol_version')}, we speak {PROTOCOL_VERSION}")
         f = reply.fields
         return ServerInfo(f["slot_count"], f["decision_period"], f["physics_hz"], f["spec_hash"], f["spec_version"],
                           f["extension_version"], f["action_names"], f["action_lower_rad"], f["action_upper_rad"],
-                          f["observation_names"], f["feature_names"])
+                          f["observation_names"], f["feature_names"], f["default_bag"])
 
     @property
     def pid(self) -> int | None:
@@ -121,24 +140,22 @@ class TrainingServer:
         self.send(message)
         return self.receive()
 
-    def reset(self, frames: int = 50, bags: list[dict] | dict | None = None, smoothing_window: int = 1) -> Message:
-        fields = {"frames": frames, "smoothing_window": smoothing_window}
-        if bags is not None:
-            fields["bags"] = bags
-        return self.request(Message("reset", fields))
+    def reset(self, frames: int = 50, bags: Bags = None, smoothing_window: int = 1) -> Message:
+        """A new episode for every slot. The reply holds `observations` [N, O], `features` [N, F] and the
+        `policy_metadata` that a policy trained on such episodes must carry."""
+        return self.request(reset_message(frames, bags=bags, smoothing_window=smoothing_window))
 
     def step(self, actions: np.ndarray) -> Message:
-        return self.request(Message("step", arrays={"actions": np.asarray(actions, dtype=np.float32)}))
+        """One decision of actions [N, A]; the reply holds its `features` [N, period, F] and the next
+        `observations`."""
+        return self.request(step_message(actions))
 
-    def rollout_reply(self, actions: np.ndarray, bags: list[dict] | dict | None = None, smoothing_window: int = 1) -> Message:
-        """Open loop: raw actions [N, decisions, 10] from the initial state. The reply holds `features`
-        [N, frames, F] and `executed_actions` [N, decisions, 10] (after smoothing)."""
-        fields = {"smoothing_window": smoothing_window}
-        if bags is not None:
-            fields["bags"] = bags
-        return self.request(Message("rollout", fields, {"actions": np.asarray(actions, dtype=np.float32)}))
+    def rollout_reply(self, actions: np.ndarray, bags: Bags = None, smoothing_window: int = 1) -> Message:
+        """Open loop: raw actions [N, decisions, A] from the initial state. The reply holds `features`
+        [N, frames, F] and `executed_actions` [N, decisions, A] (after smoothing)."""
+        return self.request(rollout_message(actions, bags=bags, smoothing_window=smoothing_window))
 
-    def rollout(self, actions: np.ndarray, bags: list[dict] | dict | None = None, smoothing_window: int = 1) -> np.ndarray:
+    def rollout(self, actions: np.ndarray, bags: Bags = None, smoothing_window: int = 1) -> np.ndarray:
         """Open loop; returns only the features [N, frames, F]."""
         return self.rollout_reply(actions, bags, smoothing_window).arrays["features"]
 
@@ -147,30 +164,19 @@ class TrainingServer:
         if self._socket is not None:
             try:
                 self._socket.settimeout(2.0)
-                self.send(Message("close"))
+                self.send(close_message())
             except (OSError, PunchError):
                 pass
             self._socket.close()
             self._socket = None
         if self._process is not None:
             process, self._process = self._process, None
-            if process.poll() is None:
-                try:
-                    os.killpg(process.pid, signal.SIGTERM)
-                except ProcessLookupError:
-                    pass
-                try:
-                    process.wait(timeout=5)
-                except subprocess.TimeoutExpired:
-                    os.killpg(process.pid, signal.SIGKILL)
-                    process.wait(timeout=5)
-            if process.stdout:
-                process.stdout.close()
+            stop_godot(process)
 
     def __enter__(self) -> TrainingServer:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     def __del__(self) -> None:
@@ -189,16 +195,6 @@ def start_servers(processes: int, characters_per_process: int, decision_period: 
             server.close()
         raise
     return servers
-
-
-def _die_with_parent() -> None:
-    """Runs in the Godot child before exec: Linux kills it when the trainer dies, even by SIGKILL, so a crashed
-    trainer leaves no simulator behind (PR_SET_PDEATHSIG survives the exec of tools/godot and Godot)."""
-    PR_SET_PDEATHSIG = 1
-    try:
-        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
-    except (OSError, AttributeError):
-        pass
 
 
 def exchange(servers: list[TrainingServer], messages: list[Message]) -> list[Message]:

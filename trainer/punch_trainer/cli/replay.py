@@ -15,19 +15,19 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import onnx
 from tqdm import tqdm
 
 from punch_trainer.errors import GodotRunError, PunchError
-from punch_trainer.godot import FATAL_LOG_PATTERNS, GODOT_PROJECT, godot_command, tail
-from punch_trainer.rewards import evaluate, load_reward, total
-from punch_trainer.search import first_right_contact
+from punch_trainer.report.motion import first_right_contact
+from punch_trainer.sim.godot import FATAL_LOG_PATTERNS, GODOT_PROJECT, start_godot, stop_godot, tail
+from punch_trainer.sim.rewards import Reward, load_reward, score
 
 KINDS = ("features", "observations", "mean_actions", "actions")
 # Paths drawn per sigma in the Fig. 11 plot.
@@ -86,9 +86,9 @@ def policy_metadata(path: Path) -> dict[str, str]:
     return {p.key: p.value for p in model.metadata_props}
 
 
-def run_godot_replay(args: ReplayArgs, frames_dir: Path, progress: bool = True) -> dict:
+def run_godot_replay(args: ReplayArgs, frames_dir: Path, progress: bool = True) -> dict[str, Any]:
     """Runs tools/replay.gd; returns its meta.json. Raises ReplayError when Godot fails."""
-    command = godot_command() + [
+    command = [
         "--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), "--script", "res://tools/replay.gd", "--",
         f"--policy={Path(args.policy).resolve()}", f"--sigmas={','.join(map(str, args.sigmas))}",
         f"--episodes={args.episodes}", f"--out={frames_dir.resolve()}", f"--noise-decisions={args.noise_decisions}",
@@ -97,9 +97,9 @@ def run_godot_replay(args: ReplayArgs, frames_dir: Path, progress: bool = True) 
     log: list[str] = []
     total_punches = len(args.sigmas) * args.episodes
     deadline = time.monotonic() + args.timeout_s
-    with subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                          text=True, errors="replace") as process, \
-            tqdm(total=total_punches, desc="replay (Godot)", unit="punch", disable=not progress) as bar:
+    process = start_godot(command)
+    assert process.stdout is not None
+    with tqdm(total=total_punches, desc="replay (Godot)", unit="punch", disable=not progress) as bar:
         try:
             for line in process.stdout:
                 log.append(line)
@@ -109,19 +109,19 @@ def run_godot_replay(args: ReplayArgs, frames_dir: Path, progress: bool = True) 
                     raise ReplayError(f"the replay did not finish within {args.timeout_s:.0f} s")
             process.wait(timeout=60)
         finally:
-            if process.poll() is None:
-                process.kill()
+            stop_godot(process)
     text = "".join(log)
     fatal = [line for line in log if any(p in line for p in FATAL_LOG_PATTERNS) or line.startswith("error: replay")]
     if process.returncode != 0 or fatal or "REPLAY_DONE" not in text:
         raise GodotRunError(f"the Godot replay failed (exit code {process.returncode}):\n{tail(text)}", text)
-    return json.loads((frames_dir / "meta.json").read_text())
+    meta: dict[str, Any] = json.loads((frames_dir / "meta.json").read_text())
+    return meta
 
 
-def analyse_sigma(features: np.ndarray, names: list[str], reward, chunk: int = 2000) -> dict:
+def analyse_sigma(features: np.ndarray, names: list[str], reward: Reward, chunk: int = 2000) -> dict[str, Any]:
     """Returns, success and spreads of one sigma's punches, features [episodes, frames, F] (may be a memmap)."""
     col = names.index
-    returns = np.concatenate([total(evaluate(reward, np.asarray(features[i:i + chunk], dtype=np.float64), names)).sum(-1)
+    returns = np.concatenate([score(reward, np.asarray(features[i:i + chunk], dtype=np.float64), names)
                               for i in range(0, len(features), chunk)])
     fist = np.asarray(features[:, :, col("fist_r_pos_x"):col("fist_r_pos_z") + 1], dtype=np.float64)
     hit, first = first_right_contact(features, names)
@@ -137,7 +137,7 @@ def analyse_sigma(features: np.ndarray, names: list[str], reward, chunk: int = 2
     }
 
 
-def run_replay(args: ReplayArgs, progress: bool = True) -> tuple[Path, list[dict]]:
+def run_replay(args: ReplayArgs, progress: bool = True) -> tuple[Path, list[dict[str, Any]]]:
     metadata = policy_metadata(args.policy)
     if not args.sigmas or any(not 0.0 <= s <= 1.0 for s in args.sigmas):
         raise ReplayError(f"sigmas must lie in [0, 1], got {args.sigmas}")
@@ -176,7 +176,7 @@ def run_replay(args: ReplayArgs, progress: bool = True) -> tuple[Path, list[dict
             for kind in KINDS:
                 (frames_dir / f"{kind}_{index}.f32").unlink(missing_ok=True)
 
-    from punch_trainer.plots import plot_replay
+    from punch_trainer.report.plots import plot_replay
 
     plots = plot_replay(out, args.sigmas, rows, analyses, best)
     config = {"policy": str(args.policy), "reward": reward_name, "search_best_return": best, "noise_decisions": args.noise_decisions,
@@ -199,7 +199,7 @@ def run_replay(args: ReplayArgs, progress: bool = True) -> tuple[Path, list[dict
     return out, rows
 
 
-def replay_frames(frames_dir: Path, sigma_index: int, meta: dict) -> dict[str, np.ndarray]:
+def replay_frames(frames_dir: Path, sigma_index: int, meta: dict[str, Any]) -> dict[str, np.ndarray]:
     """Godot's raw record of one sigma (with --keep-frames): features, observations, mean_actions, actions."""
     shapes = {"features": (meta["frames"], len(meta["feature_names"])), "observations": (meta["decisions"], -1),
               "mean_actions": (meta["decisions"], -1), "actions": (meta["decisions"], -1)}

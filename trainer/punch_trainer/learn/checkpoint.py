@@ -17,18 +17,21 @@ import os
 import time
 from dataclasses import asdict, fields
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 import torch
 
 from punch_trainer.errors import PunchError
 
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
+
 CHECKPOINT_FILE = "checkpoint.pt"
 CONFIG_FILE = "config.json"
 CHECKPOINT_VERSION = 1
 
-ArgsT = TypeVar("ArgsT")
+ArgsT = TypeVar("ArgsT", bound="DataclassInstance")
 
 
 class CheckpointError(PunchError):
@@ -75,7 +78,8 @@ def load_checkpoint(run_dir: Path, kind: str) -> dict[str, Any] | None:
         raise CheckpointError(f"cannot read the checkpoint {path}: {error}") from error
     if not isinstance(saved, dict) or saved.get("version") != CHECKPOINT_VERSION or saved.get("kind") != kind:
         raise CheckpointError(f"{path} is not a version-{CHECKPOINT_VERSION} {kind} checkpoint")
-    return saved["state"]
+    state: dict[str, Any] = saved["state"]
+    return state
 
 
 def write_config(run_dir: Path, args: Any, **extra: Any) -> None:

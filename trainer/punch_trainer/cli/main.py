@@ -6,20 +6,32 @@ import argparse
 import contextlib
 import os
 import sys
+from collections.abc import Iterator
 from pathlib import Path
-from typing import TypeVar
+from typing import Any, ClassVar, Protocol, TypeVar
 
 from punch_trainer import __version__
-from punch_trainer.checkpoint import read_config
 from punch_trainer.errors import PunchError
-from punch_trainer.godot import GODOT_PROJECT
+from punch_trainer.learn.checkpoint import read_config
+from punch_trainer.sim.godot import GODOT_PROJECT
 
 DEMO_POLICY = GODOT_PROJECT / "demo" / "policies" / "straight.onnx"
-RunArgs = TypeVar("RunArgs")
+
+
+class _RunArgs(Protocol):
+    """What SearchArgs and TrainArgs share: dataclasses with an `out` run directory."""
+
+    __dataclass_fields__: ClassVar[dict[str, Any]]
+    out: Path | None
+
+    def run_dir(self) -> Path: ...
+
+
+RunArgsT = TypeVar("RunArgsT", bound=_RunArgs)
 
 
 def _selfcheck(args: argparse.Namespace) -> int:
-    from punch_trainer.selfcheck import run_selfcheck
+    from punch_trainer.cli.selfcheck import run_selfcheck
 
     report = run_selfcheck(batch=args.batch, seed=args.seed)
     print("\n".join(report.lines()))
@@ -28,7 +40,7 @@ def _selfcheck(args: argparse.Namespace) -> int:
 
 
 def _bench_env(args: argparse.Namespace) -> int:
-    from punch_trainer.bench import bench_env, env_table, write_section
+    from punch_trainer.cli.bench import bench_env, env_table, write_section
 
     results = bench_env(characters=args.characters, processes=args.processes, frames=args.frames, episodes=args.episodes)
     table = env_table(results)
@@ -44,7 +56,7 @@ def _bench_env(args: argparse.Namespace) -> int:
 
 
 def _bench_inference(args: argparse.Namespace) -> int:
-    from punch_trainer.bench import bench_inference, inference_table, write_section
+    from punch_trainer.cli.bench import bench_inference, inference_table, write_section
 
     rows = bench_inference(args.policy, args.characters, args.batches)
     table = inference_table(rows)
@@ -62,7 +74,8 @@ def _bench_inference(args: argparse.Namespace) -> int:
 
 
 def _search(args: argparse.Namespace) -> int:
-    from punch_trainer.search import SearchArgs, run_search
+    from punch_trainer.cli.search import run_search
+    from punch_trainer.learn.search import SearchArgs
 
     search_args = _run_args(args, SearchArgs)
     with _resume_hint("search", search_args.out):
@@ -74,11 +87,10 @@ def _search(args: argparse.Namespace) -> int:
 
 
 def _bench_search(args: argparse.Namespace) -> int:
-    from punch_trainer.bench import bench_search, search_table, write_section
-
     import tempfile
 
-    from punch_trainer.godot import PROJECT_ROOT
+    from punch_trainer.cli.bench import bench_search, search_table, write_section
+    from punch_trainer.sim.godot import PROJECT_ROOT
 
     plot = Path(tempfile.mkdtemp()) / "bench_search.png" if args.no_write else PROJECT_ROOT / "docs" / "bench_search.png"
     rows = bench_search(plot, args.presets, args.seeds, args.iterations, args.rollouts)
@@ -100,7 +112,7 @@ def _bench_search(args: argparse.Namespace) -> int:
 
 
 def _train(args: argparse.Namespace) -> int:
-    from punch_trainer.train import TrainArgs, run_train
+    from punch_trainer.cli.train import TrainArgs, run_train
 
     train_args = _run_args(args, TrainArgs)
     with _resume_hint("train", train_args.out):
@@ -110,7 +122,7 @@ def _train(args: argparse.Namespace) -> int:
     return 0
 
 
-def _run_args(args: argparse.Namespace, args_type: type[RunArgs]) -> RunArgs:
+def _run_args(args: argparse.Namespace, args_type: type[RunArgsT]) -> RunArgsT:
     """The arguments of `punch search` or `punch train`: the run's own when resuming, else the command line's,
     with the run directory fixed now, so that an interruption can name it."""
     if args.resume is not None:
@@ -121,7 +133,7 @@ def _run_args(args: argparse.Namespace, args_type: type[RunArgs]) -> RunArgs:
 
 
 @contextlib.contextmanager
-def _resume_hint(command: str, out: Path):
+def _resume_hint(command: str, out: Path | None) -> Iterator[None]:
     """Ctrl-C ends the command with the run directory consistent (the last checkpoint is whole) and says how
     to continue."""
     try:
@@ -135,9 +147,9 @@ def _resume_hint(command: str, out: Path):
 def _fig6(args: argparse.Namespace) -> int:
     import shutil
 
-    from punch_trainer.bench import write_section
-    from punch_trainer.experiments import fig6, fig6_table
-    from punch_trainer.godot import PROJECT_ROOT
+    from punch_trainer.cli.bench import write_section
+    from punch_trainer.cli.experiments import fig6, fig6_table
+    from punch_trainer.sim.godot import PROJECT_ROOT
 
     out, rows = fig6(args.reward, args.seeds, args.search_iterations, args.a2c_updates, args.characters)
     table = fig6_table(rows)
@@ -156,23 +168,29 @@ def _fig6(args: argparse.Namespace) -> int:
 
 
 def _pretrain(args: argparse.Namespace) -> int:
-    from punch_trainer.export import export_policy
-    from punch_trainer.policy import Actor, ActorCritic
-    from punch_trainer.pretrain import PretrainArgs, load_datasets, pretrain
+    from punch_trainer.learn.dataset import load_datasets
+    from punch_trainer.learn.export import export_policy
+    from punch_trainer.learn.policy import ActorCritic
+    from punch_trainer.learn.pretrain import PretrainArgs, pretrain
 
     data = load_datasets(args.datasets)
     model = ActorCritic(data["observations"].shape[1], data["actions"].shape[1], seed=args.seed)
     history = pretrain(model, data, PretrainArgs(epochs=args.epochs, seed=args.seed))
-    metadata = {"punch_spec_hash": str(data["spec_hash"]), "punch_training_summary":
-                f"pretrained on {len(args.datasets)} dataset(s), {len(data['actions'])} decisions, final actor MSE {history[-1]['actor_mse']:.3g}"}
-    path = export_policy(Actor(model), data["observations"].shape[1], args.out, metadata=metadata)
+    import numpy as np
+
+    # A policy names its reward when every dataset had the same one (punch replay scores with it).
+    rewards = sorted({str(np.load(path)["reward"]) for path in args.datasets})
+    summary = {"pretrained_on": [str(path) for path in args.datasets], "decisions": len(data["actions"]),
+               "final_actor_mse": history[-1]["actor_mse"]}
+    path = export_policy(model, args.out, contract=data["policy_metadata"], reward=rewards[0] if len(rewards) == 1 else "",
+                         summary=summary)
     print(f"pretrained on {len(data['actions'])} decisions from {len(args.datasets)} dataset(s); final actor MSE "
           f"{history[-1]['actor_mse']:.3g}; exported and verified: {path}")
     return 0
 
 
 def _replay(args: argparse.Namespace) -> int:
-    from punch_trainer.replay import ReplayArgs, parse_sigmas, run_replay
+    from punch_trainer.cli.replay import ReplayArgs, parse_sigmas, run_replay
 
     out, rows = run_replay(ReplayArgs(policy=args.policy, sigmas=parse_sigmas(args.sigmas), episodes=args.episodes,
                                       noise_decisions=args.noise_decisions, reward=args.reward, characters=args.characters,
@@ -184,8 +202,8 @@ def _replay(args: argparse.Namespace) -> int:
 
 
 def _render(args: argparse.Namespace) -> int:
-    from punch_trainer.render import RenderArgs, render
-    from punch_trainer.replay import parse_sigmas
+    from punch_trainer.cli.render import RenderArgs, render
+    from punch_trainer.cli.replay import parse_sigmas
 
     out = render(RenderArgs(policy=args.policy, out=args.out, sigmas=parse_sigmas(args.sigmas), noise_decisions=args.noise_decisions,
                             seconds=args.seconds, width=args.width, height=args.height, seed=args.seed))
@@ -204,7 +222,7 @@ def build_parser() -> argparse.ArgumentParser:
     selfcheck.set_defaults(run=_selfcheck)
 
     search = commands.add_parser("search", help="trajectory search (TTR) for a reward; writes a run directory")
-    from punch_trainer.search import SearchArgs
+    from punch_trainer.learn.search import SearchArgs
 
     defaults = SearchArgs()
     search.add_argument("--reward", default=defaults.reward, help="preset (straight, straight100, hook, swing) or FILE.py:FUNCTION")
@@ -310,7 +328,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        return args.run(args)
+        return int(args.run(args))
     except PunchError as error:
         print(f"punch: {error}", file=sys.stderr)
         return 1

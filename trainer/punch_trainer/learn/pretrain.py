@@ -5,13 +5,13 @@ work) are concatenated."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
 from tqdm import tqdm
 
-from punch_trainer.policy import ActorCritic
+from punch_trainer.learn.policy import ActorCritic
 
 
 @dataclass
@@ -25,28 +25,7 @@ class PretrainArgs:
     seed: int = 0
 
 
-def load_datasets(paths: list[Path]) -> dict[str, np.ndarray]:
-    """Concatenates the decision-level arrays of several datasets (they must share the spec)."""
-    parts = [dict(np.load(path)) for path in paths]
-    hashes = {str(p["spec_hash"]) for p in parts}
-    if len(hashes) != 1:
-        raise ValueError(f"datasets come from different observation specs: {sorted(hashes)}")
-    out = {key: np.concatenate([p[key] for p in parts]) for key in ("observations", "actions", "rewards")}
-    out["returns_to_go"] = np.concatenate([returns_to_go(p["rewards"], 1.0) for p in parts])
-    out["spec_hash"] = parts[0]["spec_hash"]
-    return out
-
-
-def returns_to_go(rewards: np.ndarray, gamma: float) -> np.ndarray:
-    out = np.zeros_like(rewards, dtype=np.float64)
-    running = 0.0
-    for t in range(len(rewards) - 1, -1, -1):
-        running = rewards[t] + gamma * running
-        out[t] = running
-    return out.astype(np.float32)
-
-
-def pretrain(model: ActorCritic, data: dict[str, np.ndarray], args: PretrainArgs, progress: bool = True) -> list[dict]:
+def pretrain(model: ActorCritic, data: dict[str, np.ndarray], args: PretrainArgs, progress: bool = True) -> list[dict[str, Any]]:
     """Fits the actor's mean to the dataset's actions and the critic to the returns-to-go; sets sigma."""
     torch.manual_seed(args.seed)
     model.set_normalization(data["observations"])

@@ -13,38 +13,41 @@ from __future__ import annotations
 
 import csv
 import time
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from tqdm import tqdm
 
-from punch_trainer.a2c import A2CArgs, train_a2c
-from punch_trainer.env import PunchEnv, PunchVectorEnv
-from punch_trainer.policy import ActorCritic
-from punch_trainer.pretrain import PretrainArgs, pretrain, returns_to_go
-from punch_trainer.rewards import Reward, evaluate, load_reward, total
-from punch_trainer.rollouts import RolloutPool
-from punch_trainer.search import SearchArgs, replay_dataset, trajectory_search
+from punch_trainer.learn.a2c import A2CArgs, train_a2c
+from punch_trainer.learn.dataset import record_dataset, returns_to_go
+from punch_trainer.learn.policy import ActorCritic
+from punch_trainer.learn.pretrain import PretrainArgs, pretrain
+from punch_trainer.learn.search import SearchArgs, trajectory_search
+from punch_trainer.sim.env import PunchEnv, PunchVectorEnv
+from punch_trainer.sim.rewards import Reward, load_reward
+from punch_trainer.sim.rollouts import RolloutPool
 
 METHODS = ["A2C only", "A2C after pretraining (GAE)", "A2C after pretraining (paper's advantage)", "SB3 PPO"]
 
 
-def _a2c_curve(history: list[dict], offset_steps: int, offset_episodes: int, offset_s: float) -> list[dict]:
+def _a2c_curve(history: list[dict[str, Any]], offset_steps: int, offset_episodes: int, offset_s: float) -> list[dict[str, Any]]:
     return [{"episodes": h["episodes"] + offset_episodes, "env_steps": h["env_steps"] + (offset_steps if h["update"] else 0),
              "wall_s": h["elapsed_s"] + offset_s, "mean_return": h["mean_return"], "eval_return": h["eval_return"]}
             for h in history if h["update"] > 0]
 
 
-def _ppo_curve(reward: Reward, seed: int, total_steps: int, frames: int, smoothing_window: int, window: int) -> list[dict]:
+def _ppo_curve(reward: Reward, seed: int, total_steps: int, frames: int, smoothing_window: int, window: int) -> list[dict[str, Any]]:
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
 
     class Episodes(BaseCallback):
-        def __init__(self):
+        def __init__(self) -> None:
             super().__init__()
             self.start = time.perf_counter()
             self.returns: list[float] = []
-            self.rows: list[dict] = []
+            self.rows: list[dict[str, Any]] = []
 
         def _on_step(self) -> bool:
             for info in self.locals["infos"]:
@@ -56,9 +59,7 @@ def _ppo_curve(reward: Reward, seed: int, total_steps: int, frames: int, smoothi
                                       "eval_return": float("nan")})
             return True
 
-    env = PunchEnv(frames=frames, smoothing_window=smoothing_window)
-    names = env.feature_names
-    env.reward_fn = lambda features: float(total(evaluate(reward, features, names)).sum())
+    env = PunchEnv(frames=frames, smoothing_window=smoothing_window, reward=reward)
     from stable_baselines3.common.monitor import Monitor
 
     callback = Episodes()
@@ -70,16 +71,17 @@ def _ppo_curve(reward: Reward, seed: int, total_steps: int, frames: int, smoothi
     return callback.rows
 
 
-def fig6(reward_name: str = "straight", seeds=(0, 1, 2), search_iterations: int = 60, a2c_updates: int = 40,
-         characters: int = 32, smoothing_window: int = 3, out: Path | None = None) -> tuple[Path, list[dict]]:
+def fig6(reward_name: str = "straight", seeds: Sequence[int] = (0, 1, 2), search_iterations: int = 60, a2c_updates: int = 40,
+         characters: int = 32, smoothing_window: int = 3, out: Path | None = None) -> tuple[Path, list[dict[str, Any]]]:
     reward = load_reward(reward_name)
     out = out or Path("runs") / f"fig6_{reward.name}"
     out.mkdir(parents=True, exist_ok=True)
-    curves: dict[tuple[str, int], list[dict]] = {}
+    curves: Curves = {}
     jobs = [(method, seed) for seed in seeds for method in METHODS]
     progress = tqdm(jobs, desc="fig6", unit="run")
     with PunchVectorEnv(1, characters, frames=reward.frames, smoothing_window=smoothing_window) as env:
         decisions = reward.frames // env.info.decision_period
+        sizes = (env.info.observation_size, env.info.action_size)
         # Matched budgets: A2C alone and PPO get as many environment steps as the pretrained variants use in
         # all, the search's rollouts (and its first evaluation of the zero sequence) included.
         matched_steps = (search_iterations * 64 + 1) * decisions + a2c_updates * characters * decisions
@@ -88,7 +90,7 @@ def fig6(reward_name: str = "straight", seeds=(0, 1, 2), search_iterations: int 
             a2c_args = A2CArgs(updates=a2c_updates, characters=characters, smoothing_window=smoothing_window, seed=seed,
                                advantage="paper" if "paper" in method else "gae")
             if method == "A2C only":
-                model = ActorCritic(45, 10, seed=seed)  # identity normalisation: nothing is known before simulating
+                model = ActorCritic(*sizes, seed=seed)  # identity normalisation: nothing is known before simulating
                 a2c_args.updates = scratch_updates
                 _, history = train_a2c(model, reward, a2c_args, env, progress=False)
                 curves[(method, seed)] = _a2c_curve(history, 0, 0, 0.0)
@@ -98,10 +100,10 @@ def fig6(reward_name: str = "straight", seeds=(0, 1, 2), search_iterations: int 
                                          plateau_iterations=0, smoothing_window=smoothing_window)
                 with RolloutPool(1, 64) as pool:
                     result = trajectory_search(search_args, reward, pool, progress=False)
-                dataset = replay_dataset(result, reward, search_args)
+                dataset = record_dataset(result, reward, search_args)
                 data = {"observations": dataset["observations"], "actions": dataset["actions"],
                         "rewards": dataset["rewards"], "returns_to_go": returns_to_go(dataset["rewards"], 1.0)}
-                model = ActorCritic(45, 10, seed=seed)
+                model = ActorCritic(*sizes, seed=seed)
                 pretrain(model, data, PretrainArgs(epochs=1500, seed=seed), progress=False)
                 search_rollouts = result.history[-1]["rollouts"]
                 _, history = train_a2c(model, reward, a2c_args, env, progress=False)
@@ -113,7 +115,11 @@ def fig6(reward_name: str = "straight", seeds=(0, 1, 2), search_iterations: int 
     return out, rows
 
 
-def _summarise(curves: dict, seeds) -> list[dict]:
+Curves = dict[tuple[str, int], list[dict[str, Any]]]
+"""(method, seed) -> the points of its learning curve"""
+
+
+def _summarise(curves: Curves, seeds: Sequence[int]) -> list[dict[str, Any]]:
     rows = []
     for method in METHODS:
         finals = [curves[(method, s)][-1] for s in seeds if curves.get((method, s))]
@@ -128,7 +134,7 @@ def _summarise(curves: dict, seeds) -> list[dict]:
     return rows
 
 
-def _write(out: Path, curves: dict, rows: list[dict], reward: Reward) -> None:
+def _write(out: Path, curves: Curves, rows: list[dict[str, Any]], reward: Reward) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -157,7 +163,7 @@ def _write(out: Path, curves: dict, rows: list[dict], reward: Reward) -> None:
     plt.close(figure)
 
 
-def fig6_table(rows: list[dict]) -> str:
+def fig6_table(rows: list[dict[str, Any]]) -> str:
     lines = ["| method | final mean episode return (mean +- sd over seeds) | best noise-free return | env steps | wall time (s) |",
              "|---|---|---|---|---|"]
     for r in rows:

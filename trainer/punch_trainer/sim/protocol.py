@@ -7,12 +7,13 @@ import json
 import socket
 import struct
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from punch_trainer.errors import PunchError
 
-PROTOCOL_VERSION = 1
+PROTOCOL_VERSION = 2
 MAX_HEADER_BYTES = 64 * 1024
 MAX_PAYLOAD_BYTES = 256 * 1024 * 1024
 
@@ -38,7 +39,7 @@ class Message:
     """A message: its header fields and its named float32 arrays."""
 
     type: str
-    fields: dict = field(default_factory=dict)
+    fields: dict[str, Any] = field(default_factory=dict)
     arrays: dict[str, np.ndarray] = field(default_factory=dict)
 
     def encode(self) -> bytes:
@@ -77,6 +78,38 @@ class Message:
             raise ProtocolError(f"payload has {len(payload)} bytes, arrays describe {offset}")
         message_type = header.pop("type")
         return cls(message_type, header, arrays)
+
+
+# The requests, built in one place each (fields and arrays: docs/protocol.md, Messages).
+Bags = list[dict[str, float]] | dict[str, float] | None
+
+
+def hello_message() -> Message:
+    return Message("hello", {"protocol_version": PROTOCOL_VERSION})
+
+
+def reset_message(frames: int, *, bags: Bags = None, smoothing_window: int = 1) -> Message:
+    fields: dict[str, object] = {"frames": frames, "smoothing_window": smoothing_window}
+    if bags is not None:
+        fields["bags"] = bags
+    return Message("reset", fields)
+
+
+def step_message(actions: np.ndarray) -> Message:
+    """Actions [N, A] for every slot."""
+    return Message("step", arrays={"actions": np.asarray(actions, dtype=np.float32)})
+
+
+def rollout_message(actions: np.ndarray, *, bags: Bags = None, smoothing_window: int = 1) -> Message:
+    """Open-loop raw actions [N, decisions, A] for every slot, from a fresh reset."""
+    fields: dict[str, object] = {"smoothing_window": smoothing_window}
+    if bags is not None:
+        fields["bags"] = bags
+    return Message("rollout", fields, {"actions": np.asarray(actions, dtype=np.float32)})
+
+
+def close_message() -> Message:
+    return Message("close")
 
 
 def _receive_exactly(sock: socket.socket, count: int) -> bytes:

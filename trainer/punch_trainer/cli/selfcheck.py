@@ -8,14 +8,15 @@ import json
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import onnxruntime
 import torch
 
 from punch_trainer.errors import SelfCheckError
-from punch_trainer.export import export_policy
-from punch_trainer.godot import GODOT_PROJECT, run_godot
+from punch_trainer.learn.export import export_onnx
+from punch_trainer.sim.godot import GODOT_PROJECT, run_godot
 
 TOLERANCE = 1e-5
 REPORT_PREFIX = "PUNCH_SELFCHECK "
@@ -61,7 +62,7 @@ class SelfCheckReport:
 def make_model(directory: Path, *, obs_dim: int = 12, act_dim: int = 10, seed: int = 0) -> Path:
     """Exports a seeded TinyActor to `directory`/tiny_actor.onnx."""
     torch.manual_seed(seed)
-    return export_policy(TinyActor(obs_dim, act_dim), obs_dim, directory / "tiny_actor.onnx",
+    return export_onnx(TinyActor(obs_dim, act_dim), obs_dim, directory / "tiny_actor.onnx",
                          metadata={"purpose": "punch selfcheck"}, seed=seed)
 
 
@@ -114,11 +115,12 @@ def run_selfcheck(*, batch: int = 8, seed: int = 0, work_dir: Path | None = None
     )
 
 
-def _parse_report(log: str) -> dict:
+def _parse_report(log: str) -> dict[str, Any]:
     for line in log.splitlines():
         if line.startswith(REPORT_PREFIX):
             try:
-                return json.loads(line[len(REPORT_PREFIX):])
+                report: dict[str, Any] = json.loads(line[len(REPORT_PREFIX):])
+                return report
             except json.JSONDecodeError as error:
                 raise SelfCheckError(f"unreadable self-check report from Godot: {error}") from None
     raise SelfCheckError("Godot printed no self-check report:\n" + log[-4000:])

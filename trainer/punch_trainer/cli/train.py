@@ -13,15 +13,17 @@ from pathlib import Path
 import numpy as np
 import onnxruntime
 
-from punch_trainer import __version__
-from punch_trainer.a2c import A2CArgs, decision_rewards, evaluate_noise_free, train_a2c
-from punch_trainer.checkpoint import CONFIG_FILE, CheckpointError, default_run_dir, load_checkpoint, save_checkpoint, write_config
-from punch_trainer.env import PunchVectorEnv
-from punch_trainer.export import export_policy
-from punch_trainer.policy import Actor, ActorCritic
-from punch_trainer.pretrain import PretrainArgs, load_datasets, pretrain
-from punch_trainer.rewards import load_reward
-from punch_trainer.search import SearchArgs, motion_report, run_search
+from punch_trainer.cli.search import run_search
+from punch_trainer.learn.a2c import A2CArgs, evaluate_noise_free, train_a2c
+from punch_trainer.learn.checkpoint import CONFIG_FILE, CheckpointError, default_run_dir, load_checkpoint, save_checkpoint, write_config
+from punch_trainer.learn.dataset import load_datasets
+from punch_trainer.learn.export import export_policy
+from punch_trainer.learn.policy import ActorCritic
+from punch_trainer.learn.pretrain import PretrainArgs, pretrain
+from punch_trainer.learn.search import SearchArgs
+from punch_trainer.report.motion import motion_report
+from punch_trainer.sim.env import PunchVectorEnv
+from punch_trainer.sim.rewards import Reward, load_reward, score
 
 
 @dataclass
@@ -45,8 +47,9 @@ class TrainArgs:
         return self.out or default_run_dir(f"train_{self.reward}", self.seed)
 
 
-def replay_onnx(path: Path, env: PunchVectorEnv, reward, sigma: float = 0.0, seed: int = 0) -> tuple[float, np.ndarray]:
-    """Runs the exported policy with onnxruntime in the simulator (noise `sigma` on its mean); returns
+def run_exported_policy(path: Path, env: PunchVectorEnv, reward: Reward, sigma: float = 0.0,
+                        seed: int = 0) -> tuple[float, np.ndarray]:
+    """Runs an exported policy file with onnxruntime in the simulator (noise `sigma` on its mean); returns
     character 0's return and its features [frames, F]."""
     session = onnxruntime.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     rng = np.random.default_rng(seed)
@@ -56,7 +59,7 @@ def replay_onnx(path: Path, env: PunchVectorEnv, reward, sigma: float = 0.0, see
         mean, _ = session.run(None, {"obs": obs.astype(np.float32)})
         action = np.clip(mean + sigma * rng.standard_normal(mean.shape), -1, 1).astype(np.float32)
         obs, _, terminated, truncated, info = env.step(action)
-        total_return += float(decision_rewards(reward, info["features"][:1], env.feature_names)[0])
+        total_return += float(score(reward, info["features"][:1], env.feature_names)[0])
         frames.append(info["features"][0])
         if terminated[0] or truncated[0]:
             return total_return, np.concatenate(frames)
@@ -99,21 +102,10 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False) -> P
                                        start_rollouts=search.history[-1]["rollouts"] if search.history else 0)
         timings["a2c_s"] = time.perf_counter() - started - timings["search_s"] - timings["pretrain_s"]
 
-        metadata = {
-            "punch_spec_hash": env.spec_hash,
-            "punch_action_spec": "10 raw actions in [-1, 1]; see docs/env.md (mean clipped to [-1, 1], smoothed by the controller)",
-            "punch_decision_period": str(env.info.decision_period),
-            "punch_smoothing_window": str(args.smoothing_window),
-            "punch_physics_hz": str(env.info.physics_hz),
-            "punch_frames": str(reward.frames),
-            "punch_reward": reward.name,
-            "punch_trainer_version": __version__,
-            "punch_training_summary": json.dumps({"search_best_return": search.best_return, "pretrained_return": pretrained_return,
-                                                 "a2c_best_eval_return": max(h["eval_return"] for h in a2c_history),
-                                                 "a2c_updates": len(a2c_history) - 1}),
-        }
-        policy_path = export_policy(Actor(model), data["observations"].shape[1], out / "policy.onnx", metadata=metadata)
-        exported_return, features = replay_onnx(policy_path, env, reward)
+        summary = {"search_best_return": search.best_return, "pretrained_return": pretrained_return,
+                   "a2c_best_eval_return": max(h["eval_return"] for h in a2c_history), "a2c_updates": len(a2c_history) - 1}
+        policy_path = export_policy(model, out / "policy.onnx", contract=data["policy_metadata"], reward=reward.name, summary=summary)
+        exported_return, features = run_exported_policy(policy_path, env, reward)
     finally:
         env.close()
     timings["total_s"] = time.perf_counter() - started
@@ -137,7 +129,8 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False) -> P
         f"- the exported policy's punch: peak right-fist speed {motion['peak_fist_speed_mps']:.2f} m/s; {impact}",
         f"- timings: search {timings['search_s']:.1f} s, pretraining {timings['pretrain_s']:.1f} s, A2C {timings['a2c_s']:.1f} s, "
         f"total {timings['total_s']:.1f} s",
-        f"- policy: `policy.onnx` (input `obs` [B, 45], outputs `mean`, `sigma` [B, 10]; metadata: spec hash {metadata['punch_spec_hash']})",
+        f"- policy: `policy.onnx` (input `obs` [B, {env.info.observation_size}], outputs `mean`, `sigma` [B, {env.info.action_size}]; "
+        f"metadata: spec hash {data['policy_metadata']['punch_spec_hash']})",
         "", "Search details: [search/report.md](search/report.md)",
     ]
     (out / "report.md").write_text("\n".join(lines) + "\n")

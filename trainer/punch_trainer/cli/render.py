@@ -17,7 +17,7 @@ from pathlib import Path
 from PIL import Image
 
 from punch_trainer.errors import GodotRunError, PunchError
-from punch_trainer.godot import GODOT_PROJECT, run_godot, tail
+from punch_trainer.sim.godot import GODOT_PROJECT, run_godot, tail
 
 FPS = 30
 # The GIF keeps every second frame (15 fps) and 64 colours: a few hundred kB for a few seconds.
@@ -63,7 +63,8 @@ class VirtualDisplay:
         socket = Path(f"/tmp/.X11-unix/X{self.display[1:]}")
         while not socket.exists():
             if self._process.poll() is not None or time.monotonic() > deadline:
-                error = self._process.stderr.read().decode(errors="replace") if self._process.poll() is not None else ""
+                stderr = self._process.stderr
+                error = stderr.read().decode(errors="replace") if stderr is not None and self._process.poll() is not None else ""
                 self.close()
                 raise RenderError(f"Xvfb did not start on {self.display}: {error[-500:]}")
             time.sleep(0.05)
@@ -80,7 +81,7 @@ class VirtualDisplay:
     def __enter__(self) -> VirtualDisplay:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
 

@@ -9,40 +9,42 @@ Env card (full tables in docs/env.md)
 - Observation: 45 floats in the character's frame (+Z toward the bag, +X the character's left, +Y up):
   both fists' position and velocity, each fist's contact impulse on the bag, bag position and velocity,
   the 10 joint angles and speeds, and the episode phase (decision / decisions per episode).
-- Features: every physics frame's 50 features (`feature_names`) come in `info["features"]`, shape
+- Features: every physics frame's 54 features (`feature_names`) come in `info["features"]`, shape
   [decision_period, 50]; rewards are computed from them in Python.
 - Episode: `frames` physics frames (50 or 100: 10 or 20 decisions), always from the same initial state.
   At the last decision `terminated` is True, or `truncated` if the physics guard saw a joint come apart.
-- Reward: `reward_fn(features) -> float`, called on each decision's features; 0 when none is given.
+- Reward: a `Reward` (punch_trainer.sim.rewards: a preset, or a function of the features loaded with
+  `load_reward`), scored on each decision's frames by `score`, the one scoring recipe of the trainer; 0 when
+  none is given.
+- Registered with Gymnasium as `punch/Punch-v0` (`gym.make`, one character) and, for `gym.make_vec`, as a
+  vector env (K processes x N characters) once `punch_trainer` is imported.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
-from punch_trainer.protocol import Message
-from punch_trainer.rollouts import ServerGroup
-from punch_trainer.server import TrainingServer, exchange
-
-RewardFn = Callable[[np.ndarray], float]
-
-DEFAULT_BAG = {"distance_m": 0.72, "height_m": 1.35, "side_m": 0.0}
+from punch_trainer.sim.protocol import reset_message, step_message
+from punch_trainer.sim.rewards import Reward, score
+from punch_trainer.sim.server import ServerInfo, TrainingServer, exchange
+from punch_trainer.sim.server_group import ServerGroup
 
 
-def _spaces(info) -> tuple[gym.spaces.Box, gym.spaces.Box]:
+def _spaces(info: ServerInfo) -> tuple[gym.spaces.Box, gym.spaces.Box]:
     """One character's observation and action spaces, from a server's handshake."""
-    return (gym.spaces.Box(-np.inf, np.inf, (len(info.observation_names),), np.float32),
-            gym.spaces.Box(-1.0, 1.0, (len(info.action_names),), np.float32))
+    return (gym.spaces.Box(-np.inf, np.inf, (info.observation_size,), np.float32),
+            gym.spaces.Box(-1.0, 1.0, (info.action_size,), np.float32))
 
 
-def _bag_options(options: dict | None, rng: np.random.Generator, count: int, jitter_m: float) -> list[dict]:
-    """Bag placement for `count` slots: options["bag"] (one dict or a list) or the default, plus uniform
-    jitter of +-jitter_m on each coordinate drawn from the env's seeded generator."""
-    bags = (options or {}).get("bag", DEFAULT_BAG)
-    bags = [dict(DEFAULT_BAG, **bag) for bag in (bags if isinstance(bags, list) else [bags] * count)]
+def _bag_options(options: dict[str, Any] | None, default: dict[str, float], rng: np.random.Generator, count: int,
+                 jitter_m: float) -> list[dict[str, float]]:
+    """Bag placement for `count` slots: options["bag"] (one dict or a list) or the spec's default (from the
+    handshake), plus uniform jitter of +-jitter_m on each coordinate drawn from the env's seeded generator."""
+    bags = (options or {}).get("bag", default)
+    bags = [dict(default, **bag) for bag in (bags if isinstance(bags, list) else [bags] * count)]
     if len(bags) != count:
         raise ValueError(f"options['bag'] lists {len(bags)} placements for {count} characters")
     if jitter_m > 0:
@@ -58,35 +60,39 @@ class PunchEnv(gym.Env):
     metadata = {"render_modes": []}
 
     def __init__(self, *, frames: int = 50, decision_period: int = 5, smoothing_window: int = 1,
-                 reward_fn: RewardFn | None = None, bag_jitter_m: float = 0.0, server: TrainingServer | None = None):
+                 reward: Reward | None = None, bag_jitter_m: float = 0.0, server: TrainingServer | None = None):
         self.server = server or TrainingServer(1, decision_period=decision_period)
         info = self.server.info
         if info.slot_count != 1:
             raise ValueError("PunchEnv drives a one-slot server; use PunchVectorEnv for more")
+        self.info = info
         self.frames = frames
         self.smoothing_window = smoothing_window
-        self.reward_fn = reward_fn
+        self.reward = reward
         self.bag_jitter_m = bag_jitter_m
         self.feature_names = info.feature_names
         self.spec_hash = info.spec_hash
         self.observation_space, self.action_space = _spaces(info)
+        self.policy_metadata: dict[str, str] = {}
+        """the policy contract of this env's episodes (from the last reset)"""
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
-        bags = _bag_options(options, self.np_random, 1, self.bag_jitter_m)
+        bags = _bag_options(options, self.info.default_bag, self.np_random, 1, self.bag_jitter_m)
         reply = self.server.reset(self.frames, bags=bags, smoothing_window=self.smoothing_window)
+        self.policy_metadata = reply.fields["policy_metadata"]
         return reply.arrays["observations"][0].copy(), {"features": reply.arrays["features"][0].copy(), "bag": bags[0]}
 
-    def step(self, action):
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         action = np.asarray(action, dtype=np.float32).reshape(1, -1)
         reply = self.server.step(action)
         features = reply.arrays["features"][0].copy()
-        reward = float(self.reward_fn(features)) if self.reward_fn else 0.0
+        reward = float(score(self.reward, features, self.feature_names)) if self.reward else 0.0
         info = {"features": features, "executed_action": reply.arrays["executed_actions"][0, 0].copy()}
         return (reply.arrays["observations"][0].copy(), reward, bool(reply.fields["terminated"][0]),
                 bool(reply.fields["truncated"][0]), info)
 
-    def close(self):
+    def close(self) -> None:
         self.server.close()
 
 
@@ -99,7 +105,7 @@ class PunchVectorEnv(gym.vector.VectorEnv):
     metadata = {"autoreset_mode": gym.vector.AutoresetMode.NEXT_STEP}
 
     def __init__(self, processes: int = 1, characters_per_process: int = 16, *, frames: int = 50,
-                 decision_period: int = 5, smoothing_window: int = 1, reward_fn: RewardFn | None = None,
+                 decision_period: int = 5, smoothing_window: int = 1, reward: Reward | None = None,
                  bag_jitter_m: float = 0.0):
         self.group = ServerGroup(processes, characters_per_process, decision_period)
         self.info = info = self.group.info
@@ -107,40 +113,41 @@ class PunchVectorEnv(gym.vector.VectorEnv):
         self.num_envs = processes * characters_per_process
         self.frames = frames
         self.smoothing_window = smoothing_window
-        self.reward_fn = reward_fn
+        self.reward = reward
         self.bag_jitter_m = bag_jitter_m
         self.feature_names = info.feature_names
         self.spec_hash = info.spec_hash
+        self.policy_metadata: dict[str, str] = {}
+        """the policy contract of this env's episodes (from the last reset)"""
         self.single_observation_space, self.single_action_space = _spaces(info)
         self.observation_space = gym.vector.utils.batch_space(self.single_observation_space, self.num_envs)
         self.action_space = gym.vector.utils.batch_space(self.single_action_space, self.num_envs)
         self._needs_reset = True
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         if seed is not None:
             self._np_random, self._np_random_seed = gym.utils.seeding.np_random(seed)
-        bags = _bag_options(options, self.np_random, self.num_envs, self.bag_jitter_m)
+        bags = _bag_options(options, self.info.default_bag, self.np_random, self.num_envs, self.bag_jitter_m)
         n = self.characters_per_process
-        fields = {"frames": self.frames, "smoothing_window": self.smoothing_window}
-        replies = exchange(self.servers, [Message("reset", {**fields, "bags": bags[p * n:(p + 1) * n]})
-                                for p in range(len(self.servers))])
+        replies = exchange(self.servers, [reset_message(self.frames, bags=bags[p * n:(p + 1) * n], smoothing_window=self.smoothing_window)
+                                          for p in range(len(self.servers))])
+        self.policy_metadata = replies[0].fields["policy_metadata"]
         self._needs_reset = False
         observations = np.concatenate([r.arrays["observations"] for r in replies])
         return observations, {"features": np.concatenate([r.arrays["features"] for r in replies])}
 
-    def step(self, actions):
+    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         if self._needs_reset:
             observations, info = self.reset()
             zeros = np.zeros(self.num_envs, dtype=bool)
             return observations, np.zeros(self.num_envs), zeros, zeros.copy(), info
         actions = np.asarray(actions, dtype=np.float32).reshape(self.num_envs, -1)
         n = self.characters_per_process
-        replies = exchange(self.servers, [Message("step", arrays={"actions": actions[p * n:(p + 1) * n]})
-                                for p in range(len(self.servers))])
+        replies = exchange(self.servers, [step_message(actions[p * n:(p + 1) * n]) for p in range(len(self.servers))])
         features = np.concatenate([r.arrays["features"] for r in replies])
         terminated = np.concatenate([r.fields["terminated"] for r in replies]).astype(bool)
         truncated = np.concatenate([r.fields["truncated"] for r in replies]).astype(bool)
-        rewards = np.array([self.reward_fn(f) for f in features]) if self.reward_fn else np.zeros(self.num_envs)
+        rewards = score(self.reward, features, self.feature_names) if self.reward else np.zeros(self.num_envs)
         self._needs_reset = bool(np.all(terminated | truncated))
         return np.concatenate([r.arrays["observations"] for r in replies]), rewards, terminated, truncated, {"features": features}
 
@@ -153,11 +160,20 @@ class PunchVectorEnv(gym.vector.VectorEnv):
         self.group.restart()
         self._needs_reset = True
 
-    def close_extras(self, **kwargs):
+    def close_extras(self, **kwargs: Any) -> None:
         self.group.close()
 
     def __enter__(self) -> PunchVectorEnv:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def make_vector_env(num_envs: int, *, characters_per_process: int | None = None, **kwargs: Any) -> PunchVectorEnv:
+    """`gym.make_vec("punch/Punch-v0", num_envs=M)`: M characters, in processes of `characters_per_process`
+    (default: all in one process)."""
+    per_process = characters_per_process or num_envs
+    if num_envs % per_process:
+        raise ValueError(f"num_envs ({num_envs}) must be a multiple of characters_per_process ({per_process})")
+    return PunchVectorEnv(num_envs // per_process, per_process, **kwargs)

@@ -3,14 +3,18 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+from punch_trainer.learn.search import SearchResult
+
+plt.switch_backend("Agg")  # files only, no display
 
 
-def plot_search(out: Path, result, dataset: dict) -> list[Path]:
+def plot_search(out: Path, result: SearchResult, dataset: dict[str, np.ndarray]) -> list[Path]:
     """Return against iterations and rollouts, sigma over iterations, and the 3D path of the fists."""
     history = result.history
     paths = []
@@ -59,7 +63,7 @@ def plot_search(out: Path, result, dataset: dict) -> list[Path]:
     return paths
 
 
-def plot_replay(out: Path, sigmas: list[float], rows: list[dict], analyses: list[dict], best_return: float | None,
+def plot_replay(out: Path, sigmas: list[float], rows: list[dict[str, Any]], analyses: list[dict[str, Any]], best_return: float | None,
                 paths_per_sigma: int = 40) -> list[Path]:
     """Fig. 10: return ratio and success rate against sigma. Fig. 11: right-fist paths (side and top views)
     and impact points at a low, a middle and the highest sigma."""
@@ -103,7 +107,7 @@ def plot_replay(out: Path, sigmas: list[float], rows: list[dict], analyses: list
     return paths
 
 
-def _save(figure, path: Path) -> Path:
+def _save(figure: Figure, path: Path) -> Path:
     figure.savefig(path, dpi=110)
     plt.close(figure)
     return path

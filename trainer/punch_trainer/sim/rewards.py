@@ -79,7 +79,7 @@ class Reward:
     name: str
     function: RewardFunction
     frames: int
-    # How fast TTR may narrow its search (see punch_trainer.search). The swing's half-circle sweep lies far
+    # How fast TTR may narrow its search (see punch_trainer.learn.search). The swing's half-circle sweep lies far
     # from the guard pose and needs exploration to last longer: measured over 2 seeds at 6,400 rollouts,
     # 0.1 gave a best return of 338 against 251 for 0.2, while 0.2 was better for hook and straight100.
     search_clip_epsilon: float = 0.2
@@ -108,6 +108,8 @@ def load_reward(spec: str, frames: int | None = None) -> Reward:
             if not path.is_file():
                 raise RewardError(f"reward file not found: {path}")
             module_spec = importlib.util.spec_from_file_location(f"punch_user_reward_{path.stem}", path)
+            if module_spec is None or module_spec.loader is None:
+                raise RewardError(f"reward file {path} cannot be imported as a Python module")
             module = importlib.util.module_from_spec(module_spec)
             module_spec.loader.exec_module(module)
         else:
@@ -146,4 +148,17 @@ def evaluate(reward: Reward, features: np.ndarray, feature_names: list[str]) -> 
 
 def total(terms: Terms) -> np.ndarray:
     """The reward: the sum of the terms, [..., frames]."""
-    return sum(terms.values())
+    return np.asarray(sum(terms.values()))
+
+
+def score_terms(reward: Reward, features: np.ndarray, feature_names: list[str]) -> tuple[np.ndarray, Terms]:
+    """The one scoring recipe: the return of every trajectory in `features` [..., frames, F] (the reward summed
+    over its frames), shape [...], with the per-frame terms it came from."""
+    terms = evaluate(reward, features, feature_names)
+    return total(terms).sum(axis=-1), terms
+
+
+def score(reward: Reward, features: np.ndarray, feature_names: list[str]) -> np.ndarray:
+    """The return of every trajectory in `features` [..., frames, F]: shape [...]. Scoring a decision's frames
+    gives that decision's reward; scoring an episode's, its return."""
+    return score_terms(reward, features, feature_names)[0]

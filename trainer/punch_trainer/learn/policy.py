@@ -19,6 +19,8 @@ def layer(inputs: int, outputs: int, gain: float = np.sqrt(2)) -> nn.Linear:
 
 
 class ActorCritic(nn.Module):
+    obs_mean: torch.Tensor
+    obs_std: torch.Tensor
     def __init__(self, obs_dim: int, act_dim: int, hidden: int = 128, *, seed: int = 0):
         """The initial weights depend on `seed` only (not on the global random state), so runs reproduce."""
         super().__init__()
@@ -47,7 +49,8 @@ class ActorCritic(nn.Module):
         return mean, sigma
 
     def value(self, obs: torch.Tensor) -> torch.Tensor:
-        return self.critic(self.normalize(obs)).squeeze(-1)
+        value: torch.Tensor = self.critic(self.normalize(obs)).squeeze(-1)
+        return value
 
     def distribution(self, obs: torch.Tensor) -> torch.distributions.Normal:
         mean, sigma = self(obs)
@@ -62,4 +65,4 @@ class Actor(nn.Module):
         self.model = model
 
     def forward(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        return self.model(obs)
+        return self.model.forward(obs)

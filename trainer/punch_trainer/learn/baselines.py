@@ -5,28 +5,29 @@ cross-entropy method (CEM) and CMA-ES (the `cmaes` package). Both optimise the w
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import numpy as np
 from cmaes import CMA, SepCMA
 
-from punch_trainer.rewards import Reward
-from punch_trainer.rollouts import RolloutPool
-from punch_trainer.search import DOF_COUNT, SearchArgs, evaluate_actions
+from punch_trainer.learn.search import SearchArgs, evaluate_actions
+from punch_trainer.sim.rewards import Reward
+from punch_trainer.sim.rollouts import RolloutPool
 
 CEM_ELITE_FRACTION = 0.1
 CMA_SIGMA_INIT = 0.5
 CMA_FULL_COVARIANCE_MAX_DIM = 100  # larger problems use the separable (diagonal) variant
 
 
-def _row(iteration: int, rollouts: int, start: float, best: float, returns: np.ndarray) -> dict:
+def _row(iteration: int, rollouts: int, start: float, best: float, returns: np.ndarray) -> dict[str, Any]:
     return {"iteration": iteration, "rollouts": rollouts, "elapsed_s": round(time.perf_counter() - start, 4),
             "best_return": best, "mean_return": float(returns.mean())}
 
 
-def cem(args: SearchArgs, reward: Reward, pool: RolloutPool) -> list[dict]:
+def cem(args: SearchArgs, reward: Reward, pool: RolloutPool) -> list[dict[str, Any]]:
     """CEM: a diagonal Gaussian refitted to the best 10% of each population."""
     rng = np.random.default_rng(args.seed)
-    shape = (reward.frames // args.decision_period, DOF_COUNT)
+    shape = (reward.frames // args.decision_period, pool.info.action_size)
     mean, std = np.zeros(shape), np.full(shape, args.sigma_init)
     elites = max(2, int(round(CEM_ELITE_FRACTION * args.rollouts)))
     start, best, rollouts, history = time.perf_counter(), -np.inf, 0, []
@@ -41,9 +42,9 @@ def cem(args: SearchArgs, reward: Reward, pool: RolloutPool) -> list[dict]:
     return history
 
 
-def cma_es(args: SearchArgs, reward: Reward, pool: RolloutPool) -> list[dict]:
+def cma_es(args: SearchArgs, reward: Reward, pool: RolloutPool) -> list[dict[str, Any]]:
     """CMA-ES over the flattened sequence, bounded to [-1, 1], with the same population as TTR."""
-    shape = (reward.frames // args.decision_period, DOF_COUNT)
+    shape = (reward.frames // args.decision_period, pool.info.action_size)
     dim = shape[0] * shape[1]
     bounds = np.tile([-1.0, 1.0], (dim, 1))
     kind = CMA if dim <= CMA_FULL_COVARIANCE_MAX_DIM else SepCMA

@@ -7,15 +7,17 @@ import os
 import platform
 import re
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from tqdm import tqdm
 
-from punch_trainer.godot import PROJECT_ROOT
-from punch_trainer.protocol import Message
-from punch_trainer.server import exchange, start_servers
+from punch_trainer.sim.godot import PROJECT_ROOT
+from punch_trainer.sim.protocol import reset_message, rollout_message, step_message
+from punch_trainer.sim.server import exchange, start_servers
 
 BENCHMARKS_FILE = PROJECT_ROOT / "BENCHMARKS.md"
 
@@ -43,7 +45,8 @@ def machine_description() -> str:
     return f"{cpu}, {os.cpu_count()} cores, {platform.system()} {platform.release()}"
 
 
-def bench_env(characters=(1, 16, 64), processes=(1, 2), frames: int = 50, episodes: int = 6, seed: int = 0) -> list[EnvThroughput]:
+def bench_env(characters: Sequence[int] = (1, 16, 64), processes: Sequence[int] = (1, 2), frames: int = 50, episodes: int = 6,
+              seed: int = 0) -> list[EnvThroughput]:
     """Character-physics-frames per second through the real socket, open and closed loop. Each measurement
     runs `episodes` full episodes (reset included) after one warm-up episode."""
     rng = np.random.default_rng(seed)
@@ -53,8 +56,8 @@ def bench_env(characters=(1, 16, 64), processes=(1, 2), frames: int = 50, episod
         servers = start_servers(k, n)
         try:
             decisions = frames // servers[0].info.decision_period
-            actions = rng.uniform(-1, 1, size=(n, decisions, 10)).astype(np.float32)
-            rollout = Message("rollout", arrays={"actions": actions})
+            actions = rng.uniform(-1, 1, size=(n, decisions, servers[0].info.action_size)).astype(np.float32)
+            rollout = rollout_message(actions)
             exchange(servers, [rollout] * k)  # warm-up
             start = time.perf_counter()
             for _ in range(episodes):
@@ -63,9 +66,9 @@ def bench_env(characters=(1, 16, 64), processes=(1, 2), frames: int = 50, episod
             # Split an episode's cost: resets alone, and the per-frame rate from a much longer rollout.
             start = time.perf_counter()
             for _ in range(episodes):
-                exchange(servers, [Message("reset", {"frames": frames})] * k)
+                exchange(servers, [reset_message(frames)] * k)
             reset_s = (time.perf_counter() - start) / episodes
-            long = Message("rollout", arrays={"actions": np.tile(actions, (1, 8, 1))})
+            long = rollout_message(np.tile(actions, (1, 8, 1)))
             start = time.perf_counter()
             exchange(servers, [long] * k)
             long_s = time.perf_counter() - start
@@ -74,9 +77,9 @@ def bench_env(characters=(1, 16, 64), processes=(1, 2), frames: int = 50, episod
 
             start = time.perf_counter()
             for _ in range(episodes):
-                exchange(servers, [Message("reset", {"frames": frames})] * k)
+                exchange(servers, [reset_message(frames)] * k)
                 for decision in range(decisions):
-                    step = Message("step", arrays={"actions": actions[:, decision]})
+                    step = step_message(actions[:, decision])
                     exchange(servers, [step] * k)
             elapsed = time.perf_counter() - start
             results.append(EnvThroughput(k, n, "closed loop", k * n * frames * episodes / elapsed))
@@ -108,14 +111,14 @@ def write_section(name: str, command: str, body: str) -> Path:
     return BENCHMARKS_FILE
 
 
-def bench_search(plot_path: Path, presets=("straight", "straight100", "hook", "swing"), seeds=(0, 1, 2),
-                 iterations: int = 100, rollouts: int = 64, characters_per_process: int = 64) -> list[dict]:
+def bench_search(plot_path: Path, presets: Sequence[str] = ("straight", "straight100", "hook", "swing"), seeds: Sequence[int] = (0, 1, 2),
+                 iterations: int = 100, rollouts: int = 64, characters_per_process: int = 64) -> list[dict[str, Any]]:
     """TTR, CEM and CMA-ES on the same presets, seeds and rollout budget. Returns one row per (preset,
     method, seed) and writes a plot of return against rollouts and against wall time to `plot_path`."""
-    from punch_trainer.baselines import cem, cma_es
-    from punch_trainer.rewards import load_reward
-    from punch_trainer.rollouts import RolloutPool
-    from punch_trainer.search import SearchArgs, trajectory_search
+    from punch_trainer.learn.baselines import cem, cma_es
+    from punch_trainer.learn.search import SearchArgs, trajectory_search
+    from punch_trainer.sim.rewards import load_reward
+    from punch_trainer.sim.rollouts import RolloutPool
 
     methods = {"TTR": lambda a, r, p: trajectory_search(a, r, p, progress=False).history, "CEM": cem, "CMA-ES": cma_es}
     rows, curves = [], {}
@@ -135,7 +138,8 @@ def bench_search(plot_path: Path, presets=("straight", "straight100", "hook", "s
     return rows
 
 
-def _plot_search_bench(curves: dict, presets, methods, path: Path) -> None:
+def _plot_search_bench(curves: dict[tuple[str, str, int], list[dict[str, Any]]], presets: Sequence[str], methods: Sequence[str],
+                       path: Path) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -162,7 +166,7 @@ def _plot_search_bench(curves: dict, presets, methods, path: Path) -> None:
     plt.close(figure)
 
 
-def search_table(rows: list[dict]) -> str:
+def search_table(rows: list[dict[str, Any]]) -> str:
     lines = ["| preset | method | final best return (mean +- sd over seeds) | rollouts | wall time (s) | time to 95% of own final (s) |",
              "|---|---|---|---|---|---|"]
     keys = dict.fromkeys((r["preset"], r["method"]) for r in rows)
@@ -174,13 +178,14 @@ def search_table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def bench_inference(policy: Path, characters=(1, 4, 16, 64, 100, 128, 256), batches: int = 3, sigma: float = 0.3) -> list[dict]:
+def bench_inference(policy: Path, characters: Sequence[int] = (1, 4, 16, 64, 100, 128, 256), batches: int = 3,
+                    sigma: float = 0.3) -> list[dict[str, Any]]:
     """PunchController's cost in Godot, from `batches` punches of every controller at once for each count:
     ONNX Runtime time per call and per character-decision (all controllers share the policy, so one call per
     decision tick), and the controllers' whole work per physics frame (sensing, inference, driving)."""
     import tempfile
 
-    from punch_trainer.replay import ReplayArgs, run_godot_replay
+    from punch_trainer.cli.replay import ReplayArgs, run_godot_replay
 
     rows = []
     for count in tqdm(characters, desc="bench inference", unit="config"):
@@ -196,7 +201,7 @@ def bench_inference(policy: Path, characters=(1, 4, 16, 64, 100, 128, 256), batc
     return rows
 
 
-def inference_table(rows: list[dict]) -> str:
+def inference_table(rows: list[dict[str, Any]]) -> str:
     lines = ["| controllers | ONNX Runtime calls | µs per call | µs per character-decision | controller work per physics frame (µs) | per character (µs) |",
              "|---|---|---|---|---|---|"]
     for r in rows:

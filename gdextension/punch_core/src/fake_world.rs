@@ -1,0 +1,118 @@
+//! A fake physics world for unit tests: each slot's character slides its whole body toward the bag at a
+//! speed set by how hard its right elbow motor is driven, and stops against the bag with a contact. Crude,
+//! but it moves a fist, touches a bag and answers every `World` call, without Godot.
+
+use glam::{Quat, Vec3};
+
+use crate::character::Body;
+use crate::sensing::{BagContact, CharacterGeometry, FrameReading};
+use crate::session::World;
+use crate::spec::BagPlacement;
+
+const FIST_OFFSET: Vec3 = Vec3::new(0.0, -0.155, 0.0);
+const START: Vec3 = Vec3::new(0.0, 1.505, 0.2);
+const DT: f32 = 1.0 / 120.0;
+
+/// A character at the origin facing +Z, every body at rest in the guard pose.
+pub fn rest_geometry() -> CharacterGeometry {
+    CharacterGeometry {
+        rest_rotations: [Quat::IDENTITY; 6],
+        fist_offsets: [FIST_OFFSET; 2],
+        fist_radius_m: 0.045,
+        joint_anchors: [(Vec3::ZERO, Vec3::ZERO); 5],
+        bag_radius_m: 0.175,
+        bag_height_m: 1.0,
+        bag_mass_kg: 35.0,
+        root_rotation: Quat::IDENTITY,
+        root_position: Vec3::ZERO,
+    }
+}
+
+pub struct FakeWorld {
+    readings: Vec<FrameReading>,
+    commands: Vec<[Vec3; 5]>,
+    /// Every drive call: (slot, commands), for tests that check what was driven.
+    pub driven: Vec<(usize, [Vec3; 5])>,
+    pub resets: usize,
+}
+
+impl FakeWorld {
+    pub fn new(slots: usize) -> Self {
+        let mut world = Self { readings: Vec::new(), commands: Vec::new(), driven: Vec::new(), resets: 0 };
+        world.place(&vec![BagPlacement::DEFAULT; slots]);
+        world
+    }
+
+    fn place(&mut self, placements: &[BagPlacement]) {
+        self.readings = placements
+            .iter()
+            .map(|placement| {
+                let mut reading = FrameReading::default();
+                for body in &mut reading.bodies {
+                    *body =
+                        crate::sensing::BodyState { position: START, rotation: Quat::IDENTITY, ..Default::default() };
+                }
+                reading.bag.rotation = Quat::IDENTITY;
+                reading.bag.position = placement.position();
+                reading
+            })
+            .collect();
+        self.commands = vec![[Vec3::ZERO; 5]; placements.len()];
+    }
+
+    pub fn read_slot(&self, slot: usize) -> FrameReading {
+        self.readings[slot]
+    }
+
+    pub fn drive_slot(&mut self, slot: usize, commands: &[Vec3; 5]) {
+        self.commands[slot] = *commands;
+        self.driven.push((slot, *commands));
+    }
+
+    /// One physics step of every slot.
+    pub fn step(&mut self) {
+        let geometry = rest_geometry();
+        for (reading, commands) in self.readings.iter_mut().zip(&self.commands) {
+            let forearm = reading.bodies[Body::ForearmR.index()];
+            let reach_z = reading.bag.position.z - geometry.bag_radius_m - geometry.fist_radius_m;
+            let speed = (0.3 * commands[2].length()).min(6.0);
+            let z = (forearm.position.z + speed * DT).min(reach_z);
+            let velocity = Vec3::new(0.0, 0.0, (z - forearm.position.z) / DT);
+            for body in &mut reading.bodies {
+                body.position.z = z;
+                body.linear_velocity = velocity;
+            }
+            let fist = reading.bodies[Body::ForearmR.index()].position + FIST_OFFSET;
+            reading.contact_count = 0;
+            if z >= reach_z {
+                reading.contacts[0] =
+                    BagContact { body: Body::ForearmR.index(), point: fist + Vec3::Z * 0.045, impulse: Vec3::Z };
+                reading.contact_count = 1;
+            }
+        }
+    }
+}
+
+impl World for FakeWorld {
+    fn slot_count(&self) -> usize {
+        self.readings.len()
+    }
+
+    fn reset(&mut self, placements: &[BagPlacement]) -> Result<(), String> {
+        self.resets += 1;
+        self.place(placements);
+        Ok(())
+    }
+
+    fn geometry(&self, _slot: usize) -> CharacterGeometry {
+        rest_geometry()
+    }
+
+    fn read(&self, slot: usize) -> FrameReading {
+        self.read_slot(slot)
+    }
+
+    fn drive(&mut self, slot: usize, motor_velocities: &[Vec3; 5]) {
+        self.drive_slot(slot, motor_velocities);
+    }
+}

@@ -1,0 +1,259 @@
+//! The policy contract: everything the trainer, a policy file and the game must agree on, defined once.
+//!
+//! - Sizes and names: the observation (`OBS_DIM`, `observation_names`), the action (`DOF_COUNT`, `DOFS`), the
+//!   per-frame features (`FEATURE_NAMES`), and the spec version and hash that name their layout.
+//! - Timing: the physics rate (`PHYSICS_HZ`), the decision period, the frames of one punch, and the smoothing
+//!   window of the actions (`PolicySpec`).
+//! - The default target placement (`BagPlacement::DEFAULT`).
+//!
+//! The training server's handshake (`handshake_fields`) and its reset replies (`PolicySpec::metadata`) are
+//! generated here; the trainer copies the reset's metadata into every policy file it writes, and
+//! `PunchController` reads it back with `PolicySpec::from_metadata`, which refuses a policy that lacks a key.
+
+use glam::Vec3;
+use serde_json::{Map, Value, json};
+
+pub use crate::character::{DEFAULT_DECISION_PERIOD, DOF_COUNT, DOFS, PHYSICS_HZ};
+pub use crate::observation::{OBS_DIM, OBS_SPEC_VERSION, observation_names, spec_hash};
+pub use crate::sensing::{FEATURE_COUNT, FEATURE_NAMES};
+
+/// Physics frames of one punch unless a reset says otherwise (the paper's 50: 0.42 s at 120 Hz).
+pub const DEFAULT_FRAMES: u32 = 50;
+/// Longest episode, frames.
+pub const MAX_FRAMES: u32 = 10_000;
+/// Largest decision period, frames.
+pub const MAX_DECISION_PERIOD: u32 = 60;
+/// Largest smoothing window, actions (1 turns smoothing off).
+pub const MAX_SMOOTHING_WINDOW: u32 = 50;
+
+/// Where a target (the bag) hangs, in the character's frame: `distance_m` ahead (+Z), `height_m` of its
+/// centre of mass above the ground, `side_m` to the character's left (+X).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BagPlacement {
+    pub distance_m: f32,
+    pub height_m: f32,
+    pub side_m: f32,
+}
+
+impl BagPlacement {
+    /// The placement every policy is trained at unless told otherwise.
+    pub const DEFAULT: Self = Self { distance_m: 0.72, height_m: 1.35, side_m: 0.0 };
+
+    /// Centre of mass of the bag in the character's frame.
+    pub fn position(&self) -> Vec3 {
+        Vec3::new(self.side_m, self.height_m, self.distance_m)
+    }
+
+    /// As the protocol writes it (docs/protocol.md, `reset`).
+    pub fn to_json(&self) -> Value {
+        json!({"distance_m": self.distance_m, "height_m": self.height_m, "side_m": self.side_m})
+    }
+}
+
+impl Default for BagPlacement {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// Names of the policy-file metadata entries of the contract (ONNX custom metadata).
+pub mod keys {
+    pub const SPEC_VERSION: &str = "punch_spec_version";
+    pub const SPEC_HASH: &str = "punch_spec_hash";
+    pub const PHYSICS_HZ: &str = "punch_physics_hz";
+    pub const DECISION_PERIOD: &str = "punch_decision_period";
+    pub const FRAMES: &str = "punch_frames";
+    pub const SMOOTHING_WINDOW: &str = "punch_smoothing_window";
+    pub const OBSERVATION_SIZE: &str = "punch_observation_size";
+    pub const ACTION_SIZE: &str = "punch_action_size";
+    pub const ACTION_SPEC: &str = "punch_action_spec";
+}
+
+/// The entries a policy file must have to be played; a missing one is an error, never a default.
+pub const REQUIRED_METADATA: [&str; 5] =
+    [keys::SPEC_HASH, keys::PHYSICS_HZ, keys::DECISION_PERIOD, keys::FRAMES, keys::SMOOTHING_WINDOW];
+
+/// What re-exporting a policy takes (named in every error about a policy's metadata).
+pub const REEXPORT_HINT: &str =
+    "export it again with `punch train` or `punch pretrain`, which write the whole contract";
+
+/// Why a policy's metadata is not a contract this build can play.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SpecError {
+    #[error("the policy has no '{key}' metadata; {REEXPORT_HINT}")]
+    MissingKey { key: &'static str },
+    #[error("the policy's '{key}' metadata is {value:?}: {reason}; {REEXPORT_HINT}")]
+    BadValue { key: &'static str, value: String, reason: String },
+}
+
+/// The timing a policy was trained with: a game plays it with the same.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PolicySpec {
+    /// Physics frames each decision is held for.
+    pub decision_period: u32,
+    /// Physics frames of one punch (a multiple of the decision period).
+    pub frames: u32,
+    /// Actions are smoothed over this many decisions (the paper's Eq. 1; 1: off).
+    pub smoothing_window: u32,
+}
+
+impl PolicySpec {
+    /// A checked spec: every value in range and `frames` a multiple of `decision_period`.
+    pub fn new(decision_period: u32, frames: u32, smoothing_window: u32) -> Result<Self, String> {
+        if !(1..=MAX_DECISION_PERIOD).contains(&decision_period) {
+            return Err(format!("the decision period must be 1..={MAX_DECISION_PERIOD} frames, not {decision_period}"));
+        }
+        if !(1..=MAX_FRAMES).contains(&frames) || !frames.is_multiple_of(decision_period) {
+            return Err(format!(
+                "'frames' ({frames}) must be in 1..={MAX_FRAMES} and a multiple of the decision period ({decision_period})"
+            ));
+        }
+        if !(1..=MAX_SMOOTHING_WINDOW).contains(&smoothing_window) {
+            return Err(format!("'smoothing_window' must be an integer in 1..={MAX_SMOOTHING_WINDOW}"));
+        }
+        Ok(Self { decision_period, frames, smoothing_window })
+    }
+
+    /// Decisions in one punch.
+    pub fn decisions(&self) -> u32 {
+        self.frames / self.decision_period
+    }
+
+    /// The observation-spec hash for this decision period.
+    pub fn spec_hash(&self) -> String {
+        spec_hash(self.decision_period)
+    }
+
+    /// The contract as policy-file metadata: what the training server announces with every reset and the
+    /// trainer writes into the policies it exports.
+    pub fn metadata(&self) -> Vec<(&'static str, String)> {
+        vec![
+            (keys::SPEC_VERSION, OBS_SPEC_VERSION.to_string()),
+            (keys::SPEC_HASH, self.spec_hash()),
+            (keys::PHYSICS_HZ, PHYSICS_HZ.to_string()),
+            (keys::DECISION_PERIOD, self.decision_period.to_string()),
+            (keys::FRAMES, self.frames.to_string()),
+            (keys::SMOOTHING_WINDOW, self.smoothing_window.to_string()),
+            (keys::OBSERVATION_SIZE, OBS_DIM.to_string()),
+            (keys::ACTION_SIZE, DOF_COUNT.to_string()),
+            (
+                keys::ACTION_SPEC,
+                format!(
+                    "{DOF_COUNT} raw actions in [-1, 1]; see docs/env.md (mean clipped to [-1, 1], smoothed by the controller)"
+                ),
+            ),
+        ]
+    }
+
+    /// `metadata` as a JSON object (for the protocol).
+    pub fn metadata_json(&self) -> Value {
+        Value::Object(self.metadata().into_iter().map(|(key, value)| (key.to_string(), Value::String(value))).collect())
+    }
+
+    /// Reads the contract back from a policy file's metadata (`lookup` gives an entry by key). Every key of
+    /// `REQUIRED_METADATA` must be there with a value this build can play: a missing or bad one is an error
+    /// that names the key and how to re-export. The spec hash is only required here; it is compared with
+    /// the character's own by the caller.
+    pub fn from_metadata(lookup: impl Fn(&str) -> Option<String>) -> Result<Self, SpecError> {
+        let get = |key: &'static str| lookup(key).ok_or(SpecError::MissingKey { key });
+        let number = |key: &'static str| -> Result<u32, SpecError> {
+            let value = get(key)?;
+            value.trim().parse::<u32>().map_err(|_| SpecError::BadValue {
+                key,
+                value: value.clone(),
+                reason: "not a whole number".into(),
+            })
+        };
+        get(keys::SPEC_HASH)?;
+        let physics_hz = number(keys::PHYSICS_HZ)?;
+        if physics_hz != PHYSICS_HZ {
+            return Err(SpecError::BadValue {
+                key: keys::PHYSICS_HZ,
+                value: physics_hz.to_string(),
+                reason: format!("this build simulates at {PHYSICS_HZ} Hz"),
+            });
+        }
+        let (decision_period, frames, smoothing_window) =
+            (number(keys::DECISION_PERIOD)?, number(keys::FRAMES)?, number(keys::SMOOTHING_WINDOW)?);
+        Self::new(decision_period, frames, smoothing_window).map_err(|reason| SpecError::BadValue {
+            key: keys::FRAMES,
+            value: format!("{frames} (decision period {decision_period}, smoothing window {smoothing_window})"),
+            reason,
+        })
+    }
+}
+
+/// The spec part of the training server's handshake for `decision_period`: versions, hash, rates, sizes,
+/// every name, the action bounds and the default bag placement.
+pub fn handshake_fields(decision_period: u32) -> Map<String, Value> {
+    let mut fields = Map::new();
+    fields.insert("spec_version".into(), json!(OBS_SPEC_VERSION));
+    fields.insert("spec_hash".into(), json!(spec_hash(decision_period)));
+    fields.insert("physics_hz".into(), json!(PHYSICS_HZ));
+    fields.insert("decision_period".into(), json!(decision_period));
+    fields.insert("action_names".into(), json!(DOFS.iter().map(|d| d.name).collect::<Vec<_>>()));
+    fields.insert("action_lower_rad".into(), json!(DOFS.iter().map(|d| d.lower_rad).collect::<Vec<_>>()));
+    fields.insert("action_upper_rad".into(), json!(DOFS.iter().map(|d| d.upper_rad).collect::<Vec<_>>()));
+    fields.insert("observation_names".into(), json!(observation_names()));
+    fields.insert("feature_names".into(), json!(FEATURE_NAMES.to_vec()));
+    fields.insert("default_bag".into(), BagPlacement::DEFAULT.to_json());
+    fields
+}
+
+#[cfg(test)]
+mod tests {
+    use std::collections::HashMap;
+
+    use super::*;
+
+    fn lookup(entries: &[(&'static str, String)]) -> impl Fn(&str) -> Option<String> {
+        let map: HashMap<String, String> = entries.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
+        move |key| map.get(key).cloned()
+    }
+
+    #[test]
+    fn metadata_round_trips() {
+        let spec = PolicySpec::new(5, 50, 3).expect("valid");
+        assert_eq!(PolicySpec::from_metadata(lookup(&spec.metadata())), Ok(spec));
+        assert_eq!(spec.decisions(), 10);
+        assert_eq!(spec.metadata_json()[keys::SMOOTHING_WINDOW], json!("3"));
+    }
+
+    #[test]
+    fn every_required_key_is_required_and_named() {
+        let full = PolicySpec::new(5, 100, 3).expect("valid").metadata();
+        for key in REQUIRED_METADATA {
+            let partial: Vec<_> = full.iter().filter(|(k, _)| *k != key).cloned().collect();
+            let error = PolicySpec::from_metadata(lookup(&partial)).expect_err("refused");
+            assert_eq!(error, SpecError::MissingKey { key });
+            assert!(error.to_string().contains(key) && error.to_string().contains("punch pretrain"), "{error}");
+        }
+    }
+
+    #[test]
+    fn bad_values_are_refused() {
+        let spec = PolicySpec::new(5, 50, 1).expect("valid").metadata();
+        for (key, value) in [
+            (keys::FRAMES, "0"),
+            (keys::FRAMES, "7"),
+            (keys::FRAMES, "1000000000000"),
+            (keys::SMOOTHING_WINDOW, "0"),
+            (keys::SMOOTHING_WINDOW, "x"),
+            (keys::PHYSICS_HZ, "60"),
+            (keys::DECISION_PERIOD, "-5"),
+        ] {
+            let changed: Vec<_> =
+                spec.iter().map(|(k, v)| (*k, if *k == key { value.to_string() } else { v.clone() })).collect();
+            assert!(PolicySpec::from_metadata(lookup(&changed)).is_err(), "{key} = {value}");
+        }
+    }
+
+    #[test]
+    fn the_handshake_announces_the_spec() {
+        let fields = handshake_fields(5);
+        assert_eq!(fields["spec_hash"], json!(spec_hash(5)));
+        assert_eq!(fields["observation_names"].as_array().map(Vec::len), Some(OBS_DIM));
+        assert_eq!(fields["action_names"].as_array().map(Vec::len), Some(DOF_COUNT));
+        assert_eq!(fields["default_bag"]["distance_m"], json!(0.72f32));
+    }
+}

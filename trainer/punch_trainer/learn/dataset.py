@@ -1,0 +1,99 @@
+"""Trajectory datasets: the trajectory search's best trajectory recorded decision by decision (what
+pretraining learns from), and loading several of them as one.
+
+A dataset (`dataset.npz`) holds per decision the observation seen, the raw and executed action and the
+reward, every frame's features, and the policy contract of the episodes it was recorded in
+(`policy_metadata`, as the training server announced it), which every policy trained on it carries."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from punch_trainer.errors import PunchError
+from punch_trainer.learn.search import SearchArgs, SearchResult
+from punch_trainer.sim.rewards import Reward, score
+from punch_trainer.sim.server import TrainingServer
+
+
+class DatasetError(PunchError):
+    """A dataset file is missing, unreadable, from another spec, or lacks the policy contract."""
+
+
+def record_dataset(result: SearchResult, reward: Reward, args: SearchArgs) -> dict[str, np.ndarray]:
+    """Steps through the best trajectory one decision at a time, in the same slot of a server of the same size
+    as the search's (so that it is bitwise the same trajectory: docs/env.md, Episodes), and stores what each
+    decision saw and did. The recording must reproduce the search's features exactly."""
+    slot, slot_count = result.best_slot, args.characters_per_process
+    with TrainingServer(slot_count, decision_period=args.decision_period) as server:
+        info = server.info
+        reply = server.reset(reward.frames, smoothing_window=args.smoothing_window)
+        contract = reply.fields["policy_metadata"]
+        observations, executed, frames = [reply.arrays["observations"][slot]], [], []
+        for action in result.best_actions:
+            actions = np.zeros((slot_count, info.action_size), dtype=np.float32)
+            actions[slot] = action
+            step = server.step(actions)
+            observations.append(step.arrays["observations"][slot])
+            executed.append(step.arrays["executed_actions"][slot, 0])
+            frames.append(step.arrays["features"][slot])
+    features = np.concatenate(frames)
+    decisions = len(result.best_actions)
+    rewards = score(reward, features.reshape(decisions, args.decision_period, -1), info.feature_names)
+    if not np.array_equal(features, result.best_features):
+        raise RuntimeError("recording the best trajectory step by step did not reproduce its features; the physics is not deterministic")
+    return {
+        "observations": np.stack(observations[:-1]).astype(np.float32),
+        "next_observations": np.stack(observations[1:]).astype(np.float32),
+        "actions": result.best_actions.astype(np.float32),
+        "executed_actions": np.stack(executed).astype(np.float32),
+        "rewards": rewards.astype(np.float32),
+        "features": features.astype(np.float32),
+        "feature_names": np.array(info.feature_names),
+        "observation_names": np.array(info.observation_names),
+        "spec_hash": np.array(info.spec_hash),
+        "policy_metadata": np.array(json.dumps(contract, sort_keys=True)),
+        "reward": np.array(reward.name),
+        "frames": np.array(reward.frames),
+        "decision_period": np.array(args.decision_period),
+        "smoothing_window": np.array(args.smoothing_window),
+        "physics_hz": np.array(info.physics_hz),
+        "return": np.array(float(score(reward, features, info.feature_names))),
+    }
+
+
+def load_datasets(paths: list[Path]) -> dict[str, Any]:
+    """Concatenates the decision-level arrays of several datasets. They must share one policy contract (spec,
+    episode length, smoothing window), which the result carries in `policy_metadata` (a dict)."""
+    parts = []
+    for path in paths:
+        try:
+            parts.append(dict(np.load(path)))
+        except (OSError, ValueError) as error:
+            raise DatasetError(f"cannot read dataset {path}: {error}") from None
+    contracts = []
+    for path, part in zip(paths, parts, strict=True):
+        if "policy_metadata" not in part:
+            raise DatasetError(f"{path} holds no policy contract (it was written by an older punch search); run the search again")
+        contracts.append(json.loads(str(part["policy_metadata"])))
+    if any(contract != contracts[0] for contract in contracts):
+        raise DatasetError("the datasets come from different policy contracts (spec, episode length or smoothing window): "
+                           + "; ".join(f"{path}: {contract}" for path, contract in zip(paths, contracts, strict=True)))
+    out: dict[str, Any] = {key: np.concatenate([p[key] for p in parts]) for key in ("observations", "actions", "rewards")}
+    out["returns_to_go"] = np.concatenate([returns_to_go(p["rewards"], 1.0) for p in parts])
+    out["spec_hash"] = parts[0]["spec_hash"]
+    out["policy_metadata"] = contracts[0]
+    return out
+
+
+def returns_to_go(rewards: np.ndarray, gamma: float) -> np.ndarray:
+    """Sum of the (discounted) rewards from each decision to the end of the episode."""
+    out = np.zeros_like(rewards, dtype=np.float64)
+    running = 0.0
+    for t in range(len(rewards) - 1, -1, -1):
+        running = rewards[t] + gamma * running
+        out[t] = running
+    return out.astype(np.float32)

@@ -1,0 +1,66 @@
+"""Batches of open-loop rollouts spread over K Godot processes x N characters each.
+
+A Godot process that crashes, is killed or stops answering (its reply timeout) is restarted, the handshake
+is made again, and the batch is run again. A rollout always starts from the same reset and the same slot
+gives bitwise the same features in any process, so a restarted run ends exactly where an uninterrupted one
+would."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from punch_trainer.sim.protocol import Message, rollout_message
+from punch_trainer.sim.server import TrainingServer, exchange
+from punch_trainer.sim.server_group import ServerGroup, SimulatorRestarts
+
+
+class RolloutPool:
+    """Runs any number of open-loop action sequences, `slots` at a time in parallel processes."""
+
+    def __init__(self, processes: int = 1, characters_per_process: int = 32, *, decision_period: int = 5,
+                 max_restarts: int = 3):
+        self.group = ServerGroup(processes, characters_per_process, decision_period)
+        self.info = self.group.info
+        self.characters_per_process = characters_per_process
+        self.slots = processes * characters_per_process
+        self._restarts = SimulatorRestarts(self.group.restart, max_restarts)
+
+    @property
+    def servers(self) -> list[TrainingServer]:
+        return self.group.servers
+
+    @property
+    def restarts(self) -> int:
+        """How many times the Godot processes were restarted."""
+        return self._restarts.count
+
+    def run(self, actions: np.ndarray, smoothing_window: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """Raw actions [M, decisions, 10] -> (features [M, frames, F], executed actions [M, decisions, 10])."""
+        actions = np.asarray(actions, dtype=np.float32)
+        count = actions.shape[0]
+        features, executed = [], []
+        for start in range(0, count, self.slots):
+            chunk = actions[start:start + self.slots]
+            padded = np.zeros((self.slots, *actions.shape[1:]), dtype=np.float32)
+            padded[:len(chunk)] = chunk  # unused slots run the guard pose; their results are dropped
+            parts = np.split(padded, len(self.servers))
+            messages = [rollout_message(part, smoothing_window=smoothing_window) for part in parts]
+            replies = self._restarts.run(functools.partial(self._exchange, messages))
+            features.append(np.concatenate([r.arrays["features"] for r in replies])[:len(chunk)])
+            executed.append(np.concatenate([r.arrays["executed_actions"] for r in replies])[:len(chunk)])
+        return np.concatenate(features), np.concatenate(executed)
+
+    def _exchange(self, messages: list[Message]) -> list[Message]:
+        # The servers of the moment: a restart replaces them.
+        return exchange(self.servers, messages)
+
+    def close(self) -> None:
+        self.group.close()
+
+    def __enter__(self) -> RolloutPool:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

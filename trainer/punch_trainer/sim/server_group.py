@@ -1,0 +1,65 @@
+"""K training servers started, restarted and closed together, and the restart rule: a Godot process that
+crashes, is killed or stops answering (its reply timeout) is replaced by a fresh one, the handshake is made
+again, and the work is run again from its start."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable
+from typing import TypeVar
+
+from punch_trainer.errors import PunchError
+from punch_trainer.sim.protocol import ProtocolError, ServerClosedError, ServerTimeoutError
+from punch_trainer.sim.server import ServerInfo, TrainingServer, start_servers
+
+# Failures that a fresh Godot process fixes (a server's error reply is not one of them: it would repeat).
+SIMULATOR_FAILURES = (ServerClosedError, ServerTimeoutError, ProtocolError, ConnectionError)
+
+T = TypeVar("T")
+
+
+class SimulatorCrashError(PunchError):
+    """The simulator kept failing after the allowed number of restarts."""
+
+
+class SimulatorRestarts:
+    """Runs work against Godot processes; when one crashes, is killed or hangs, calls `restart` (fresh
+    processes, handshake made again) and runs the work again from its start, at most `limit` times in all."""
+
+    def __init__(self, restart: Callable[[], None], limit: int = 3):
+        self.restart = restart
+        self.limit = limit
+        self.count = 0
+
+    def run(self, attempt: Callable[[], T]) -> T:
+        while True:
+            try:
+                return attempt()
+            except SIMULATOR_FAILURES as error:
+                if self.count >= self.limit:
+                    raise SimulatorCrashError(f"the simulator failed again after {self.count} restarts: {error}") from error
+                self.count += 1
+                print(f"punch: a Godot process failed ({type(error).__name__}: {error}); restarting it "
+                      f"({self.count}/{self.limit}) and running the work again", file=sys.stderr)
+                self.restart()
+
+
+class ServerGroup:
+    """K training servers with N characters each, started, restarted and closed together: what the rollout
+    pool and the vector env hold."""
+
+    def __init__(self, processes: int, characters_per_process: int, decision_period: int = 5):
+        self._start: Callable[[], list[TrainingServer]] = lambda: start_servers(processes, characters_per_process, decision_period)
+        self.servers = self._start()
+        self.info: ServerInfo = self.servers[0].info  # the handshake: rates, names, spec hash
+
+    def restart(self) -> None:
+        """Replaces every process with a fresh one (after one failed); the handshake is made again."""
+        self.close()
+        self.servers = self._start()
+        if self.servers[0].info.spec_hash != self.info.spec_hash:
+            raise SimulatorCrashError("the restarted simulator has another observation spec")
+
+    def close(self) -> None:
+        for server in self.servers:
+            server.close()
