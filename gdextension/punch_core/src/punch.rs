@@ -159,7 +159,7 @@ impl Punch {
     pub fn act(&mut self, mean: Option<&[f32]>, noise: &mut RuntimeNoise) -> CoreResult<[Vec3; 5]> {
         if let Some(mean) = mean {
             if mean.iter().any(|v| !v.is_finite()) {
-                return Err(CoreError::BadInput("the policy returned NaN or infinite actions".into()));
+                return Err(CoreError::Inference("the policy returned NaN or infinite actions".into()));
             }
             let action = noise.apply(self.decision(), mean);
             self.controller.set_action(&action)?;
