@@ -88,3 +88,28 @@ def test_controller_faults_give_clear_errors_and_the_game_goes_on(policy, tmp_pa
     assert report["target_freed_stopped"] and report["character_freed_stopped"]
     assert report["sigma_after_set"] == [1.0, 0.0, 0.0, 0.25]
     assert report["pck_mounted"] and report["pck_started"] and report["pck_punch"]["frames"] == 50
+
+
+def test_a_character_facing_any_way_punches_as_it_does_facing_forward(policy):
+    """Turned by 90, -90, 180, 37 and -150 degrees and moved, each with its sandbag in front of it, a character
+    playing the policy with no noise senses the same features as the one at the origin facing +Z (in its own
+    frame) and hits its bag alike. Before joint angles were read in the character's frame, every turned
+    character missed."""
+    run = run_script("turned_scene.gd", f"--policy={policy}")
+    assert run.fatal_lines() == [] and "ERROR" not in run.log, run.log[-3000:]
+    line = next(line for line in run.log.splitlines() if line.startswith("TURNED_SCENE "))
+    punches = json.loads(line[len("TURNED_SCENE "):])
+    assert len(punches) == 6, run.log[-3000:]
+    reference = next(p for p in punches if p["yaw"] == 0.0)
+    features = np.array(reference["features"]).reshape(50, -1)
+    for punch in punches:
+        turned = np.array(punch["features"]).reshape(50, -1)
+        # Relative to the feature's size: float32 world coordinates 30 m from the origin round joint speeds of
+        # tens of rad/s at about 1e-4 of their size.
+        before_contact = (np.abs(turned[:25] - features[:25]) / (1.0 + np.abs(features[:25]))).max()
+        print(f"yaw {punch['yaw']:6.1f}: hits {punch['hits']}, peak {punch['peak_fist_speed_mps']:.3f} m/s, "
+              f"largest relative feature difference over the first 25 frames {before_contact:.2e}")
+        assert punch["hits"] >= 1, punch["yaw"]
+        assert before_contact < 1e-3, punch["yaw"]
+        assert punch["peak_fist_speed_mps"] == pytest.approx(reference["peak_fist_speed_mps"], rel=0.02)
+

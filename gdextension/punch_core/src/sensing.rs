@@ -184,12 +184,17 @@ impl Sensor {
         self.previous = None;
     }
 
-    /// Joint rotations (child frame relative to parent frame) of a reading, in `JOINTS` order.
+    /// Joint rotations (child frame relative to parent frame) of a reading, in `JOINTS` order, in the joint
+    /// frames: these are aligned with the character's root frame in the rest pose, so a rotation measured in
+    /// world axes is turned into the root's axes (a character facing any way reads the same angles).
     pub fn joint_rotations(&self, reading: &FrameReading) -> [Quat; 5] {
         let rest = &self.geometry.rest_rotations;
+        let root = self.geometry.root_rotation;
         std::array::from_fn(|j| {
             let (p, c) = (JOINTS[j].parent.index(), JOINTS[j].child.index());
-            joint_rotation(reading.bodies[p].rotation, rest[p], reading.bodies[c].rotation, rest[c])
+            let in_world_axes =
+                joint_rotation(reading.bodies[p].rotation, rest[p], reading.bodies[c].rotation, rest[c]);
+            root.inverse() * in_world_axes * root
         })
     }
 
@@ -257,12 +262,14 @@ impl Sensor {
     /// Joint angular speeds (rad/s) about each DOF axis, in the parent joint frame.
     fn joint_speeds(&self, reading: &FrameReading) -> [f32; DOF_COUNT] {
         let rest = &self.geometry.rest_rotations;
+        let root = self.geometry.root_rotation;
         std::array::from_fn(|i| {
             let joint = &JOINTS[DOFS[i].joint];
             let (p, c) = (joint.parent.index(), joint.child.index());
             let parent_frame = reading.bodies[p].rotation * rest[p].inverse();
             let relative = reading.bodies[c].angular_velocity - reading.bodies[p].angular_velocity;
-            (parent_frame.inverse() * relative)[DOFS[i].axis.index()]
+            // In the parent joint frame, whose rest orientation is the root's.
+            (root.inverse() * (parent_frame.inverse() * relative))[DOFS[i].axis.index()]
         })
     }
 
@@ -412,6 +419,44 @@ mod tests {
         let features = sensor.features(&reading);
         let z = feature_index("bag_pos_z").expect("feature");
         assert!((features[z] - 0.72).abs() < 1e-5);
+    }
+
+    #[test]
+    fn a_turned_and_moved_character_senses_what_it_senses_at_the_origin() {
+        // A pose with every joint bent and turning, at the origin facing +Z...
+        let mut reading = reading_at_rest();
+        for (i, body) in reading.bodies.iter_mut().enumerate() {
+            body.rotation = Quat::from_euler(glam::EulerRot::YXZ, 0.1 * i as f32, -0.2 * i as f32, 0.05 * i as f32);
+            body.position = Vec3::new(0.02 * i as f32, 1.2 + 0.05 * i as f32, 0.03 * i as f32);
+            body.linear_velocity = Vec3::new(0.3, -0.1 * i as f32, 1.5);
+            body.angular_velocity = Vec3::new(0.5 * i as f32, -1.0, 0.25 * i as f32);
+        }
+        let at_origin = Sensor::new(rest_geometry()).features(&reading);
+        // ...and the same pose with the whole character turned (yaw 90 and 180 degrees, and a tilt) and moved.
+        for turn in [
+            Quat::from_rotation_y(std::f32::consts::FRAC_PI_2),
+            Quat::from_rotation_y(std::f32::consts::PI),
+            Quat::from_rotation_y(-0.7) * Quat::from_rotation_x(0.2),
+        ] {
+            let offset = Vec3::new(5.0, 0.5, -3.0);
+            let mut geometry = rest_geometry();
+            geometry.rest_rotations = geometry.rest_rotations.map(|rest| turn * rest);
+            geometry.root_rotation = turn;
+            geometry.root_position = offset;
+            let mut turned = reading;
+            for body in turned.bodies.iter_mut().chain([&mut turned.bag]) {
+                *body = BodyState {
+                    position: offset + turn * body.position,
+                    rotation: turn * body.rotation,
+                    linear_velocity: turn * body.linear_velocity,
+                    angular_velocity: turn * body.angular_velocity,
+                };
+            }
+            let features = Sensor::new(geometry).features(&turned);
+            for (name, (a, b)) in FEATURE_NAMES.iter().zip(at_origin.iter().zip(&features)) {
+                assert!((a - b).abs() < 1e-4, "{name}: {a} at the origin, {b} turned by {turn:?}");
+            }
+        }
     }
 
     #[test]

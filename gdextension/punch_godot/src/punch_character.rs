@@ -40,6 +40,16 @@ pub struct Rig {
 }
 
 impl Rig {
+    /// The rest-pose geometry of the character standing at `root` (its global transform now): where it was
+    /// built does not matter, so a character moved or turned since `ready` senses in its own frame.
+    pub fn geometry_at(&self, root: Transform3D) -> CharacterGeometry {
+        let mut geometry = self.geometry;
+        geometry.rest_rotations = std::array::from_fn(|i| quat((root * self.rest_from_root[i]).basis.get_quaternion()));
+        geometry.root_rotation = quat(root.basis.get_quaternion());
+        geometry.root_position = vec3(root.origin);
+        geometry
+    }
+
     /// World state of every body, `Body::ALL` order.
     pub fn read_bodies(&self) -> [BodyState; 6] {
         std::array::from_fn(|i| {

@@ -214,7 +214,9 @@ impl PunchController {
         loaded.policy.check_spec(self.decision_period.max(1) as u32)?;
         let character = live(&self.character).ok_or("no character set (or it was freed)")?;
         let target = live(&self.target).ok_or("no target set (or it was freed)")?;
-        let mut geometry = character.bind().rig().map(|rig| rig.geometry).ok_or("the character is not ready")?;
+        let root = character.get_global_transform();
+        let mut geometry =
+            character.bind().rig().map(|rig| rig.geometry_at(root)).ok_or("the character is not ready")?;
         if let Ok(body) = target.clone().try_cast::<RigidBody3D>() {
             geometry.bag_mass_kg = body.get_mass();
             if let Some((radius, height)) = cylinder_of(&body) {
@@ -222,9 +224,6 @@ impl PunchController {
                 geometry.bag_height_m = height;
             }
         }
-        let root = character.get_global_transform();
-        geometry.root_rotation = quat(root.basis.get_quaternion());
-        geometry.root_position = vec3(root.origin);
         self.state = Some(Punch::new(geometry, loaded.policy.spec, self.record));
         Ok(())
     }
