@@ -1,16 +1,16 @@
-## Characters facing every way: the addon's character turned by several yaw angles (and one tilted) at
-## several places, each with a sandbag in front of it (the spec's target offset, turned with it), all playing
+## Characters facing every way: the addon's character turned by several yaw angles at several places, each with a sandbag in front of it (the spec's target offset, turned with it), all playing
 ## one policy (--policy=PATH) with no noise. Prints `TURNED_SCENE <json>`: per character its yaw, hits, peak
 ## fist speed and recorded features (frames x features, in the character's own frame), then quits.
 extends SceneTree
 
+## [yaw in degrees, position]
 const POSES := [
-	[0.0, Vector3(0, 0, 0), 0.0],
-	[90.0, Vector3(5, 0, -3), 0.0],
-	[-90.0, Vector3(-6, 0, 4), 0.0],
-	[180.0, Vector3(12, 0, 12), 0.0],
-	[37.0, Vector3(-20, 0, -15), 0.0],
-	[-150.0, Vector3(30, 0, 0), 0.0],
+	[0.0, Vector3(0, 0, 0)],
+	[90.0, Vector3(5, 0, -3)],
+	[-90.0, Vector3(-6, 0, 4)],
+	[180.0, Vector3(12, 0, 12)],
+	[37.0, Vector3(-20, 0, -15)],
+	[-150.0, Vector3(30, 0, 0)],
 ]
 var _controllers: Array[Node] = []
 var _finished := {}

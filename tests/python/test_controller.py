@@ -66,8 +66,8 @@ def nan_policy(path, contract: dict[str, str]):
 def test_controller_faults_give_clear_errors_and_the_game_goes_on(policy, tmp_path):
     corrupt = tmp_path / "corrupt.onnx"
     corrupt.write_bytes(np.random.default_rng(0).bytes(3000))
-    nan = nan_policy(tmp_path / "nan.onnx", policy_metadata(policy))
     contract = policy_metadata(policy)
+    nan = nan_policy(tmp_path / "nan.onnx", contract)
     incomplete = nan_policy(tmp_path / "incomplete.onnx", {k: v for k, v in contract.items() if k != "punch_smoothing_window"})
     run = run_script("controller_faults.gd", f"--policy={policy}", f"--nan-policy={nan}", f"--corrupt={corrupt}",
                      f"--tiny={FIXTURES / 'tiny_actor.onnx'}", f"--pck={tmp_path / 'game.pck'}", f"--incomplete={incomplete}")

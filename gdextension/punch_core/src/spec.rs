@@ -86,6 +86,25 @@ pub enum SpecError {
     BadValue { key: &'static str, value: String, reason: String },
 }
 
+/// A value of `PolicySpec::new` out of range: which field (its metadata key) and why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InvalidSpec {
+    pub key: &'static str,
+    pub reason: String,
+}
+
+impl std::fmt::Display for InvalidSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.reason)
+    }
+}
+
+impl From<InvalidSpec> for String {
+    fn from(invalid: InvalidSpec) -> Self {
+        invalid.reason
+    }
+}
+
 /// The timing a policy was trained with: a game plays it with the same.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PolicySpec {
@@ -99,17 +118,27 @@ pub struct PolicySpec {
 
 impl PolicySpec {
     /// A checked spec: every value in range and `frames` a multiple of `decision_period`.
-    pub fn new(decision_period: u32, frames: u32, smoothing_window: u32) -> Result<Self, String> {
+    pub fn new(decision_period: u32, frames: u32, smoothing_window: u32) -> Result<Self, InvalidSpec> {
+        let invalid = |key, reason| Err(InvalidSpec { key, reason });
         if !(1..=MAX_DECISION_PERIOD).contains(&decision_period) {
-            return Err(format!("the decision period must be 1..={MAX_DECISION_PERIOD} frames, not {decision_period}"));
+            return invalid(
+                keys::DECISION_PERIOD,
+                format!("the decision period must be 1..={MAX_DECISION_PERIOD} frames, not {decision_period}"),
+            );
         }
         if !(1..=MAX_FRAMES).contains(&frames) || !frames.is_multiple_of(decision_period) {
-            return Err(format!(
-                "'frames' ({frames}) must be in 1..={MAX_FRAMES} and a multiple of the decision period ({decision_period})"
-            ));
+            return invalid(
+                keys::FRAMES,
+                format!(
+                    "'frames' ({frames}) must be in 1..={MAX_FRAMES} and a multiple of the decision period ({decision_period})"
+                ),
+            );
         }
         if !(1..=MAX_SMOOTHING_WINDOW).contains(&smoothing_window) {
-            return Err(format!("'smoothing_window' must be an integer in 1..={MAX_SMOOTHING_WINDOW}"));
+            return invalid(
+                keys::SMOOTHING_WINDOW,
+                format!("'smoothing_window' must be an integer in 1..={MAX_SMOOTHING_WINDOW}, not {smoothing_window}"),
+            );
         }
         Ok(Self { decision_period, frames, smoothing_window })
     }
@@ -175,10 +204,10 @@ impl PolicySpec {
         }
         let (decision_period, frames, smoothing_window) =
             (number(keys::DECISION_PERIOD)?, number(keys::FRAMES)?, number(keys::SMOOTHING_WINDOW)?);
-        Self::new(decision_period, frames, smoothing_window).map_err(|reason| SpecError::BadValue {
-            key: keys::FRAMES,
-            value: format!("{frames} (decision period {decision_period}, smoothing window {smoothing_window})"),
-            reason,
+        Self::new(decision_period, frames, smoothing_window).map_err(|invalid| SpecError::BadValue {
+            key: invalid.key,
+            value: lookup(invalid.key).unwrap_or_default(),
+            reason: invalid.reason,
         })
     }
 }
@@ -244,7 +273,8 @@ mod tests {
         ] {
             let changed: Vec<_> =
                 spec.iter().map(|(k, v)| (*k, if *k == key { value.to_string() } else { v.clone() })).collect();
-            assert!(PolicySpec::from_metadata(lookup(&changed)).is_err(), "{key} = {value}");
+            let error = PolicySpec::from_metadata(lookup(&changed)).expect_err("refused");
+            assert!(error.to_string().contains(&format!("'{key}'")), "{key} = {value}: {error}");
         }
     }
 

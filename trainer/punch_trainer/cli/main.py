@@ -176,10 +176,8 @@ def _pretrain(args: argparse.Namespace) -> int:
     data = load_datasets(args.datasets)
     model = ActorCritic(data["observations"].shape[1], data["actions"].shape[1], seed=args.seed)
     history = pretrain(model, data, PretrainArgs(epochs=args.epochs, seed=args.seed))
-    import numpy as np
-
     # A policy names its reward when every dataset had the same one (punch replay scores with it).
-    rewards = sorted({str(np.load(path)["reward"]) for path in args.datasets})
+    rewards = data["reward_names"]
     summary = {"pretrained_on": [str(path) for path in args.datasets], "decisions": len(data["actions"]),
                "final_actor_mse": history[-1]["actor_mse"]}
     path = export_policy(model, args.out, contract=data["policy_metadata"], reward=rewards[0] if len(rewards) == 1 else "",

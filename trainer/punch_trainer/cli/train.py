@@ -1,5 +1,5 @@
 """`punch train`: the whole pipeline for one reward. Trajectory search, then the dataset, supervised
-pretraining, A2C, and export to ONNX, ending with a noise-free replay of the exported policy in the
+pretraining, A2C, and export to ONNX, ending with a noise-free run of the exported policy in the
 simulator. Everything goes into one run directory with a short report."""
 
 from __future__ import annotations

@@ -67,7 +67,8 @@ def record_dataset(result: SearchResult, reward: Reward, args: SearchArgs) -> di
 
 def load_datasets(paths: list[Path]) -> dict[str, Any]:
     """Concatenates the decision-level arrays of several datasets. They must share one policy contract (spec,
-    episode length, smoothing window), which the result carries in `policy_metadata` (a dict)."""
+    episode length, smoothing window), which the result carries in `policy_metadata` (a dict), with the
+    datasets' distinct reward names in `reward_names`."""
     parts = []
     for path in paths:
         try:
@@ -86,6 +87,7 @@ def load_datasets(paths: list[Path]) -> dict[str, Any]:
     out["returns_to_go"] = np.concatenate([returns_to_go(p["rewards"], 1.0) for p in parts])
     out["spec_hash"] = parts[0]["spec_hash"]
     out["policy_metadata"] = contracts[0]
+    out["reward_names"] = sorted({str(p["reward"]) for p in parts})
     return out
 
 

@@ -10,7 +10,7 @@ Env card (full tables in docs/env.md)
   both fists' position and velocity, each fist's contact impulse on the bag, bag position and velocity,
   the 10 joint angles and speeds, and the episode phase (decision / decisions per episode).
 - Features: every physics frame's 54 features (`feature_names`) come in `info["features"]`, shape
-  [decision_period, 50]; rewards are computed from them in Python.
+  [decision_period, 54]; rewards are computed from them in Python.
 - Episode: `frames` physics frames (50 or 100: 10 or 20 decisions), always from the same initial state.
   At the last decision `terminated` is True, or `truncated` if the physics guard saw a joint come apart.
 - Reward: a `Reward` (punch_trainer.sim.rewards: a preset, or a function of the features loaded with
@@ -54,7 +54,20 @@ def _bag_options(options: dict[str, Any] | None, default: dict[str, float], rng:
     return bags
 
 
-class PunchEnv(gym.Env):
+class _EpisodeSettings:
+    """What both envs keep: the handshake and the episodes' settings."""
+
+    def _adopt(self, info: ServerInfo, frames: int, smoothing_window: int, reward: Reward | None, bag_jitter_m: float) -> None:
+        self.info = info
+        self.frames = frames
+        self.smoothing_window = smoothing_window
+        self.reward = reward
+        self.bag_jitter_m = bag_jitter_m
+        self.feature_names = info.feature_names
+        self.spec_hash = info.spec_hash
+
+
+class PunchEnv(gym.Env, _EpisodeSettings):
     """One punching character in its own headless Godot process (see the module docstring)."""
 
     metadata = {"render_modes": []}
@@ -65,22 +78,13 @@ class PunchEnv(gym.Env):
         info = self.server.info
         if info.slot_count != 1:
             raise ValueError("PunchEnv drives a one-slot server; use PunchVectorEnv for more")
-        self.info = info
-        self.frames = frames
-        self.smoothing_window = smoothing_window
-        self.reward = reward
-        self.bag_jitter_m = bag_jitter_m
-        self.feature_names = info.feature_names
-        self.spec_hash = info.spec_hash
+        self._adopt(info, frames, smoothing_window, reward, bag_jitter_m)
         self.observation_space, self.action_space = _spaces(info)
-        self.policy_metadata: dict[str, str] = {}
-        """the policy contract of this env's episodes (from the last reset)"""
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
         bags = _bag_options(options, self.info.default_bag, self.np_random, 1, self.bag_jitter_m)
         reply = self.server.reset(self.frames, bags=bags, smoothing_window=self.smoothing_window)
-        self.policy_metadata = reply.fields["policy_metadata"]
         return reply.arrays["observations"][0].copy(), {"features": reply.arrays["features"][0].copy(), "bag": bags[0]}
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
@@ -96,7 +100,7 @@ class PunchEnv(gym.Env):
         self.server.close()
 
 
-class PunchVectorEnv(gym.vector.VectorEnv):
+class PunchVectorEnv(gym.vector.VectorEnv, _EpisodeSettings):
     """K Godot processes x N characters each, stepped in lockstep (requests go to every process before any
     reply is read, so processes simulate in parallel). Episodes of all characters start and end together;
     after the last decision the next `step` resets every character (Gymnasium's next-step autoreset) and
@@ -108,17 +112,10 @@ class PunchVectorEnv(gym.vector.VectorEnv):
                  decision_period: int = 5, smoothing_window: int = 1, reward: Reward | None = None,
                  bag_jitter_m: float = 0.0):
         self.group = ServerGroup(processes, characters_per_process, decision_period)
-        self.info = info = self.group.info
+        info = self.group.info
+        self._adopt(info, frames, smoothing_window, reward, bag_jitter_m)
         self.characters_per_process = characters_per_process
         self.num_envs = processes * characters_per_process
-        self.frames = frames
-        self.smoothing_window = smoothing_window
-        self.reward = reward
-        self.bag_jitter_m = bag_jitter_m
-        self.feature_names = info.feature_names
-        self.spec_hash = info.spec_hash
-        self.policy_metadata: dict[str, str] = {}
-        """the policy contract of this env's episodes (from the last reset)"""
         self.single_observation_space, self.single_action_space = _spaces(info)
         self.observation_space = gym.vector.utils.batch_space(self.single_observation_space, self.num_envs)
         self.action_space = gym.vector.utils.batch_space(self.single_action_space, self.num_envs)
@@ -131,7 +128,6 @@ class PunchVectorEnv(gym.vector.VectorEnv):
         n = self.characters_per_process
         replies = exchange(self.servers, [reset_message(self.frames, bags=bags[p * n:(p + 1) * n], smoothing_window=self.smoothing_window)
                                           for p in range(len(self.servers))])
-        self.policy_metadata = replies[0].fields["policy_metadata"]
         self._needs_reset = False
         observations = np.concatenate([r.arrays["observations"] for r in replies])
         return observations, {"features": np.concatenate([r.arrays["features"] for r in replies])}

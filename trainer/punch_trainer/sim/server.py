@@ -8,7 +8,7 @@ import selectors
 import socket
 import subprocess
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -51,7 +51,7 @@ class ServerInfo:
     action_upper_rad: list[float]
     observation_names: list[str]
     feature_names: list[str]
-    default_bag: dict[str, float] = field(default_factory=dict)
+    default_bag: dict[str, float]
     """where the bag hangs unless a reset says otherwise (distance_m, height_m, side_m)"""
 
     @property
