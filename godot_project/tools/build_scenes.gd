@@ -146,10 +146,11 @@ func _rigid_body(name: String, mass: float, inertia: Vector3, at: Transform3D) -
 	body.center_of_mass = Vector3.ZERO  # every body's origin is its centre of mass
 	body.can_sleep = false
 	body.transform = at
-	# Layer 2: the character; it collides with itself (except across a joint) and with the bag (layer 3).
-	# Masks must be two-sided: under Jolt, a body that does not mask the other acts as immovable to it.
+	# Layer 2: the character; it collides with Godot's default layer 1, with other characters and with the
+	# bag (layer 3) (PunchCharacter.collision_mask, the same value, sets it at run time).
+	# Under Jolt, a body that does not mask the other acts as immovable to it: the bag masks layer 2 too.
 	body.collision_layer = 2
-	body.collision_mask = 2 | 4
+	body.collision_mask = 1 | 2 | 4
 	return body
 
 
@@ -170,7 +171,7 @@ func _build_character() -> Node3D:
 	pelvis.name = "Pelvis"
 	pelvis.position = Vector3(0, 0.98, 0)
 	pelvis.collision_layer = 2
-	pelvis.collision_mask = 2 | 4
+	pelvis.collision_mask = 1 | 2 | 4
 	root.add_child(pelvis)
 	var pelvis_box := _box(Vector3(0.32, 0.15, 0.2))
 	_shape(pelvis, "PelvisShape", pelvis_box[0], pelvis_box[1], _shirt, Transform3D.IDENTITY)

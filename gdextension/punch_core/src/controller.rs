@@ -48,6 +48,15 @@ impl CharacterController {
         std::array::from_fn(|joint| motor_velocities(rotations[joint], joint_target(joint, &self.targets)))
     }
 
+    pub fn geometry(&self) -> &CharacterGeometry {
+        self.sensor.geometry()
+    }
+
+    /// World positions and velocities of the fists: [(position, velocity); right, left].
+    pub fn fists(&self, reading: &FrameReading) -> [(Vec3, Vec3); 2] {
+        self.sensor.fists(reading)
+    }
+
     /// Features of the frame just simulated.
     pub fn features(&mut self, reading: &FrameReading) -> [f32; FEATURE_COUNT] {
         self.sensor.features(reading)

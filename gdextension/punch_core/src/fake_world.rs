@@ -5,6 +5,7 @@
 use glam::{Quat, Vec3};
 
 use crate::character::Body;
+use crate::punch::Touch;
 use crate::sensing::{BagContact, CharacterGeometry, FrameReading};
 use crate::session::World;
 use crate::spec::BagPlacement;
@@ -12,6 +13,8 @@ use crate::spec::BagPlacement;
 const FIST_OFFSET: Vec3 = Vec3::new(0.0, -0.155, 0.0);
 const START: Vec3 = Vec3::new(0.0, 1.505, 0.2);
 const DT: f32 = 1.0 / 120.0;
+/// The engine id `touches_slot` gives the bag.
+pub const FAKE_BAG_ID: u64 = 77;
 
 /// A character at the origin facing +Z, every body at rest in the guard pose.
 pub fn rest_geometry() -> CharacterGeometry {
@@ -62,6 +65,15 @@ impl FakeWorld {
 
     pub fn read_slot(&self, slot: usize) -> FrameReading {
         self.readings[slot]
+    }
+
+    /// The slot's bag contacts as touches of the bag (collider id `FAKE_BAG_ID`), as a game reports them.
+    pub fn touches_slot(&self, slot: usize) -> Vec<Touch> {
+        let reading = &self.readings[slot];
+        reading.contacts[..reading.contact_count]
+            .iter()
+            .map(|c| Touch { body: c.body, collider: FAKE_BAG_ID, point: c.point, impulse: c.impulse, overlap: false })
+            .collect()
     }
 
     pub fn drive_slot(&mut self, slot: usize, commands: &[Vec3; 5]) {

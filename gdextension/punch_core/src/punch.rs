@@ -8,12 +8,12 @@
 
 use glam::Vec3;
 
-use crate::character::Body;
+use crate::character::{Body, DOF_COUNT};
 use crate::controller::CharacterController;
 use crate::error::{CoreError, CoreResult};
 use crate::noise::GaussianNoise;
 use crate::observation::{OBS_DIM, observation};
-use crate::sensing::{CharacterGeometry, FEATURE_COUNT, FrameReading, columns, feature_vector};
+use crate::sensing::{CharacterGeometry, FEATURE_COUNT, FIST_CONTACT_MARGIN_M, FrameReading, columns, feature_vector};
 use crate::spec::PolicySpec;
 
 /// Impulse (N s) on the target above which a fist counts as hitting it.
@@ -49,24 +49,55 @@ impl RuntimeNoise {
     }
 }
 
-/// A fist started touching the target.
+/// Something a fist touches this frame, as the engine reported it (world coordinates). The game reports
+/// every contact of the character's forearms (and area overlaps of its fists) with whatever it may hit;
+/// `Punch` keeps those at the fists.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Touch {
+    /// Index into `Body::ALL` of the character's body that touches (only the forearms carry fists).
+    pub body: usize,
+    /// The engine's id of what is touched (a body or an area): one hit per contact episode with it.
+    pub collider: u64,
+    /// The contact point on what is touched.
+    pub point: Vec3,
+    /// Impulse applied to what is touched this frame, N s (zero for an area).
+    pub impulse: Vec3,
+    /// An area overlapping the fist rather than a contact: it is a hit without an impulse.
+    pub overlap: bool,
+}
+
+/// A fist started touching something (a new contact episode with it).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Hit {
-    /// Contact impulse on the target, N s.
-    pub impulse_ns: f32,
+    /// What was hit (`Touch::collider`).
+    pub collider: u64,
+    /// Contact impulse on what was hit in this first frame, N s (world axes; zero for an area).
+    pub impulse: Vec3,
     /// The fist's peak speed so far in this punch, m/s.
     pub speed_mps: f32,
     /// Where the fist was (world coordinates).
     pub position: Vec3,
 }
 
-/// What a finished punch did.
+impl Hit {
+    /// Strength of the hit, N s.
+    pub fn impulse_ns(&self) -> f32 {
+        self.impulse.length()
+    }
+}
+
+/// What a punch did, when it ends.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct PunchSummary {
+    /// Physics frames played.
     pub frames: usize,
     pub peak_fist_speed_mps: f32,
+    /// Contact episodes of a fist with something it may hit.
     pub hits: i64,
+    /// The largest contact impulse of a fist in one frame, N s.
     pub strongest_hit_ns: f32,
+    /// The punch was ended before its last frame (cancelled, or its policy changed).
+    pub interrupted: bool,
 }
 
 /// A punch frame by frame (kept when asked for): features [frames x F] (the frame before the first decision
@@ -94,12 +125,12 @@ pub enum Sensed {
 #[derive(Debug, Clone)]
 pub struct Punch {
     controller: CharacterController,
-    fist_offsets: [Vec3; 2],
     spec: PolicySpec,
     frame: u32,
     /// This frame's reading, kept from sensing to acting.
     reading: FrameReading,
-    touching: bool,
+    /// What the fists are touching in a contact episode that was counted as a hit.
+    in_contact: Vec<u64>,
     summary: PunchSummary,
     record: Option<PunchRecord>,
 }
@@ -110,11 +141,10 @@ impl Punch {
     pub fn new(geometry: CharacterGeometry, spec: PolicySpec, record: bool) -> Self {
         Self {
             controller: CharacterController::new(geometry, spec.smoothing_window as usize),
-            fist_offsets: geometry.fist_offsets,
             spec,
             frame: 0,
             reading: FrameReading::default(),
-            touching: false,
+            in_contact: Vec::new(),
             summary: PunchSummary::default(),
             record: record.then(PunchRecord::default),
         }
@@ -125,16 +155,23 @@ impl Punch {
         self.frame
     }
 
+    /// Ends the punch before its last frame: its summary, marked interrupted, and its record so far.
+    pub fn interrupt(mut self) -> (PunchSummary, Option<PunchRecord>) {
+        self.summary.frames = self.frame as usize;
+        self.summary.interrupted = true;
+        (self.summary, self.record)
+    }
+
     /// The decision the current frame belongs to.
     pub fn decision(&self) -> u32 {
         self.frame / self.spec.decision_period
     }
 
-    /// First half of a physics frame: reads the frame just simulated. Returns the hit it shows (when a fist
-    /// started touching the target) and what the caller does next.
-    pub fn sense(&mut self, reading: FrameReading) -> (Option<Hit>, Sensed) {
+    /// First half of a physics frame: reads the frame just simulated and what the character's forearms
+    /// touch. Returns the hits it shows (a fist started touching something) and what the caller does next.
+    pub fn sense(&mut self, reading: FrameReading, touches: &[Touch]) -> (Vec<Hit>, Sensed) {
         let features = self.controller.features(&reading);
-        let hit = self.track_hits(&features, &reading);
+        let hit = self.track_hits(&features, &reading, touches);
         if let Some(record) = self.record.as_mut().filter(|_| self.frame > 0) {
             record.features.extend_from_slice(&features);
         }
@@ -173,34 +210,100 @@ impl Punch {
         Ok(commands)
     }
 
-    fn track_hits(&mut self, features: &[f32; FEATURE_COUNT], reading: &FrameReading) -> Option<Hit> {
+    /// Hits of this frame: one per contact episode of a fist with something, counted when its impulse first
+    /// exceeds `HIT_IMPULSE_NS` (or at once for an area). An episode lasts while the fist keeps touching it
+    /// (Jolt keeps a contact, at zero impulse, while the fist rests on or rebounds near a surface).
+    fn track_hits(&mut self, features: &[f32; FEATURE_COUNT], reading: &FrameReading, touches: &[Touch]) -> Vec<Hit> {
         let length = |column: usize| feature_vector(features, column).length();
         let speeds = [length(columns::FIST_R_VEL), length(columns::FIST_L_VEL)];
-        let impulses = [length(columns::FIST_R_IMPULSE), length(columns::FIST_L_IMPULSE)];
         let previous_peak = self.summary.peak_fist_speed_mps;
         self.summary.peak_fist_speed_mps = previous_peak.max(speeds[0]).max(speeds[1]);
-        let side = if impulses[0] >= impulses[1] { 0 } else { 1 };
-        let touching = impulses[side] > HIT_IMPULSE_NS;
-        let started = touching && !self.touching;
-        self.touching = touching;
-        if !started {
+
+        let fists = self.controller.fists(reading);
+        let reach = self.controller.geometry().fist_radius_m + FIST_CONTACT_MARGIN_M;
+        // Per collider: the impulse of all fist contacts with it, the fist that touched it, area or not.
+        let mut touched: Vec<(u64, Vec3, usize, bool)> = Vec::new();
+        for touch in touches {
+            let Some(side) = [Body::ForearmR, Body::ForearmL].iter().position(|b| b.index() == touch.body) else {
+                continue;
+            };
+            if !touch.overlap && touch.point.distance(fists[side].0) > reach {
+                continue;
+            }
+            match touched.iter_mut().find(|(collider, ..)| *collider == touch.collider) {
+                Some(entry) => {
+                    entry.1 += touch.impulse;
+                    entry.3 |= touch.overlap;
+                }
+                None => touched.push((touch.collider, touch.impulse, side, touch.overlap)),
+            }
+        }
+        let mut hits = Vec::new();
+        let mut in_contact = Vec::new();
+        for (collider, impulse, side, overlap) in touched {
+            let continuing = self.in_contact.contains(&collider);
+            if !continuing && !overlap && impulse.length() <= HIT_IMPULSE_NS {
+                continue;
+            }
+            in_contact.push(collider);
+            self.summary.strongest_hit_ns = self.summary.strongest_hit_ns.max(impulse.length());
+            if !continuing {
+                self.summary.hits += 1;
+                hits.push(Hit {
+                    collider,
+                    impulse,
+                    speed_mps: previous_peak.max(speeds[side]),
+                    position: fists[side].0,
+                });
+            }
+        }
+        self.in_contact = in_contact;
+        hits
+    }
+}
+
+/// Bringing a character back to its guard pose under physics (after a punch, or whenever a game asks): the
+/// joint motors drive every joint toward its rest angle with the same motor law as a punch.
+#[derive(Debug, Clone)]
+pub struct Recovery {
+    controller: CharacterController,
+    frame: u32,
+}
+
+impl Recovery {
+    /// Longest recovery, frames (0.5 s at 120 Hz): it ends then even if the character is still moving.
+    pub const MAX_FRAMES: u32 = 60;
+    /// Back in guard: every joint within this angle of its rest angle (rad) ...
+    pub const SETTLED_ANGLE_RAD: f32 = 0.02;
+    /// ... and slower than this (rad/s).
+    pub const SETTLED_SPEED_RAD_S: f32 = 0.2;
+
+    pub fn new(geometry: CharacterGeometry) -> Self {
+        Self { controller: CharacterController::new(geometry, 1), frame: 0 }
+    }
+
+    /// Motor commands for the next physics step, or None when the character is back in its guard pose (or
+    /// the time is up): the caller then stops driving.
+    pub fn step(&mut self, reading: &FrameReading) -> Option<[Vec3; 5]> {
+        let features = self.controller.features(reading);
+        let settled = (0..DOF_COUNT).all(|i| {
+            features[columns::ANGLES + i].abs() < Self::SETTLED_ANGLE_RAD
+                && features[columns::SPEEDS + i].abs() < Self::SETTLED_SPEED_RAD_S
+        });
+        if settled || self.frame >= Self::MAX_FRAMES {
             return None;
         }
-        self.summary.hits += 1;
-        self.summary.strongest_hit_ns = self.summary.strongest_hit_ns.max(impulses[side]);
-        let forearm = &reading.bodies[[Body::ForearmR, Body::ForearmL][side].index()];
-        Some(Hit {
-            impulse_ns: impulses[side],
-            speed_mps: previous_peak.max(speeds[side]),
-            position: forearm.position + forearm.rotation * self.fist_offsets[side],
-        })
+        self.frame += 1;
+        Some(self.controller.motor_commands(reading))
     }
 }
 
 #[cfg(test)]
 mod tests {
+    use glam::Quat;
+
     use super::*;
-    use crate::fake_world::{FakeWorld, rest_geometry};
+    use crate::fake_world::{FAKE_BAG_ID, FakeWorld, rest_geometry};
 
     /// Plays one punch on a fake world with a policy given as a closure; returns the decisions' frame
     /// indices, the actions played, the hits and the end.
@@ -214,7 +317,7 @@ mod tests {
         let mut punch = Punch::new(rest_geometry(), spec, true);
         let (mut decided_at, mut hits) = (Vec::new(), Vec::new());
         loop {
-            let (hit, sensed) = punch.sense(world.read_slot(0));
+            let (hit, sensed) = punch.sense(world.read_slot(0), &world.touches_slot(0));
             hits.extend(hit);
             let commands = match sensed {
                 Sensed::Finished(summary, record) => {
@@ -259,6 +362,68 @@ mod tests {
         assert_eq!(summary.hits, 1);
         assert!(summary.strongest_hit_ns > HIT_IMPULSE_NS && summary.peak_fist_speed_mps > 0.0);
         assert!(hits[0].position.z > 0.3, "the hit is where the fist met the bag: {:?}", hits[0].position);
+        assert_eq!(hits[0].collider, FAKE_BAG_ID);
+    }
+
+    /// Plays frames of a still character (fists where the fake world starts them) with the given touches.
+    fn hits_of(frames: &[Vec<Touch>]) -> (Vec<Hit>, PunchSummary) {
+        let world = FakeWorld::new(1);
+        let mut punch = Punch::new(rest_geometry(), PolicySpec::new(5, 50, 1).expect("valid"), false);
+        let mut hits = Vec::new();
+        for touches in frames {
+            let (hit, sensed) = punch.sense(world.read_slot(0), touches);
+            hits.extend(hit);
+            let mean = matches!(sensed, Sensed::Decide(_)).then_some([0.0; 10]);
+            punch.act(mean.as_ref().map(|m| &m[..]), &mut RuntimeNoise::new(0, 0.0, -1)).expect("acts");
+        }
+        (hits, punch.interrupt().0)
+    }
+
+    fn fist_touch(collider: u64, impulse_ns: f32) -> Touch {
+        let fist =
+            FakeWorld::new(1).read_slot(0).bodies[Body::ForearmR.index()].position + rest_geometry().fist_offsets[0];
+        Touch { body: Body::ForearmR.index(), collider, point: fist, impulse: Vec3::Z * impulse_ns, overlap: false }
+    }
+
+    #[test]
+    fn a_contact_episode_is_one_hit_even_when_its_impulse_comes_and_goes() {
+        // As Jolt reports a punch on the sandbag: a strong first frame, zero-impulse frames while the fist
+        // stays in contact, a second push, then nothing.
+        let frames: Vec<Vec<Touch>> = [3.0, 0.0, 0.0, 0.14, 0.13, 0.0]
+            .iter()
+            .map(|&impulse| vec![fist_touch(1, impulse), fist_touch(1, impulse / 2.0)])
+            .chain([vec![], vec![fist_touch(1, 2.0)]])
+            .collect();
+        let (hits, summary) = hits_of(&frames);
+        assert_eq!(hits.len(), 2, "one hit, then a second after the fist left: {hits:?}");
+        assert!((hits[0].impulse_ns() - 4.5).abs() < 1e-5 && hits[0].collider == 1);
+        assert_eq!(summary.hits, 2);
+        assert!((summary.strongest_hit_ns - 4.5).abs() < 1e-5);
+        assert!(summary.interrupted && summary.frames == frames.len());
+    }
+
+    #[test]
+    fn what_counts_as_a_hit() {
+        let mut far = fist_touch(2, 5.0);
+        far.point += Vec3::X * 0.2;
+        let mut upper_arm = fist_touch(3, 5.0);
+        upper_arm.body = Body::UpperArmR.index();
+        let area = Touch { overlap: true, impulse: Vec3::ZERO, ..fist_touch(4, 0.0) };
+        let (hits, _) = hits_of(&[vec![far, upper_arm, fist_touch(5, 0.01)], vec![area, fist_touch(6, 1.0)]]);
+        let colliders: Vec<u64> = hits.iter().map(|h| h.collider).collect();
+        assert_eq!(colliders, [4, 6], "contacts away from the fist, off the forearms or too light are not hits");
+    }
+
+    #[test]
+    fn recovery_drives_back_to_guard_and_stops_there() {
+        let mut reading = FakeWorld::new(1).read_slot(0);
+        assert_eq!(Recovery::new(rest_geometry()).step(&reading), None, "already in guard");
+        reading.bodies[Body::ForearmR.index()].rotation = Quat::from_rotation_x(0.5);
+        let mut recovery = Recovery::new(rest_geometry());
+        let commands = recovery.step(&reading).expect("drives");
+        assert!(commands[2].length() > 1.0, "the right elbow is driven back: {commands:?}");
+        let steps = std::iter::from_fn(|| recovery.step(&reading)).take(1000).count();
+        assert_eq!(steps + 1, Recovery::MAX_FRAMES as usize, "a recovery that cannot settle ends on time");
     }
 
     #[test]
@@ -297,7 +462,7 @@ mod tests {
     fn a_nan_mean_is_an_error_not_a_motion() {
         let mut punch = Punch::new(rest_geometry(), PolicySpec::new(5, 50, 1).expect("valid"), false);
         let mut world = FakeWorld::new(1);
-        let (_, sensed) = punch.sense(world.read_slot(0));
+        let (_, sensed) = punch.sense(world.read_slot(0), &[]);
         assert!(matches!(sensed, Sensed::Decide(_)));
         let error = punch.act(Some(&[f32::NAN; 10]), &mut RuntimeNoise::new(0, 0.0, -1)).expect_err("refused");
         assert!(error.to_string().contains("NaN"), "{error}");

@@ -150,6 +150,9 @@ pub mod columns {
     pub const FIST_L_VEL: usize = 9;
     pub const FIST_R_IMPULSE: usize = 12;
     pub const FIST_L_IMPULSE: usize = 15;
+    /// The 10 joint angles (rad), then the 10 joint speeds (rad/s), in action order.
+    pub const ANGLES: usize = 32;
+    pub const SPEEDS: usize = 42;
 }
 
 /// The three components starting at `column` as a vector.
@@ -364,6 +367,8 @@ mod tests {
             (columns::FIST_L_VEL, "fist_l_vel_x"),
             (columns::FIST_R_IMPULSE, "fist_r_impulse_x"),
             (columns::FIST_L_IMPULSE, "fist_l_impulse_x"),
+            (columns::ANGLES, "angle_waist_flexion"),
+            (columns::SPEEDS, "speed_waist_flexion"),
         ] {
             assert_eq!(feature_index(name), Some(column), "{name}");
         }

@@ -56,6 +56,92 @@ impl Default for BagPlacement {
     }
 }
 
+/// A value of a Godot project setting.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SettingValue {
+    Int(i64),
+    Float(f64),
+    Text(&'static str),
+}
+
+impl SettingValue {
+    /// Whether a game's value (as Godot gives it: a number or a string) is this one.
+    pub fn matches(&self, number: Option<f64>, text: Option<&str>) -> bool {
+        match (self, number, text) {
+            (Self::Int(want), Some(have), _) => have == *want as f64,
+            // Godot stores floats as f32 in places: 0.4 reads back as 0.4000000059604645.
+            (Self::Float(want), Some(have), _) => (have - want).abs() < 1e-6,
+            (Self::Text(want), _, Some(have)) => have == *want,
+            _ => false,
+        }
+    }
+}
+
+impl std::fmt::Display for SettingValue {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Int(value) => write!(f, "{value}"),
+            Self::Float(value) => write!(f, "{value}"),
+            Self::Text(value) => write!(f, "\"{value}\""),
+        }
+    }
+}
+
+/// A project setting the physics of a punch depends on: where to find it in the editor, its path and the
+/// value the training project uses (godot_project/project.godot).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProjectSetting {
+    pub path: &'static str,
+    /// As the editor's Project Settings dialog shows it.
+    pub label: &'static str,
+    pub value: SettingValue,
+}
+
+/// The physics settings policies are trained with: a game plays them as trained only with the same.
+pub const PROJECT_SETTINGS: [ProjectSetting; 4] = [
+    ProjectSetting {
+        path: "physics/common/physics_ticks_per_second",
+        label: "Physics > Common > Physics Ticks per Second",
+        value: SettingValue::Int(PHYSICS_HZ as i64),
+    },
+    ProjectSetting {
+        path: "physics/3d/physics_engine",
+        label: "Physics > 3D > Physics Engine",
+        value: SettingValue::Text("Jolt Physics"),
+    },
+    ProjectSetting {
+        path: "physics/jolt_physics_3d/simulation/position_steps",
+        label: "Physics > Jolt Physics 3D > Simulation > Position Steps",
+        value: SettingValue::Int(8),
+    },
+    ProjectSetting {
+        path: "physics/jolt_physics_3d/simulation/baumgarte_stabilization_factor",
+        label: "Physics > Jolt Physics 3D > Simulation > Baumgarte Stabilization Factor",
+        value: SettingValue::Float(0.4),
+    },
+];
+
+/// The settings of `PROJECT_SETTINGS` a game has wrong (`lookup` gives a setting's value by path, as a
+/// number or a string), each as a line that says what to set.
+pub fn project_setting_problems(lookup: impl Fn(&str) -> (Option<f64>, Option<String>)) -> Vec<String> {
+    PROJECT_SETTINGS
+        .iter()
+        .filter_map(|setting| {
+            let (number, text) = lookup(setting.path);
+            (!setting.value.matches(number, text.as_deref())).then(|| {
+                let have = text.map(|t| format!("{t:?}")).or(number.map(|n| n.to_string()));
+                format!(
+                    "{} ({}) is {}; set it to {}",
+                    setting.label,
+                    setting.path,
+                    have.unwrap_or_else(|| "unset".into()),
+                    setting.value
+                )
+            })
+        })
+        .collect()
+}
+
 /// Names of the policy-file metadata entries of the contract (ONNX custom metadata).
 pub mod keys {
     pub const SPEC_VERSION: &str = "punch_spec_version";
@@ -276,6 +362,31 @@ mod tests {
             let error = PolicySpec::from_metadata(lookup(&changed)).expect_err("refused");
             assert!(error.to_string().contains(&format!("'{key}'")), "{key} = {value}: {error}");
         }
+    }
+
+    #[test]
+    fn project_settings_are_checked_one_by_one() {
+        let training = |path: &str| match path {
+            "physics/3d/physics_engine" => (None, Some("Jolt Physics".to_string())),
+            "physics/jolt_physics_3d/simulation/baumgarte_stabilization_factor" => (Some(0.4000000059604645), None),
+            "physics/jolt_physics_3d/simulation/position_steps" => (Some(8.0), None),
+            _ => (Some(120.0), None),
+        };
+        assert!(project_setting_problems(training).is_empty());
+        // A new Godot project: 60 Hz, the default engine, Jolt's default solver.
+        let fresh = |path: &str| match path {
+            "physics/3d/physics_engine" => (None, Some("DEFAULT".to_string())),
+            "physics/jolt_physics_3d/simulation/baumgarte_stabilization_factor" => (Some(0.2), None),
+            "physics/jolt_physics_3d/simulation/position_steps" => (Some(2.0), None),
+            _ => (Some(60.0), None),
+        };
+        let problems = project_setting_problems(fresh);
+        assert_eq!(problems.len(), 4);
+        assert_eq!(
+            problems[0],
+            "Physics > Common > Physics Ticks per Second (physics/common/physics_ticks_per_second) is 60; set it to 120"
+        );
+        assert!(problems[1].ends_with("is \"DEFAULT\"; set it to \"Jolt Physics\""), "{}", problems[1]);
     }
 
     #[test]

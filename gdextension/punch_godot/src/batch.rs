@@ -91,6 +91,8 @@ pub struct PunchInference {
     cost: (f64, u64),
     /// Policy calls, the rows they ran, and their time (µs) since the last `take_inference_counts`.
     inference: (u64, u64, f64),
+    /// The project-settings error was logged (once per game).
+    settings_reported: bool,
     base: Base<Object>,
 }
 
@@ -136,6 +138,26 @@ impl PunchInference {
         if !hub.active.contains(&controller) {
             hub.active.push(controller);
         }
+    }
+
+    /// Checks the game's physics settings against the policies' (`PunchController.project_settings_problems`).
+    /// The error, which says what to set, is logged once per game; later calls return an empty error.
+    pub fn check_project_settings() -> Result<(), String> {
+        let problems = PunchController::project_settings_problems();
+        if problems.is_empty() {
+            return Ok(());
+        }
+        let mut hub = Self::singleton();
+        if std::mem::replace(&mut hub.bind_mut().settings_reported, true) {
+            return Err(String::new());
+        }
+        let lines: Vec<String> = problems.as_slice().iter().map(|line| format!("  - {line}")).collect();
+        Err(format!(
+            "this project's physics settings are not the ones the policies were trained with, so punches \
+             would miss; no punch plays until they are set (the editor plugin offers to set them; see the \
+             README, 'Project settings'):\n{}",
+            lines.join("\n")
+        ))
     }
 
     /// Policy calls, rows and inference time (µs) since the last call.
@@ -211,7 +233,7 @@ impl PunchInference {
             }
         }
 
-        controllers.retain(|c| c.is_instance_valid() && c.bind().is_punching());
+        controllers.retain(|c| c.is_instance_valid() && c.bind().is_active());
         let mut hub = hub.bind_mut();
         // Controllers that started a punch during this tick (from a signal handler) joined `active` meanwhile.
         for controller in std::mem::take(&mut hub.active).into_iter().filter(|c| c.is_instance_valid()) {

@@ -3,11 +3,15 @@
 //! `PunchCharacter`/`PunchController` in a game (scene nodes).
 
 use glam::Vec3;
-use godot::builtin::{Rid, Transform3D};
+use godot::builtin::{Basis, Rid, Transform3D, Vector3};
 use godot::classes::physics_server_3d::{G6dofJointAxisFlag, G6dofJointAxisParam};
-use godot::classes::{Marker3D, Node3D, PhysicsDirectBodyState3D, PhysicsServer3D};
+use godot::classes::{
+    Marker3D, Node3D, PhysicsDirectBodyState3D, PhysicsDirectSpaceState3D, PhysicsServer3D,
+    PhysicsShapeQueryParameters3D,
+};
 use godot::obj::{Gd, Singleton};
-use punch_core::character::{Axis, JOINTS, engine_axis, joint_dofs};
+use punch_core::character::{Axis, Body, JOINTS, engine_axis, joint_dofs};
+use punch_core::punch::Touch;
 use punch_core::sensing::{BagContact, BodyState, CharacterGeometry, FrameReading, MAX_BAG_CONTACTS};
 
 use crate::convert::{godot_axis, quat, vec3};
@@ -122,4 +126,57 @@ pub fn character_geometry(
         root_rotation: quat(root_transform.basis.get_quaternion()),
         root_position: vec3(root_transform.origin),
     })
+}
+
+/// Reads the contacts of the character's moving bodies (`states`: `Body::ALL` index and physics state):
+/// those with the target's physics object (`target`) go into `reading` as the target's contacts, as the
+/// training server reads them from its bag; those of a forearm with the target or with anything on
+/// `hit_layers` become `touches`, for hit detection. Impulses and points are taken on the other body's side.
+pub fn read_character_contacts(
+    states: &[(usize, Gd<PhysicsDirectBodyState3D>)],
+    target: Option<Rid>,
+    hit_layers: u32,
+    reading: &mut FrameReading,
+    touches: &mut Vec<Touch>,
+) {
+    let server = PhysicsServer3D::singleton();
+    for (body, state) in states {
+        let is_forearm = *body == Body::ForearmR.index() || *body == Body::ForearmL.index();
+        for contact in 0..state.get_contact_count() {
+            let collider = state.get_contact_collider(contact);
+            let on_target = Some(collider) == target;
+            if !on_target && !is_forearm {
+                continue;
+            }
+            let point = vec3(state.get_contact_collider_position(contact));
+            let impulse = -vec3(state.get_contact_impulse(contact));
+            if on_target && reading.contact_count < MAX_BAG_CONTACTS {
+                reading.contacts[reading.contact_count] = BagContact { body: *body, point, impulse };
+                reading.contact_count += 1;
+            }
+            if is_forearm && (on_target || server.body_get_collision_layer(collider) & hit_layers != 0) {
+                let collider = state.get_contact_collider_id(contact);
+                touches.push(Touch { body: *body, collider, point, impulse, overlap: false });
+            }
+        }
+    }
+}
+
+/// Adds the areas on `mask` that overlap each fist (`fists`: forearm's `Body::ALL` index and fist centre)
+/// as touches; `query` is a sphere query of the fist's size, reused frame after frame.
+pub fn add_area_touches(
+    space: &mut Gd<PhysicsDirectSpaceState3D>,
+    query: &mut Gd<PhysicsShapeQueryParameters3D>,
+    fists: [(usize, Vec3); 2],
+    mask: u32,
+    touches: &mut Vec<Touch>,
+) {
+    query.set_collision_mask(mask);
+    for (body, centre) in fists {
+        query.set_transform(Transform3D::new(Basis::IDENTITY, Vector3::new(centre.x, centre.y, centre.z)));
+        for found in space.intersect_shape(&*query).iter_shared() {
+            let Some(collider) = found.get("collider_id").and_then(|id| id.try_to::<i64>().ok()) else { continue };
+            touches.push(Touch { body, collider: collider as u64, point: centre, overlap: true, ..Touch::default() });
+        }
+    }
 }

@@ -9,6 +9,7 @@ mod punch_controller;
 mod punch_policy;
 mod punch_runtime;
 mod punch_training_server;
+mod target;
 mod training_world;
 
 use godot::prelude::{ExtensionLibrary, gdextension};

@@ -5,12 +5,14 @@
 use glam::Vec3;
 use godot::builtin::{Rid, Transform3D, Vector3};
 use godot::classes::generic6_dof_joint_3d::{Flag, Param};
-use godot::classes::{Generic6DofJoint3D, INode3D, Node3D, PhysicsBody3D, RigidBody3D};
+use godot::classes::{
+    Generic6DofJoint3D, INode3D, Node3D, PhysicsBody3D, PhysicsDirectBodyState3D, PhysicsServer3D, RigidBody3D,
+};
 use godot::global::godot_error;
-use godot::obj::{Base, EngineEnum, Gd, WithBaseField};
+use godot::obj::{Base, EngineEnum, Gd, Singleton, WithBaseField};
 use godot::prelude::{GodotClass, godot_api};
 use punch_core::character::{Axis, Body, JOINTS};
-use punch_core::sensing::{BodyState, CharacterGeometry};
+use punch_core::sensing::{BodyState, CharacterGeometry, MAX_BAG_CONTACTS};
 
 use crate::convert::{quat, vec3};
 use crate::engine_io::{character_geometry, drive_joints, joint_axis_settings};
@@ -22,17 +24,27 @@ use crate::engine_io::{character_geometry, drive_joints, joint_axis_settings};
 #[derive(GodotClass)]
 #[class(base = Node3D, init)]
 pub struct PunchCharacter {
+    /// The physics layers the character's bodies collide with (set on every body when the character is
+    /// ready). By default 1 (Godot's default layer, where most game objects are), 2 (punching characters,
+    /// the layer the character's own bodies are on) and 3 (the addon's sandbag). A fist passes through
+    /// anything on other layers.
+    #[export(flags_3d_physics)]
+    #[init(val = DEFAULT_COLLISION_MASK)]
+    collision_mask: u32,
     rig: Option<Rig>,
     base: Base<Node3D>,
 }
+
+/// Layers 1, 2 and 3: see `collision_mask`.
+const DEFAULT_COLLISION_MASK: u32 = 0b111;
 
 /// The character's bodies and joints, found at `ready`.
 pub struct Rig {
     /// `Body::ALL` order.
     pub bodies: Vec<Gd<PhysicsBody3D>>,
     pub joint_rids: [Rid; 5],
-    /// The bodies' physics-server RIDs (`Body::ALL` order), to recognise their contacts.
-    pub body_rids: [Rid; 6],
+    /// The physics states of the bodies that move (`Body::ALL` index, state), to read their contacts.
+    pub moving_states: Vec<(usize, Gd<PhysicsDirectBodyState3D>)>,
     /// Rest-pose geometry (without target data, which the controller adds).
     pub geometry: CharacterGeometry,
     /// Each body's rest transform relative to the character's root (`Body::ALL` order).
@@ -154,9 +166,21 @@ impl PunchCharacter {
             configure_joint(&mut node, joint_index);
             joints.push(node);
         }
+        let mut server = PhysicsServer3D::singleton();
+        let mut moving_states = Vec::new();
         for (i, body) in bodies.iter().enumerate() {
             for other in &bodies[i + 1..] {
                 body.clone().add_collision_exception_with(other);
+            }
+            body.clone().set_collision_mask(self.collision_mask);
+            if let Ok(mut rigid) = body.clone().try_cast::<RigidBody3D>() {
+                // The controller reads hits from the character's own contacts, whatever the target reports.
+                let reported = rigid.get_max_contacts_reported().max(MAX_BAG_CONTACTS as i32);
+                rigid.set_max_contacts_reported(reported);
+                let state = server
+                    .body_get_direct_state(rigid.get_rid())
+                    .ok_or_else(|| format!("body '{}' has no physics state", rigid.get_name()))?;
+                moving_states.push((i, state));
             }
         }
         let body_transforms: [Transform3D; 6] = std::array::from_fn(|i| bodies[i].get_global_transform());
@@ -165,7 +189,7 @@ impl PunchCharacter {
         let geometry = character_geometry(&base, &body_transforms, &joint_transforms, base.get_global_transform())?;
         Ok(Rig {
             joint_rids: std::array::from_fn(|j| joints[j].get_rid()),
-            body_rids: std::array::from_fn(|i| bodies[i].get_rid()),
+            moving_states,
             geometry,
             rest_from_root: std::array::from_fn(|i| root_inverse * body_transforms[i]),
             bodies,

@@ -5,30 +5,39 @@
 
 use std::rc::Rc;
 
+use glam::Vec3;
 use godot::builtin::{GString, PackedFloat32Array, PackedStringArray, VarDictionary, Vector3};
-use godot::classes::{CylinderShape3D, INode, Node, Node3D, PhysicsServer3D, RigidBody3D};
+use godot::classes::{Engine, INode, Node, Node3D, PhysicsShapeQueryParameters3D, ProjectSettings, SphereShape3D};
 use godot::global::{godot_error, godot_warn};
-use godot::obj::{Base, Gd, Singleton, WithBaseField, WithUserSignals};
+use godot::meta::ToGodot;
+use godot::obj::{Base, Gd, InstanceId, NewGd, Singleton, WithBaseField, WithUserSignals};
 use godot::prelude::{GodotClass, godot_api};
-use punch_core::character::DEFAULT_DECISION_PERIOD;
+use punch_core::character::{Body, DEFAULT_DECISION_PERIOD};
 use punch_core::observation::OBS_DIM;
-use punch_core::punch::{Hit, Punch, PunchRecord, PunchSummary, RuntimeNoise, Sensed};
-use punch_core::sensing::{BodyState, FEATURE_COUNT, FEATURE_NAMES, FrameReading};
-use punch_core::spec::BagPlacement;
+use punch_core::punch::{Hit, Punch, PunchRecord, PunchSummary, Recovery, RuntimeNoise, Sensed};
+use punch_core::sensing::{CharacterGeometry, FEATURE_COUNT, FEATURE_NAMES, FrameReading};
+use punch_core::spec::{BagPlacement, PROJECT_SETTINGS, SettingValue, project_setting_problems};
 
 use crate::batch::{DecisionRequest, PunchInference, SharedPolicy};
-use crate::convert::{quat, vec3};
-use crate::engine_io::add_bag_contacts;
+use crate::engine_io::{add_area_touches, read_character_contacts};
 use crate::punch_character::PunchCharacter;
+use crate::target::Target;
 
 /// Makes a `PunchCharacter` punch a target with a trained policy (an .onnx file made by `punch train`).
 /// Each punch differs when `noise_sigma` > 0: Gaussian noise of that standard deviation is added to the
 /// policy's mean action at every decision (or at the first `noise_decisions` only). All controllers that
 /// play the same policy file share one model and run in one inference call per decision tick.
+///
+/// A punch starts from whatever pose the character is in; after it, the character returns to its guard pose
+/// under physics (`auto_recover`). Two punches are identical (sigma 0, or the same seed) when they start from
+/// the same state of the world: the character at rest in its guard pose (as after `recover()` from rest, or
+/// in a scene that has just started) and the target at rest at the same place relative to it.
 #[derive(GodotClass)]
 #[class(base = Node, init)]
 pub struct PunchController {
-    /// The policy: an .onnx file from `punch train`, read through Godot's file system (works in exported games).
+    /// The policy: an .onnx file from `punch train`, read through Godot's file system (works in exported
+    /// games). Changing it during a punch ends that punch (`punch_finished` says it was interrupted); the
+    /// next punch plays the new policy.
     #[export(file = "*.onnx")]
     #[var(set = set_policy)]
     policy: GString,
@@ -48,12 +57,29 @@ pub struct PunchController {
     /// The character to drive.
     #[export]
     character: Option<Gd<PunchCharacter>>,
-    /// What to punch: any Node3D. A RigidBody3D target (such as the sandbag's `Bag`) also reports hits.
+    /// What to punch: any Node3D (a sandbag, a RigidBody3D, CharacterBody3D, StaticBody3D or Area3D, a
+    /// marker or bone attachment on another character). The policy aims at its position; its physics object
+    /// (the node itself, else a child, else the nearest ancestor that is one) is what the policy feels.
     #[export]
     target: Option<Gd<Node3D>>,
-    /// Seed of the noise: the same seed and sigma give the same sequence of punches.
+    /// Seed of the noise: the same seed and sigma give the same sequence of punches. A new seed takes
+    /// effect at the next punch.
     #[export]
     seed: i64,
+    /// The physics layers whose bodies count as hit when a fist touches them (the target always counts).
+    /// Only what the character's bodies collide with can be touched: see `PunchCharacter.collision_mask`.
+    #[export(flags_3d_physics)]
+    #[init(val = u32::MAX)]
+    hit_layers: u32,
+    /// Also count Area3D overlaps of a fist (hurtboxes on `hit_layers`) as hits, with no impulse. An Area3D
+    /// target is always checked. Costs a shape query per fist and frame while punching.
+    #[export]
+    hit_areas: bool,
+    /// After a punch, drive the character back to its guard pose under physics (`recovered` says when it
+    /// is there). Off: the joints hold where the punch left them.
+    #[export]
+    #[init(val = true)]
+    auto_recover: bool,
     /// Punch as soon as the scene starts.
     #[export]
     autostart: bool,
@@ -62,21 +88,36 @@ pub struct PunchController {
     #[export]
     record: bool,
 
-    state: Option<Punch>,
+    phase: Phase,
     loaded: Option<Loaded>,
+    aim: Option<Target>,
+    area_query: Option<Gd<PhysicsShapeQueryParameters3D>>,
     events: Vec<Event>,
     last_record: PunchRecord,
     base: Base<Node>,
 }
 
+/// What the controller is doing.
+#[derive(Default)]
+enum Phase {
+    #[default]
+    Idle,
+    Punching(Box<Punch>),
+    /// Returning to guard; the motor commands for the next step.
+    Recovering(Box<Recovery>, [Vec3; 5]),
+}
+
 struct Loaded {
     policy: Rc<SharedPolicy>,
     noise: RuntimeNoise,
+    /// The seed `noise` was made from.
+    seed: i64,
 }
 
 enum Event {
     Hit(Hit),
     Finished(PunchSummary),
+    Recovered,
 }
 
 #[godot_api]
@@ -94,19 +135,31 @@ impl PunchController {
     #[signal]
     fn punch_started();
 
-    /// Emitted when a fist starts touching the target: the contact impulse (N s), the fist's peak speed
-    /// so far (m/s), and where the fist was (global position).
+    /// Emitted when a fist starts touching something (the target, or a body on `hit_layers`), once per
+    /// contact: `impulse` (N s) on it in that first frame, the fist's peak `speed` so far (m/s), where the
+    /// fist was (`position`, global), what was hit (`body`: a CollisionObject3D, or null if it is gone), and
+    /// `push`, the impulse vector (N s, global axes) for bodies that physics does not push, such as a
+    /// CharacterBody3D: `enemy.velocity += push / enemy_mass_kg` knocks it back.
     #[signal]
-    fn hit(impulse: f32, speed: f32, position: Vector3);
+    fn hit(impulse: f32, speed: f32, position: Vector3, body: Option<Gd<Node3D>>, push: Vector3);
 
-    /// Emitted when a punch is over, with `frames`, `peak_fist_speed_mps`, `hits` and `strongest_hit_ns`.
+    /// Emitted when a punch is over, with `frames`, `peak_fist_speed_mps`, `hits`, `strongest_hit_ns`
+    /// (the largest fist impulse of one frame) and `interrupted` (cancelled, restarted, or its policy
+    /// changed before its last frame).
     #[signal]
     fn punch_finished(metrics: VarDictionary);
 
-    /// Starts a punch from the character's current pose. Returns false (with the reason in the log) when the
-    /// policy, the character or the target is missing or unusable.
+    /// Emitted when the character is back in its guard pose after `recover()` (or a punch with
+    /// `auto_recover`), or when the recovery's time is up.
+    #[signal]
+    fn recovered();
+
+    /// Starts a punch from the character's current pose (a punch already running ends first, interrupted).
+    /// Returns false (with the reason in the log) when the policy, the character or the target is missing or
+    /// unusable, or the project's physics settings are not the policy's.
     #[func]
     fn punch(&mut self) -> bool {
+        self.interrupt();
         match self.start() {
             Ok(()) => {
                 PunchInference::enlist(self.to_gd());
@@ -114,23 +167,45 @@ impl PunchController {
                 true
             }
             Err(error) => {
-                godot_error!("PunchController '{}': {error}", self.base().get_name());
-                self.loaded = None;
+                if !error.is_empty() {
+                    godot_error!("PunchController '{}': {error}", self.base().get_name());
+                }
                 false
             }
         }
     }
 
-    /// Stops the current punch, if any.
+    /// Ends the current punch (`punch_finished` reports it interrupted) or recovery; the joints then hold
+    /// the pose they are in.
     #[func]
-    fn reset(&mut self) {
-        self.state = None;
+    fn cancel(&mut self) {
+        self.interrupt();
+        if matches!(std::mem::take(&mut self.phase), Phase::Recovering(..)) {
+            self.hold();
+        }
+    }
+
+    /// Drives the character back to its guard pose under physics (ending a punch that is running);
+    /// `recovered` is emitted when it is there.
+    #[func]
+    fn recover(&mut self) {
+        self.interrupt();
+        match self.start_recovery() {
+            Ok(()) => PunchInference::enlist(self.to_gd()),
+            Err(error) => godot_error!("PunchController '{}': {error}", self.base().get_name()),
+        }
     }
 
     /// True while a punch is running.
     #[func]
     pub fn is_punching(&self) -> bool {
-        self.state.is_some()
+        matches!(self.phase, Phase::Punching(_))
+    }
+
+    /// True while the character returns to its guard pose.
+    #[func]
+    fn is_recovering(&self) -> bool {
+        matches!(self.phase, Phase::Recovering(..))
     }
 
     /// The last finished punch, when `record` is on: `features` (frames x feature count, the names are
@@ -182,9 +257,44 @@ impl PunchController {
         Vector3::new(position.x, position.y, position.z)
     }
 
-    /// Sets the policy file; the next punch loads it.
+    /// The project settings policies are trained with (setting path to value): a game needs the same.
+    #[func]
+    fn required_project_settings() -> VarDictionary {
+        let mut settings = VarDictionary::new();
+        for setting in PROJECT_SETTINGS {
+            let value = match setting.value {
+                SettingValue::Int(v) => v.to_variant(),
+                SettingValue::Float(v) => v.to_variant(),
+                SettingValue::Text(v) => v.to_variant(),
+            };
+            settings.set(setting.path, &value);
+        }
+        settings
+    }
+
+    /// The running game's settings that differ from `required_project_settings()`, one line each saying
+    /// what to set (empty when all is well). The physics rate is the engine's current one.
+    #[func]
+    pub fn project_settings_problems() -> PackedStringArray {
+        project_setting_problems(|path| {
+            if path == PROJECT_SETTINGS[0].path {
+                return (Some(Engine::singleton().get_physics_ticks_per_second() as f64), None);
+            }
+            let value = ProjectSettings::singleton().get_setting(path);
+            let number = value.try_to::<f64>().ok().or_else(|| value.try_to::<i64>().ok().map(|v| v as f64));
+            (number, value.try_to::<GString>().ok().map(|s| s.to_string()))
+        })
+        .iter()
+        .map(GString::from)
+        .collect()
+    }
+
+    /// Sets the policy file; the next punch loads it (a punch running now ends, interrupted).
     #[func]
     fn set_policy(&mut self, policy: GString) {
+        if policy != self.policy {
+            self.interrupt();
+        }
         self.policy = policy;
         self.loaded = None;
     }
@@ -205,33 +315,74 @@ impl PunchController {
 
 impl PunchController {
     fn start(&mut self) -> Result<(), String> {
+        PunchInference::check_project_settings()?;
+        if self.loaded.as_ref().is_some_and(|loaded| loaded.seed != self.seed) {
+            // A new seed starts a new sequence of punches.
+            self.loaded = None;
+        }
         if self.loaded.is_none() {
             let policy = PunchInference::policy(&self.policy)?;
             let noise = RuntimeNoise::new(self.seed as u64, self.noise_sigma, self.noise_decisions);
-            self.loaded = Some(Loaded { policy, noise });
+            self.loaded = Some(Loaded { policy, noise, seed: self.seed });
         }
         let loaded = self.loaded.as_ref().ok_or("no policy")?;
         loaded.policy.check_spec(self.decision_period.max(1) as u32)?;
-        let character = live(&self.character).ok_or("no character set (or it was freed)")?;
-        let target = live(&self.target).ok_or("no target set (or it was freed)")?;
-        let root = character.get_global_transform();
-        let mut geometry =
-            character.bind().rig().map(|rig| rig.geometry_at(root)).ok_or("the character is not ready")?;
-        if let Ok(body) = target.clone().try_cast::<RigidBody3D>() {
-            geometry.bag_mass_kg = body.get_mass();
-            if let Some((radius, height)) = cylinder_of(&body) {
-                geometry.bag_radius_m = radius;
-                geometry.bag_height_m = height;
-            }
-        }
-        self.state = Some(Punch::new(geometry, loaded.policy.spec, self.record));
+        let target = Target::resolve(live(&self.target).ok_or("no target set (or it was freed)")?);
+        let mut geometry = self.geometry()?;
+        target.describe(&mut geometry);
+        self.aim = Some(target);
+        self.phase = Phase::Punching(Box::new(Punch::new(geometry, loaded.policy.spec, self.record)));
         Ok(())
+    }
+
+    /// The character's rest geometry where it stands now.
+    fn geometry(&self) -> Result<CharacterGeometry, String> {
+        let character = live(&self.character).ok_or("no character set (or it was freed)")?;
+        let root = character.get_global_transform();
+        let geometry = character.bind().rig().map(|rig| rig.geometry_at(root));
+        geometry.ok_or_else(|| "the character is not ready (is it in the scene tree?)".into())
+    }
+
+    fn start_recovery(&mut self) -> Result<(), String> {
+        let recovery = Recovery::new(self.geometry()?);
+        self.phase = Phase::Recovering(Box::new(recovery), [Vec3::ZERO; 5]);
+        Ok(())
+    }
+
+    /// Ends a running punch early: `punch_finished` (interrupted) is emitted now.
+    fn interrupt(&mut self) {
+        if !self.is_punching() {
+            return;
+        }
+        let Phase::Punching(punch) = std::mem::take(&mut self.phase) else { return };
+        let (summary, record) = punch.interrupt();
+        self.last_record = record.unwrap_or_default();
+        self.hold();
+        self.signals().punch_finished().emit(&finish_metrics(&summary));
+    }
+
+    /// Stops the joint motors: the character holds its pose.
+    fn hold(&self) {
+        if let Some(character) = live(&self.character)
+            && let Some(rig) = character.bind().rig()
+        {
+            rig.drive(&[Vec3::ZERO; 5]);
+        }
     }
 
     fn stop_with_error(&mut self, error: &str) {
         godot_error!("PunchController '{}': {error}; the punch stops", self.base().get_name());
-        self.state = None;
+        if let Phase::Punching(punch) = std::mem::take(&mut self.phase) {
+            // Whoever waits for the end of the punch hears of it.
+            self.events.push(Event::Finished(punch.interrupt().0));
+        }
+        self.hold();
         self.loaded = None;
+    }
+
+    /// True while the controller drives its character (punching or recovering).
+    pub(crate) fn is_active(&self) -> bool {
+        !matches!(self.phase, Phase::Idle)
     }
 
     /// First half of a frame: reads the frame just simulated and, when a decision is due, returns the
@@ -248,18 +399,56 @@ impl PunchController {
 
     fn try_sense(&mut self) -> Result<Option<DecisionRequest>, String> {
         let character = live(&self.character).ok_or("the character was freed")?;
-        let target = live(&self.target).ok_or("the target was freed")?;
-        let reading = read(&character, &target)?;
-        let (Some(punch), Some(loaded)) = (self.state.as_mut(), self.loaded.as_ref()) else { return Ok(None) };
-        let (hit, sensed) = punch.sense(reading);
-        self.events.extend(hit.map(Event::Hit));
+        let character = character.bind();
+        let rig = character.rig().ok_or("the character is not ready")?;
+        let mut reading = FrameReading { bodies: rig.read_bodies(), ..FrameReading::default() };
+        if let Phase::Recovering(recovery, commands) = &mut self.phase {
+            match recovery.step(&reading) {
+                Some(next) => *commands = next,
+                None => {
+                    self.phase = Phase::Idle;
+                    rig.drive(&[Vec3::ZERO; 5]);
+                    self.events.push(Event::Recovered);
+                }
+            }
+            return Ok(None);
+        }
+        let Phase::Punching(punch) = &mut self.phase else { return Ok(None) };
+        let aim = self.aim.as_ref().filter(|aim| aim.is_valid()).ok_or("the target was freed")?;
+        reading.bag = aim.state();
+        let mut touches = Vec::new();
+        read_character_contacts(&rig.moving_states, aim.body_rid(), self.hit_layers, &mut reading, &mut touches);
+        if self.hit_areas || aim.area().is_some() {
+            let mask = self.hit_layers | aim.area().map_or(0, |area| area.get_collision_layer());
+            let fists = [Body::ForearmR, Body::ForearmL].map(|forearm| {
+                let body = &reading.bodies[forearm.index()];
+                let side = usize::from(forearm == Body::ForearmL);
+                (forearm.index(), body.position + body.rotation * rig.geometry.fist_offsets[side])
+            });
+            let query = self.area_query.get_or_insert_with(|| fist_query(rig.geometry.fist_radius_m));
+            if let Some(mut space) = character.base().get_world_3d().and_then(|w| w.get_direct_space_state()) {
+                add_area_touches(&mut space, query, fists, mask, &mut touches);
+            }
+        }
+        let (hits, sensed) = punch.sense(reading, &touches);
+        self.events.extend(hits.into_iter().map(Event::Hit));
         match sensed {
             Sensed::Hold => Ok(None),
-            Sensed::Decide(observation) => Ok(Some((loaded.policy.clone(), *observation))),
+            Sensed::Decide(observation) => {
+                let policy = self.loaded.as_ref().ok_or("no policy")?.policy.clone();
+                Ok(Some((policy, *observation)))
+            }
             Sensed::Finished(summary, record) => {
-                self.state = None;
                 self.events.push(Event::Finished(summary));
                 self.last_record = record.unwrap_or_default();
+                self.phase = Phase::Idle;
+                if self.auto_recover {
+                    let geometry = rig.geometry_at(character.base().get_global_transform());
+                    let mut recovery = Recovery::new(geometry);
+                    if let Some(commands) = recovery.step(&reading) {
+                        self.phase = Phase::Recovering(Box::new(recovery), commands);
+                    }
+                }
                 Ok(None)
             }
         }
@@ -274,33 +463,44 @@ impl PunchController {
     }
 
     fn try_act(&mut self, mean: Option<Result<Vec<f32>, String>>) -> Result<(), String> {
-        if self.state.is_none() {
-            return Ok(());
-        }
+        let commands = match &mut self.phase {
+            Phase::Idle => return Ok(()),
+            Phase::Recovering(_, commands) => *commands,
+            Phase::Punching(punch) => {
+                let loaded = self.loaded.as_mut().ok_or("no policy")?;
+                // The inspector may change these at any time: they apply from the next decision.
+                loaded.noise.sigma = self.noise_sigma;
+                loaded.noise.noisy_decisions = self.noise_decisions;
+                let mean = mean.transpose()?;
+                punch.act(mean.as_deref(), &mut loaded.noise).map_err(|e| e.to_string())?
+            }
+        };
         let character = live(&self.character).ok_or("the character was freed")?;
-        let (Some(punch), Some(loaded)) = (self.state.as_mut(), self.loaded.as_mut()) else { return Ok(()) };
-        // The inspector may change these at any time: they apply from the next decision.
-        loaded.noise.sigma = self.noise_sigma;
-        loaded.noise.noisy_decisions = self.noise_decisions;
-        let mean = mean.transpose()?;
-        let commands = punch.act(mean.as_deref(), &mut loaded.noise).map_err(|e| e.to_string())?;
         if let Some(rig) = character.bind().rig() {
             rig.drive(&commands);
         }
         Ok(())
     }
 
-    /// Emits the signals a frame produced (called with no borrow of the controller held).
+    /// Emits the signals a frame produced (called with no borrow of the controller held), including any
+    /// that its handlers cause.
     pub(crate) fn emit_events(controller: &mut Gd<Self>) {
-        let events = std::mem::take(&mut controller.bind_mut().events);
-        for event in events {
-            match event {
-                Event::Hit(hit) => controller.signals().hit().emit(
-                    hit.impulse_ns,
-                    hit.speed_mps,
-                    Vector3::new(hit.position.x, hit.position.y, hit.position.z),
-                ),
-                Event::Finished(summary) => controller.signals().punch_finished().emit(&finish_metrics(&summary)),
+        loop {
+            let events = std::mem::take(&mut controller.bind_mut().events);
+            if events.is_empty() {
+                return;
+            }
+            for event in events {
+                match event {
+                    Event::Hit(hit) => {
+                        let body = Gd::<Node3D>::try_from_instance_id(InstanceId::from_i64(hit.collider as i64)).ok();
+                        let push = Vector3::new(hit.impulse.x, hit.impulse.y, hit.impulse.z);
+                        let position = Vector3::new(hit.position.x, hit.position.y, hit.position.z);
+                        controller.signals().hit().emit(hit.impulse_ns(), hit.speed_mps, position, body.as_ref(), push);
+                    }
+                    Event::Finished(summary) => controller.signals().punch_finished().emit(&finish_metrics(&summary)),
+                    Event::Recovered => controller.signals().recovered().emit(),
+                }
             }
         }
     }
@@ -311,25 +511,15 @@ fn live<T: GodotClass>(node: &Option<Gd<T>>) -> Option<Gd<T>> {
     node.as_ref().filter(|n| n.is_instance_valid()).cloned()
 }
 
-/// Reads the character and the target into the core's frame reading.
-fn read(character: &Gd<PunchCharacter>, target: &Gd<Node3D>) -> Result<FrameReading, String> {
-    let character = character.bind();
-    let rig = character.rig().ok_or("the character is not ready")?;
-    let mut reading = FrameReading { bodies: rig.read_bodies(), ..FrameReading::default() };
-    let transform = target.get_global_transform();
-    reading.bag = BodyState {
-        position: vec3(transform.origin),
-        rotation: quat(transform.basis.get_quaternion()),
-        ..BodyState::default()
-    };
-    if let Ok(body) = target.clone().try_cast::<RigidBody3D>() {
-        reading.bag.linear_velocity = vec3(body.get_linear_velocity());
-        reading.bag.angular_velocity = vec3(body.get_angular_velocity());
-        if let Some(state) = PhysicsServer3D::singleton().body_get_direct_state(body.get_rid()) {
-            add_bag_contacts(&state, &rig.body_rids, &mut reading);
-        }
-    }
-    Ok(reading)
+/// A sphere query of the fist's size for overlapping areas.
+fn fist_query(radius_m: f32) -> Gd<PhysicsShapeQueryParameters3D> {
+    let mut sphere = SphereShape3D::new_gd();
+    sphere.set_radius(radius_m);
+    let mut query = PhysicsShapeQueryParameters3D::new_gd();
+    query.set_shape(&sphere);
+    query.set_collide_with_areas(true);
+    query.set_collide_with_bodies(false);
+    query
 }
 
 fn finish_metrics(summary: &PunchSummary) -> VarDictionary {
@@ -338,11 +528,6 @@ fn finish_metrics(summary: &PunchSummary) -> VarDictionary {
     metrics.set("peak_fist_speed_mps", summary.peak_fist_speed_mps);
     metrics.set("hits", summary.hits);
     metrics.set("strongest_hit_ns", summary.strongest_hit_ns);
+    metrics.set("interrupted", summary.interrupted);
     metrics
-}
-
-fn cylinder_of(body: &Gd<RigidBody3D>) -> Option<(f32, f32)> {
-    let owner = *body.get_shape_owners().as_slice().first()? as u32;
-    let cylinder = body.shape_owner_get_shape(owner, 0)?.try_cast::<CylinderShape3D>().ok()?;
-    Some((cylinder.get_radius(), cylinder.get_height()))
 }

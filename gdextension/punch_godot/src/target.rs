@@ -1,0 +1,80 @@
+//! What a `PunchController` aims at: any Node3D, and the physics object that stands for it.
+
+use glam::Vec3;
+use godot::builtin::Rid;
+use godot::classes::{Area3D, CharacterBody3D, CollisionObject3D, CylinderShape3D, Node, Node3D, RigidBody3D};
+use godot::obj::{Gd, Inherits};
+use punch_core::sensing::{BodyState, CharacterGeometry};
+
+use crate::convert::{quat, vec3};
+
+/// A target node and its physics object: the node itself when it is one (a RigidBody3D, CharacterBody3D,
+/// StaticBody3D or Area3D), else a direct child that is one (the sandbag scene's `Bag`), else the nearest
+/// ancestor that is one (a marker or bone attachment on an enemy's body). The observation reads the node's
+/// position and the object's motion and contacts.
+pub struct Target {
+    pub node: Gd<Node3D>,
+    pub body: Option<Gd<CollisionObject3D>>,
+}
+
+impl Target {
+    pub fn resolve(node: Gd<Node3D>) -> Self {
+        let as_body = |n: Gd<Node>| n.try_cast::<CollisionObject3D>().ok();
+        let body = as_body(node.clone().upcast())
+            .or_else(|| node.get_children().iter_shared().find_map(as_body))
+            .or_else(|| std::iter::successors(node.get_parent(), |n| n.get_parent()).find_map(as_body));
+        Self { node, body }
+    }
+
+    /// Both still exist (a target freed mid-punch ends it).
+    pub fn is_valid(&self) -> bool {
+        self.node.is_instance_valid() && self.body.as_ref().is_none_or(|b| b.is_instance_valid())
+    }
+
+    /// The physics object's RID, for recognising contacts with it.
+    pub fn body_rid(&self) -> Option<Rid> {
+        self.body.as_ref().map(|b| b.get_rid())
+    }
+
+    /// The Area3D standing for the target, if it is one (a fist overlaps it rather than touching it).
+    pub fn area(&self) -> Option<Gd<Area3D>> {
+        self.body.clone().and_then(|b| b.try_cast::<Area3D>().ok())
+    }
+
+    fn body_as<T: Inherits<CollisionObject3D> + godot::obj::GodotClass>(&self) -> Option<Gd<T>> {
+        self.body.clone().and_then(|b| b.try_cast::<T>().ok())
+    }
+
+    /// The target's state: the node's pose and its physics object's velocity (zero for static ones).
+    pub fn state(&self) -> BodyState {
+        let transform = self.node.get_global_transform();
+        let (linear, angular) = if let Some(rigid) = self.body_as::<RigidBody3D>() {
+            (vec3(rigid.get_linear_velocity()), vec3(rigid.get_angular_velocity()))
+        } else if let Some(character) = self.body_as::<CharacterBody3D>() {
+            (vec3(character.get_velocity()), Vec3::ZERO)
+        } else {
+            (Vec3::ZERO, Vec3::ZERO)
+        };
+        BodyState {
+            position: vec3(transform.origin),
+            rotation: quat(transform.basis.get_quaternion()),
+            linear_velocity: linear,
+            angular_velocity: angular,
+        }
+    }
+
+    /// Puts what the observation knows of the target into the character's geometry: a RigidBody3D's mass
+    /// (for the momentum-change features) and, when its first shape is a cylinder, its size.
+    pub fn describe(&self, geometry: &mut CharacterGeometry) {
+        geometry.bag_mass_kg = 0.0;
+        let Some(body) = self.body_as::<RigidBody3D>() else { return };
+        geometry.bag_mass_kg = body.get_mass();
+        let cylinder = body.get_shape_owners().as_slice().first().and_then(|&owner| {
+            body.shape_owner_get_shape(owner as u32, 0).and_then(|s| s.try_cast::<CylinderShape3D>().ok())
+        });
+        if let Some(cylinder) = cylinder {
+            geometry.bag_radius_m = cylinder.get_radius();
+            geometry.bag_height_m = cylinder.get_height();
+        }
+    }
+}
