@@ -9,6 +9,8 @@ const MENU_ITEM := "Add Punching Character"
 const CHARACTER_SCENE := "res://addons/punch_controller/scenes/punch_character.tscn"
 const SANDBAG_SCENE := "res://addons/punch_controller/scenes/punch_sandbag.tscn"
 const DEFAULT_POLICY := "res://demo/policies/straight.onnx"
+const SETTINGS_ITEM := "Apply Punch Physics Settings"
+const PhysicsSettings := preload("res://addons/punch_controller/physics_settings.gd")
 
 
 func _enter_tree() -> void:
@@ -16,6 +18,7 @@ func _enter_tree() -> void:
 		push_error("Punch Controller: the GDExtension is not loaded. Build it (scons, see the project's README) "
 			+ "so that addons/punch_controller/bin/ has the library, then restart the editor.")
 	add_tool_menu_item(MENU_ITEM, add_punching_character)
+	add_tool_menu_item(SETTINGS_ITEM, offer_physics_settings)
 	# `godot --editor SCENE -- --punch-select=NODE_PATH` opens with that node in the inspector (for docs).
 	for argument in OS.get_cmdline_user_args():
 		if argument.begins_with("--punch-select="):
@@ -24,6 +27,33 @@ func _enter_tree() -> void:
 
 func _exit_tree() -> void:
 	remove_tool_menu_item(MENU_ITEM)
+	remove_tool_menu_item(SETTINGS_ITEM)
+
+
+func _enable_plugin() -> void:
+	offer_physics_settings.call_deferred()
+
+
+## Asks to set the physics settings the policies need, when the project's differ (see the README).
+func offer_physics_settings() -> void:
+	if not ClassDB.class_exists("PunchController"):
+		return
+	var problems := PhysicsSettings.problems()
+	if problems.is_empty():
+		print("Punch Controller: the project's physics settings are the policies' already.")
+		return
+	var dialog := ConfirmationDialog.new()
+	dialog.title = "Punch Controller: physics settings"
+	dialog.dialog_text = ("Punching policies play as trained only with the physics settings they were trained "
+		+ "with. This project differs:\n\n- " + "\n- ".join(problems)
+		+ "\n\nSet them now? (A change of physics engine applies after restarting the editor.)")
+	dialog.ok_button_text = "Set them"
+	dialog.confirmed.connect(func():
+		var changed := PhysicsSettings.apply()
+		print("Punch Controller: set ", ", ".join(changed), "; restart the editor if the physics engine changed."))
+	dialog.visibility_changed.connect(func(): if not dialog.visible: dialog.queue_free())
+	EditorInterface.get_base_control().add_child(dialog)
+	dialog.popup_centered()
 
 
 ## Adds the character, the sandbag and a wired PunchController under the edited scene's root.

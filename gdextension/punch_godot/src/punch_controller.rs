@@ -292,11 +292,13 @@ impl PunchController {
     /// Sets the policy file; the next punch loads it (a punch running now ends, interrupted).
     #[func]
     fn set_policy(&mut self, policy: GString) {
-        if policy != self.policy {
-            self.interrupt();
-        }
+        let changed = policy != self.policy;
         self.policy = policy;
         self.loaded = None;
+        if changed {
+            // After the change: a `punch_finished` handler that punches again gets the new policy.
+            self.interrupt();
+        }
     }
 
     /// Sets `noise_sigma`, clamped to 0..1 with a warning.

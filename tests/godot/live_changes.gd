@@ -1,0 +1,88 @@
+## Punch after punch and live changes, each on its own character and sandbag (demo policies):
+## - "ready" and "ready_twin": punch() called from the controller's `ready` signal (as a game's _ready
+##   would), on two characters in the same state: the same punch;
+## - "switch": the policy changed to the hook mid-punch (frame 10): the punch ends interrupted, and a new
+##   punch (the hook) runs to its end;
+## - "cancel": cancel() on frame 5; "recover": auto_recover off, recover() called after the punch;
+## - "seeds": sigma 0.3, punches with seed 1, 2, then 1 again: the first decision's noise of each.
+## Prints `LIVE_CHANGES <json>` and quits.
+extends SceneTree
+
+const STRAIGHT := "res://demo/policies/straight.onnx"
+const HOOK := "res://demo/policies/hook.onnx"
+const CASES := ["ready", "ready_twin", "switch", "cancel", "recover", "seeds"]
+var _controllers := {}
+var _report := {}
+var _frames := 0
+var _seeds := [1, 2, 1]
+
+
+func _initialize() -> void:
+	for index in CASES.size():
+		var name: String = CASES[index]
+		var character: Node3D = load("res://addons/punch_controller/scenes/punch_character.tscn").instantiate()
+		character.position = Vector3(4.0 * index, 0, 0)
+		root.add_child(character)
+		var sandbag: Node3D = load("res://addons/punch_controller/scenes/punch_sandbag.tscn").instantiate()
+		sandbag.position = character.transform * PunchController.default_target_offset()
+		root.add_child(sandbag)
+		var controller: Node = ClassDB.instantiate("PunchController")
+		controller.set("character", character)
+		controller.set("target", sandbag.get_node("Bag"))
+		controller.set("policy", STRAIGHT)
+		controller.set("record", true)
+		if name == "recover":
+			controller.set("auto_recover", false)
+		if name == "seeds":
+			controller.set("noise_sigma", 0.3)
+			controller.set("noise_decisions", 1)
+		_report[name] = {"finished": [], "recovered": 0, "started": 0, "first_noise": [], "features": []}
+		controller.connect("punch_started", func(): _report[name].started += 1)
+		controller.connect("punch_finished", func(metrics): _on_finished(name, controller, metrics))
+		controller.connect("recovered", func(): _on_recovered(name, controller))
+		if name.begins_with("ready"):
+			controller.ready.connect(func(): _report[name]["punch_in_ready"] = controller.call("punch"))
+		root.add_child(controller)
+		_controllers[name] = controller
+
+
+func _on_finished(name: String, controller: Node, metrics: Dictionary) -> void:
+	_report[name].finished.append(metrics)
+	var record: Dictionary = controller.call("last_punch_record")
+	if name.begins_with("ready"):
+		_report[name].features = Array(record.features)
+	if name == "seeds" and record.decisions > 0:
+		var noise := []
+		for i in 10:
+			noise.append(record.actions[i] - record.mean_actions[i])
+		_report[name].first_noise.append(noise)
+	if name == "recover" and not metrics.interrupted:
+		controller.call("recover")
+	if name == "switch" and metrics.interrupted:
+		controller.call("punch")
+
+
+func _on_recovered(name: String, controller: Node) -> void:
+	_report[name].recovered += 1
+	if name == "seeds" and not _seeds.is_empty():
+		controller.set("seed", _seeds.pop_front())
+		controller.call("punch")
+
+
+func _physics_process(_delta: float) -> bool:
+	_frames += 1
+	if _frames == 2:
+		for name in ["switch", "cancel", "recover", "seeds"]:
+			_controllers[name].call("punch")
+	if _frames == 5:
+		_controllers["cancel"].call("cancel")
+		_report["cancel"]["punching_after_cancel"] = _controllers["cancel"].call("is_punching")
+	if _frames == 10:
+		_controllers["switch"].set("policy", HOOK)
+		_report["switch"]["punching_after_switch"] = _controllers["switch"].call("is_punching")
+	if _frames > 600:
+		for name in CASES:
+			_report[name]["recovering"] = _controllers[name].call("is_recovering")
+		print("LIVE_CHANGES ", JSON.stringify(_report))
+		quit(0)
+	return false
