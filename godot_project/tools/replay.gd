@@ -97,6 +97,7 @@ func _start_batch() -> void:
 		var controller := PunchPair.add(arena, slot % per_world, Vector3.ZERO, Vector3(bag[2], bag[1], bag[0]),
 			_options.policy, _sigmas[_sigma_index], int(_options["noise-decisions"]), seed)
 		controller.set("record", true)
+		controller.set("auto_recover", false)  # each batch's scene is freed after its punches
 		controller.connect("punch_finished", func(_metrics): _pending -= 1)
 		_controllers.append(controller)
 	_pending = count

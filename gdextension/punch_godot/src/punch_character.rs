@@ -43,8 +43,10 @@ pub struct Rig {
     /// `Body::ALL` order.
     pub bodies: Vec<Gd<PhysicsBody3D>>,
     pub joint_rids: [Rid; 5],
-    /// The physics states of the bodies that move (`Body::ALL` index, state), to read their contacts.
-    pub moving_states: Vec<(usize, Gd<PhysicsDirectBodyState3D>)>,
+    /// The bodies' physics-server RIDs (`Body::ALL` order), to recognise their contacts on a target.
+    pub body_rids: [Rid; 6],
+    /// The physics states of the forearms (`Body::ALL` index, state), to read the fists' contacts.
+    pub forearm_states: Vec<(usize, Gd<PhysicsDirectBodyState3D>)>,
     /// Rest-pose geometry (without target data, which the controller adds).
     pub geometry: CharacterGeometry,
     /// Each body's rest transform relative to the character's root (`Body::ALL` order).
@@ -167,7 +169,7 @@ impl PunchCharacter {
             joints.push(node);
         }
         let mut server = PhysicsServer3D::singleton();
-        let mut moving_states = Vec::new();
+        let mut forearm_states = Vec::new();
         for (i, body) in bodies.iter().enumerate() {
             for other in &bodies[i + 1..] {
                 body.clone().add_collision_exception_with(other);
@@ -177,10 +179,12 @@ impl PunchCharacter {
                 // The controller reads hits from the character's own contacts, whatever the target reports.
                 let reported = rigid.get_max_contacts_reported().max(MAX_BAG_CONTACTS as i32);
                 rigid.set_max_contacts_reported(reported);
-                let state = server
-                    .body_get_direct_state(rigid.get_rid())
-                    .ok_or_else(|| format!("body '{}' has no physics state", rigid.get_name()))?;
-                moving_states.push((i, state));
+                if [Body::ForearmR, Body::ForearmL].contains(&Body::ALL[i]) {
+                    let state = server
+                        .body_get_direct_state(rigid.get_rid())
+                        .ok_or_else(|| format!("body '{}' has no physics state", rigid.get_name()))?;
+                    forearm_states.push((i, state));
+                }
             }
         }
         let body_transforms: [Transform3D; 6] = std::array::from_fn(|i| bodies[i].get_global_transform());
@@ -189,7 +193,8 @@ impl PunchCharacter {
         let geometry = character_geometry(&base, &body_transforms, &joint_transforms, base.get_global_transform())?;
         Ok(Rig {
             joint_rids: std::array::from_fn(|j| joints[j].get_rid()),
-            moving_states,
+            body_rids: std::array::from_fn(|i| bodies[i].get_rid()),
+            forearm_states,
             geometry,
             rest_from_root: std::array::from_fn(|i| root_inverse * body_transforms[i]),
             bodies,

@@ -19,7 +19,7 @@ use punch_core::sensing::{CharacterGeometry, FEATURE_COUNT, FEATURE_NAMES, Frame
 use punch_core::spec::{BagPlacement, PROJECT_SETTINGS, SettingValue, project_setting_problems};
 
 use crate::batch::{DecisionRequest, PunchInference, SharedPolicy};
-use crate::engine_io::{add_area_touches, read_character_contacts};
+use crate::engine_io::{add_area_touches, add_bag_contacts, read_forearm_contacts};
 use crate::punch_character::PunchCharacter;
 use crate::target::Target;
 
@@ -419,7 +419,12 @@ impl PunchController {
         let aim = self.aim.as_ref().filter(|aim| aim.is_valid()).ok_or("the target was freed")?;
         reading.bag = aim.state();
         let mut touches = Vec::new();
-        read_character_contacts(&rig.moving_states, aim.body_rid(), self.hit_layers, &mut reading, &mut touches);
+        let target_contacts = aim.reported_contacts();
+        if let Some(state) = &target_contacts {
+            add_bag_contacts(state, &rig.body_rids, &mut reading);
+        }
+        let (target_rid, reports) = (aim.body_rid(), target_contacts.is_some());
+        read_forearm_contacts(&rig.forearm_states, target_rid, reports, self.hit_layers, &mut reading, &mut touches);
         if self.hit_areas || aim.area().is_some() {
             let mask = self.hit_layers | aim.area().map_or(0, |area| area.get_collision_layer());
             let fists = [Body::ForearmR, Body::ForearmL].map(|forearm| {

@@ -2,8 +2,11 @@
 
 use glam::Vec3;
 use godot::builtin::Rid;
-use godot::classes::{Area3D, CharacterBody3D, CollisionObject3D, CylinderShape3D, Node, Node3D, RigidBody3D};
-use godot::obj::{Gd, Inherits};
+use godot::classes::{
+    Area3D, CharacterBody3D, CollisionObject3D, CylinderShape3D, Node, Node3D, PhysicsDirectBodyState3D,
+    PhysicsServer3D, RigidBody3D,
+};
+use godot::obj::{Gd, Inherits, Singleton};
 use punch_core::sensing::{BodyState, CharacterGeometry};
 
 use crate::convert::{quat, vec3};
@@ -34,6 +37,13 @@ impl Target {
     /// The physics object's RID, for recognising contacts with it.
     pub fn body_rid(&self) -> Option<Rid> {
         self.body.as_ref().map(|b| b.get_rid())
+    }
+
+    /// The target's own contact list, when its physics object is a RigidBody3D that reports contacts (as
+    /// the addon's sandbag does): the training server reads the bag's contacts the same way.
+    pub fn reported_contacts(&self) -> Option<Gd<PhysicsDirectBodyState3D>> {
+        let body = self.body_as::<RigidBody3D>().filter(|b| b.get_max_contacts_reported() > 0)?;
+        PhysicsServer3D::singleton().body_get_direct_state(body.get_rid())
     }
 
     /// The Area3D standing for the target, if it is one (a fist overlaps it rather than touching it).
