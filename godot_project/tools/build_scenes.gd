@@ -147,7 +147,7 @@ func _rigid_body(name: String, mass: float, inertia: Vector3, at: Transform3D) -
 	body.can_sleep = false
 	body.transform = at
 	# Layer 2: the character; it collides with Godot's default layer 1, with other characters and with the
-	# bag (layer 3) (PunchCharacter.collision_mask, the same value, sets it at run time).
+	# bag (layer 3).
 	# Under Jolt, a body that does not mask the other acts as immovable to it: the bag masks layer 2 too.
 	body.collision_layer = 2
 	body.collision_mask = 1 | 2 | 4

@@ -24,19 +24,9 @@ use crate::engine_io::{character_geometry, drive_joints, joint_axis_settings};
 #[derive(GodotClass)]
 #[class(base = Node3D, init)]
 pub struct PunchCharacter {
-    /// The physics layers the character's bodies collide with (set on every body when the character is
-    /// ready). By default 1 (Godot's default layer, where most game objects are), 2 (punching characters,
-    /// the layer the character's own bodies are on) and 3 (the addon's sandbag). A fist passes through
-    /// anything on other layers.
-    #[export(flags_3d_physics)]
-    #[init(val = DEFAULT_COLLISION_MASK)]
-    collision_mask: u32,
     rig: Option<Rig>,
     base: Base<Node3D>,
 }
-
-/// Layers 1, 2 and 3: see `collision_mask`.
-const DEFAULT_COLLISION_MASK: u32 = 0b111;
 
 /// The character's bodies and joints, found at `ready`.
 pub struct Rig {
@@ -174,7 +164,6 @@ impl PunchCharacter {
             for other in &bodies[i + 1..] {
                 body.clone().add_collision_exception_with(other);
             }
-            body.clone().set_collision_mask(self.collision_mask);
             if let Ok(mut rigid) = body.clone().try_cast::<RigidBody3D>() {
                 // The controller reads hits from the character's own contacts, whatever the target reports.
                 let reported = rigid.get_max_contacts_reported().max(MAX_BAG_CONTACTS as i32);

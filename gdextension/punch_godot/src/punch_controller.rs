@@ -67,7 +67,8 @@ pub struct PunchController {
     #[export]
     seed: i64,
     /// The physics layers whose bodies count as hit when a fist touches them (the target always counts).
-    /// Only what the character's bodies collide with can be touched: see `PunchCharacter.collision_mask`.
+    /// Only what the character's bodies collide with can be touched (their collision masks: layers 1 to 3 in
+    /// the addon's character scene).
     #[export(flags_3d_physics)]
     #[init(val = u32::MAX)]
     hit_layers: u32,
