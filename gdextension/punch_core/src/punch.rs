@@ -155,6 +155,11 @@ impl Punch {
         self.frame
     }
 
+    /// World positions and velocities of the fists in `reading`: [(position, velocity); right, left].
+    pub fn fists(&self, reading: &FrameReading) -> [(Vec3, Vec3); 2] {
+        self.controller.fists(reading)
+    }
+
     /// Ends the punch before its last frame: its summary, marked interrupted, and its record so far.
     pub fn interrupt(mut self) -> (PunchSummary, Option<PunchRecord>) {
         self.summary.frames = self.frame as usize;

@@ -420,19 +420,15 @@ impl PunchController {
         let aim = self.aim.as_ref().filter(|aim| aim.is_valid()).ok_or("the target was freed")?;
         reading.bag = aim.state();
         let mut touches = Vec::new();
-        let target_contacts = aim.reported_contacts();
-        if let Some(state) = &target_contacts {
+        if let Some(state) = aim.reported_contacts() {
             add_bag_contacts(state, &rig.body_rids, &mut reading);
         }
-        let (target_rid, reports) = (aim.body_rid(), target_contacts.is_some());
+        let (target_rid, reports) = (aim.body_rid(), aim.reported_contacts().is_some());
         read_forearm_contacts(&rig.forearm_states, target_rid, reports, self.hit_layers, &mut reading, &mut touches);
         if self.hit_areas || aim.area().is_some() {
             let mask = self.hit_layers | aim.area().map_or(0, |area| area.get_collision_layer());
-            let fists = [Body::ForearmR, Body::ForearmL].map(|forearm| {
-                let body = &reading.bodies[forearm.index()];
-                let side = usize::from(forearm == Body::ForearmL);
-                (forearm.index(), body.position + body.rotation * rig.geometry.fist_offsets[side])
-            });
+            let [right, left] = punch.fists(&reading);
+            let fists = [(Body::ForearmR.index(), right.0), (Body::ForearmL.index(), left.0)];
             let query = self.area_query.get_or_insert_with(|| fist_query(rig.geometry.fist_radius_m));
             if let Some(mut space) = character.base().get_world_3d().and_then(|w| w.get_direct_space_state()) {
                 add_area_touches(&mut space, query, fists, mask, &mut touches);

@@ -6,18 +6,32 @@ use godot::classes::{
     Area3D, CharacterBody3D, CollisionObject3D, CylinderShape3D, Node, Node3D, PhysicsDirectBodyState3D,
     PhysicsServer3D, RigidBody3D,
 };
-use godot::obj::{Gd, Inherits, Singleton};
+use godot::obj::{Gd, Singleton};
 use punch_core::sensing::{BodyState, CharacterGeometry};
 
 use crate::convert::{quat, vec3};
+
+/// What kind of physics object stands for the target, found once when a punch starts (the per-frame reads
+/// then need no engine casts).
+enum Kind {
+    /// Nothing to feel: the policy only aims at the node.
+    None,
+    /// A RigidBody3D, with its contact list when it reports contacts (as the addon's sandbag does).
+    Rigid(Gd<RigidBody3D>, Option<Gd<PhysicsDirectBodyState3D>>),
+    Character(Gd<CharacterBody3D>),
+    Area(Gd<Area3D>),
+    /// A StaticBody3D or another body that does not move by itself.
+    Fixed,
+}
 
 /// A target node and its physics object: the node itself when it is one (a RigidBody3D, CharacterBody3D,
 /// StaticBody3D or Area3D), else a direct child that is one (the sandbag scene's `Bag`), else the nearest
 /// ancestor that is one (a marker or bone attachment on an enemy's body). The observation reads the node's
 /// position and the object's motion and contacts.
 pub struct Target {
-    pub node: Gd<Node3D>,
-    pub body: Option<Gd<CollisionObject3D>>,
+    node: Gd<Node3D>,
+    body: Option<Gd<CollisionObject3D>>,
+    kind: Kind,
 }
 
 impl Target {
@@ -26,7 +40,21 @@ impl Target {
         let body = as_body(node.clone().upcast())
             .or_else(|| node.get_children().iter_shared().find_map(as_body))
             .or_else(|| std::iter::successors(node.get_parent(), |n| n.get_parent()).find_map(as_body));
-        Self { node, body }
+        let kind = match body.clone() {
+            None => Kind::None,
+            Some(body) => match body.try_cast::<RigidBody3D>() {
+                Ok(rigid) => {
+                    let reports = rigid.get_max_contacts_reported() > 0;
+                    let contacts = reports.then(|| PhysicsServer3D::singleton().body_get_direct_state(rigid.get_rid()));
+                    Kind::Rigid(rigid, contacts.flatten())
+                }
+                Err(body) => match body.try_cast::<CharacterBody3D>() {
+                    Ok(character) => Kind::Character(character),
+                    Err(body) => body.try_cast::<Area3D>().map_or(Kind::Fixed, Kind::Area),
+                },
+            },
+        };
+        Self { node, body, kind }
     }
 
     /// Both still exist (a target freed mid-punch ends it).
@@ -39,37 +67,36 @@ impl Target {
         self.body.as_ref().map(|b| b.get_rid())
     }
 
-    /// The target's own contact list, when its physics object is a RigidBody3D that reports contacts (as
-    /// the addon's sandbag does): the training server reads the bag's contacts the same way.
-    pub fn reported_contacts(&self) -> Option<Gd<PhysicsDirectBodyState3D>> {
-        let body = self.body_as::<RigidBody3D>().filter(|b| b.get_max_contacts_reported() > 0)?;
-        PhysicsServer3D::singleton().body_get_direct_state(body.get_rid())
+    /// The target's own contact list, when its physics object is a RigidBody3D that reports contacts: the
+    /// training server reads the bag's contacts the same way.
+    pub fn reported_contacts(&self) -> Option<&Gd<PhysicsDirectBodyState3D>> {
+        match &self.kind {
+            Kind::Rigid(_, contacts) => contacts.as_ref(),
+            _ => None,
+        }
     }
 
     /// The Area3D standing for the target, if it is one (a fist overlaps it rather than touching it).
-    pub fn area(&self) -> Option<Gd<Area3D>> {
-        self.body.clone().and_then(|b| b.try_cast::<Area3D>().ok())
-    }
-
-    fn body_as<T: Inherits<CollisionObject3D> + godot::obj::GodotClass>(&self) -> Option<Gd<T>> {
-        self.body.clone().and_then(|b| b.try_cast::<T>().ok())
+    pub fn area(&self) -> Option<&Gd<Area3D>> {
+        match &self.kind {
+            Kind::Area(area) => Some(area),
+            _ => None,
+        }
     }
 
     /// The target's state: the node's pose and its physics object's velocity (zero for static ones).
     pub fn state(&self) -> BodyState {
         let transform = self.node.get_global_transform();
-        let (linear, angular) = if let Some(rigid) = self.body_as::<RigidBody3D>() {
-            (vec3(rigid.get_linear_velocity()), vec3(rigid.get_angular_velocity()))
-        } else if let Some(character) = self.body_as::<CharacterBody3D>() {
-            (vec3(character.get_velocity()), Vec3::ZERO)
-        } else {
-            (Vec3::ZERO, Vec3::ZERO)
+        let (linear_velocity, angular_velocity) = match &self.kind {
+            Kind::Rigid(rigid, _) => (vec3(rigid.get_linear_velocity()), vec3(rigid.get_angular_velocity())),
+            Kind::Character(character) => (vec3(character.get_velocity()), Vec3::ZERO),
+            Kind::None | Kind::Area(_) | Kind::Fixed => (Vec3::ZERO, Vec3::ZERO),
         };
         BodyState {
             position: vec3(transform.origin),
             rotation: quat(transform.basis.get_quaternion()),
-            linear_velocity: linear,
-            angular_velocity: angular,
+            linear_velocity,
+            angular_velocity,
         }
     }
 
@@ -77,7 +104,7 @@ impl Target {
     /// (for the momentum-change features) and, when its first shape is a cylinder, its size.
     pub fn describe(&self, geometry: &mut CharacterGeometry) {
         geometry.bag_mass_kg = 0.0;
-        let Some(body) = self.body_as::<RigidBody3D>() else { return };
+        let Kind::Rigid(body, _) = &self.kind else { return };
         geometry.bag_mass_kg = body.get_mass();
         let cylinder = body.get_shape_owners().as_slice().first().and_then(|&owner| {
             body.shape_owner_get_shape(owner as u32, 0).and_then(|s| s.try_cast::<CylinderShape3D>().ok())
