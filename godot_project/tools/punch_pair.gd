@@ -10,9 +10,10 @@ const MAX_PER_WORLD := 16
 
 
 ## Adds the pair under `parent`: the character at `origin`, the bag's centre at `origin + bag_offset`, on the
-## layers of `slot` (0 to 15) of their world. The controller plays `policy` with `sigma`; it is not started.
+## layers of `slot` (0 to 15) of their world, the bag swinging at `bag_velocity` (m/s, horizontal). The
+## controller plays `policy` with `sigma`; it is not started.
 static func add(parent: Node, slot: int, origin: Vector3, bag_offset: Vector3, policy: String, sigma: float,
-		noise_decisions: int, seed: int) -> Node:
+		noise_decisions: int, seed: int, bag_velocity := Vector3.ZERO) -> Node:
 	var character_layer := 1 << (2 * slot)
 	var character: Node3D = CHARACTER_SCENE.instantiate()
 	character.position = origin
@@ -22,6 +23,12 @@ static func add(parent: Node, slot: int, origin: Vector3, bag_offset: Vector3, p
 	sandbag.position = origin + bag_offset
 	_set_layers(sandbag, character_layer << 1, character_layer)
 	parent.add_child(sandbag)
+	if bag_velocity != Vector3.ZERO:
+		# Swinging on its rope: the bag turns about the hook as it moves (ω = r × v / |r|²), as in training.
+		var bag: RigidBody3D = sandbag.get_node("Bag")
+		var arm := bag.global_position - (sandbag.get_node("Hook") as Node3D).global_position
+		bag.linear_velocity = bag_velocity
+		bag.angular_velocity = arm.cross(bag_velocity) / arm.length_squared()
 	var controller: Node = ClassDB.instantiate("PunchController")
 	controller.set("character", character)
 	controller.set("target", sandbag.get_node("Bag"))

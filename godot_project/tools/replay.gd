@@ -3,7 +3,14 @@
 ##
 ## tools/godot --headless --fixed-fps 120 --path godot_project --script res://tools/replay.gd -- \
 ##     --policy=PATH --sigmas=0.1,0.5 --episodes=100 --out=DIR [--noise-decisions=4] [--characters=64]
-##     [--characters-per-world=16] [--seed=0] [--bag=distance_m,height_m,side_m]
+##     [--characters-per-world=16] [--seed=0] [--bag=distance_m,height_m,side_m] [--bags=FILE.json]
+##     [--start=guard|after_punch]
+##
+## `--bags` names a JSON list of placements (`distance_m`, `height_m`, `side_m`, optional
+## `velocity_side_mps` and `velocity_forward_mps`: a bag already swinging); episode e uses entry e modulo the
+## list's length. `--start=after_punch` starts every recorded punch from the end of an earlier one: each
+## controller punches once, then again at once from where that left it, with its bag put back as placed
+## (only the second punch is recorded).
 ##
 ## Characters run side by side like the training server's slots: each group shares a physics world (a
 ## SubViewport with its own World3D) and two collision layers per character keep them apart. Every batch is
@@ -20,8 +27,9 @@ const PunchPair := preload("res://tools/punch_pair.gd")
 
 var _options := {
 	"policy": "", "sigmas": "0", "episodes": "10", "out": "", "noise-decisions": "-1", "characters": "64",
-	"characters-per-world": "16", "seed": "0", "bag": "",
+	"characters-per-world": "16", "seed": "0", "bag": "", "bags": "", "start": "guard",
 }
+var _bags: Array = []
 var _sigmas := PackedFloat32Array()
 var _sigma_index := 0
 var _episodes_done := 0
@@ -51,9 +59,19 @@ func _initialize() -> void:
 	if not FileAccess.file_exists(_options.policy):
 		_fail("policy file not found: %s" % _options.policy)
 		return
+	if _options.bags != "":
+		var parsed = JSON.parse_string(FileAccess.get_file_as_string(_options.bags))
+		if not parsed is Array or (parsed as Array).is_empty():
+			_fail("--bags must name a JSON file holding a list of placements: %s" % _options.bags)
+			return
+		_bags = parsed
+	if not _options.start in ["guard", "after_punch"]:
+		_fail("--start is guard or after_punch, not '%s'" % _options.start)
+		return
 	DirAccess.make_dir_recursive_absolute(_options.out)
 	_meta = {"policy": _options.policy, "sigmas": Array(_sigmas), "episodes": _episodes_total,
 		"noise_decisions": int(_options["noise-decisions"]), "seed": int(_options.seed), "bag": _options.bag,
+		"bags": _options.bags, "start": _options.start,
 		"characters": int(_options.characters), "characters_per_world": int(_options["characters-per-world"]),
 		"feature_names": Array(ClassDB.class_call_static("PunchController", "feature_names"))}
 
@@ -81,8 +99,8 @@ func _start_batch() -> void:
 	var count := mini(int(_options.characters), _episodes_total - _episodes_done)
 	var per_world := clampi(int(_options["characters-per-world"]), 1, PunchPair.MAX_PER_WORLD)
 	# --bag=distance,height,side in metres; by default the placement the policies train at.
-	var offset := PunchController.default_target_offset()
-	var bag := PackedFloat64Array([offset.z, offset.y, offset.x])
+	var default_offset := PunchController.default_target_offset()
+	var bag := PackedFloat64Array([default_offset.z, default_offset.y, default_offset.x])
 	if _options.bag != "":
 		bag = (_options.bag as String).split_floats(",")
 	var arena: SubViewport
@@ -94,11 +112,29 @@ func _start_batch() -> void:
 			root.add_child(arena)
 			_arenas.append(arena)
 		var seed := int(_options.seed) * 1000003 + _sigma_index * 100003 + _episodes_done + slot
-		var controller := PunchPair.add(arena, slot % per_world, Vector3.ZERO, Vector3(bag[2], bag[1], bag[0]),
-			_options.policy, _sigmas[_sigma_index], int(_options["noise-decisions"]), seed)
+		var offset := Vector3(bag[2], bag[1], bag[0])
+		var velocity := Vector3.ZERO
+		if not _bags.is_empty():
+			var entry: Dictionary = _bags[(_episodes_done + slot) % _bags.size()]
+			offset = Vector3(entry.side_m, entry.height_m, entry.distance_m)
+			velocity = Vector3(entry.get("velocity_side_mps", 0.0), 0.0, entry.get("velocity_forward_mps", 0.0))
+		var controller := PunchPair.add(arena, slot % per_world, Vector3.ZERO, offset,
+			_options.policy, _sigmas[_sigma_index], int(_options["noise-decisions"]), seed, velocity)
 		controller.set("record", true)
 		controller.set("auto_recover", false)  # each batch's scene is freed after its punches
-		controller.connect("punch_finished", func(_metrics): _pending -= 1)
+		var lead_punches := [1 if _options.start == "after_punch" else 0]
+		var bag_body: RigidBody3D = controller.get("target")
+		var bag_start := [bag_body.global_transform, bag_body.linear_velocity, bag_body.angular_velocity]
+		controller.connect("punch_finished", func(_metrics):
+			if lead_punches[0] > 0:
+				lead_punches[0] -= 1
+				# The character starts where its earlier punch left it; the bag hangs as placed again.
+				bag_body.global_transform = bag_start[0]
+				bag_body.linear_velocity = bag_start[1]
+				bag_body.angular_velocity = bag_start[2]
+				controller.call("punch")
+			else:
+				_pending -= 1)
 		_controllers.append(controller)
 	_pending = count
 	ClassDB.class_call_static("PunchController", "take_inference_counts")

@@ -14,7 +14,7 @@ pytestmark = pytest.mark.godot
 
 def test_small_training_run_exports_a_policy_that_repeats_its_punch(tmp_path):
     args = TrainArgs(reward="straight", out=tmp_path / "run", search_iterations=4, search_rollouts=16,
-                     pretrain_epochs=300, a2c_updates=2, a2c_characters=4, a2c_time_budget_s=None)
+                     pretrain_epochs=300, a2c_updates=2, a2c_characters=4, a2c_time_budget_s=0, reach="spot")
     out = run_train(args, progress=False)
     for name in ["policy.onnx", "report.md", "summary.json", "a2c_metrics.csv", "search/dataset.npz"]:
         assert (out / name).is_file(), name

@@ -116,6 +116,10 @@ impl World for FakeWorld {
         Ok(())
     }
 
+    fn place_bag(&mut self, slot: usize, placement: &BagPlacement) {
+        self.readings[slot].bag.position = placement.position();
+    }
+
     fn geometry(&self, _slot: usize) -> CharacterGeometry {
         rest_geometry()
     }

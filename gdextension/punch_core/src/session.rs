@@ -18,6 +18,8 @@ pub trait World {
     fn slot_count(&self) -> usize;
     /// Rebuilds every slot in its initial state (a fresh physics world, so every reset is identical).
     fn reset(&mut self, placements: &[BagPlacement]) -> Result<(), String>;
+    /// Puts a slot's bag back as `placement` hangs it (position, at rest or swinging as it says).
+    fn place_bag(&mut self, slot: usize, placement: &BagPlacement);
     fn geometry(&self, slot: usize) -> CharacterGeometry;
     fn read(&self, slot: usize) -> FrameReading;
     /// Sets the joint motors of a slot for the next physics step.
@@ -39,6 +41,9 @@ pub enum Outcome {
 enum Command {
     Step,
     Rollout,
+    /// A reset's lead-in: open-loop actions before the episode starts, not recorded; the episode of this
+    /// spec starts from wherever they leave each character.
+    LeadIn(PolicySpec),
 }
 
 #[derive(Debug)]
@@ -46,7 +51,7 @@ struct Run {
     command: Command,
     frames_total: usize,
     frames_done: usize,
-    /// Open-loop actions [slot][decision][dof] (rollout only).
+    /// Open-loop actions [slot][decision][dof] (rollout and lead-in).
     actions: Vec<f32>,
     decisions: usize,
     features: Vec<f32>,
@@ -64,7 +69,12 @@ pub struct Session {
     broken: Vec<bool>,
     run: Option<Run>,
     episode_started: bool,
+    /// Where each slot's bag hangs in the episode being reset (a lead-in's punch moves it; it is put back).
+    placements: Vec<BagPlacement>,
 }
+
+/// Longest lead-in of a reset, decisions.
+pub const MAX_LEAD_IN_DECISIONS: usize = 200;
 
 /// The guard flags are the last feature (a sensing test checks it).
 const FLAGS: usize = FEATURE_COUNT - 1;
@@ -80,6 +90,7 @@ impl Session {
             broken: Vec::new(),
             run: None,
             episode_started: false,
+            placements: Vec::new(),
         }
     }
 
@@ -98,7 +109,7 @@ impl Session {
     pub fn handle(&mut self, message: &Message, world: &mut impl World) -> Outcome {
         let result = match message.message_type() {
             "hello" => self.check_hello(message).map(|()| Outcome::Reply(self.hello(world.slot_count()))),
-            "reset" => self.reset(message, world).map(Outcome::Reply),
+            "reset" => self.reset(message, world),
             "step" => self.start_step(message, world),
             "rollout" => self.start_rollout(message, world),
             "close" => Ok(Outcome::Close(Message::new("bye"))),
@@ -117,7 +128,7 @@ impl Session {
         }
     }
 
-    fn reset(&mut self, message: &Message, world: &mut impl World) -> Result<Message, String> {
+    fn reset(&mut self, message: &Message, world: &mut impl World) -> Result<Outcome, String> {
         let slot_count = world.slot_count();
         let whole = |key: &str, default: u32| -> Result<u32, String> {
             match message.header.get(key) {
@@ -133,13 +144,46 @@ impl Session {
             whole("frames", DEFAULT_FRAMES)?,
             whole("smoothing_window", 1)?,
         )?;
-        let (frames, smoothing_window) = (spec.frames as usize, spec.smoothing_window as usize);
         let placements = parse_placements(message.header.get("bags"), slot_count)?;
+        let lead_in = match message.arrays.iter().find(|a| a.name == "lead_in") {
+            None => None,
+            Some(array) => {
+                let decisions = array.shape.get(1).copied().unwrap_or(0);
+                let actions = message.array("lead_in", &[slot_count, decisions, DOF_COUNT]).map_err(|e| e.to_string())?;
+                if decisions == 0 || decisions > MAX_LEAD_IN_DECISIONS {
+                    return Err(format!("a lead-in has 1 to {MAX_LEAD_IN_DECISIONS} decisions, not {decisions}"));
+                }
+                if actions.data.iter().any(|v| !v.is_finite()) {
+                    return Err("the lead-in's actions must be finite".into());
+                }
+                Some((actions.data.clone(), decisions))
+            }
+        };
         world.reset(&placements)?;
-        self.frames_per_episode = frames;
+        self.placements = placements;
+        self.frames_per_episode = spec.frames as usize;
         self.frame_index = 0;
-        self.slots =
-            (0..slot_count).map(|slot| CharacterController::new(world.geometry(slot), smoothing_window)).collect();
+        match lead_in {
+            None => Ok(Outcome::Reply(self.start_episode(spec, world))),
+            Some((actions, decisions)) => {
+                // Unsmoothed, like the end of an earlier punch's actions; the episode's controllers start fresh.
+                self.slots =
+                    (0..slot_count).map(|slot| CharacterController::new(world.geometry(slot), 1)).collect();
+                self.episode_started = false;
+                self.begin(Command::LeadIn(spec), decisions * self.decision_period, actions, decisions, world);
+                Ok(Outcome::Running)
+            }
+        }
+    }
+
+    /// Frame 0 of an episode from the world as it is now: fresh controllers (as `PunchController` makes at
+    /// every punch), the first features and observations.
+    fn start_episode(&mut self, spec: PolicySpec, world: &mut impl World) -> Message {
+        let slot_count = world.slot_count();
+        self.frame_index = 0;
+        self.slots = (0..slot_count)
+            .map(|slot| CharacterController::new(world.geometry(slot), spec.smoothing_window as usize))
+            .collect();
         self.broken = vec![false; slot_count];
         self.last_features = (0..slot_count).map(|slot| self.slots[slot].features(&world.read(slot))).collect();
         self.episode_started = true;
@@ -149,12 +193,12 @@ impl Session {
             features.extend_from_slice(last);
             observations.extend_from_slice(&observation(last, 0, self.decisions_per_episode() as u32));
         }
-        Ok(Message::new("reset_done")
-            .with("frames", json!(frames))
+        Message::new("reset_done")
+            .with("frames", json!(spec.frames))
             .with("decisions", json!(self.decisions_per_episode()))
             .with("policy_metadata", spec.metadata_json())
             .with_array(Array::new("observations", vec![slot_count, OBS_DIM], observations))
-            .with_array(Array::new("features", vec![slot_count, FEATURE_COUNT], features)))
+            .with_array(Array::new("features", vec![slot_count, FEATURE_COUNT], features))
     }
 
     fn decisions_per_episode(&self) -> usize {
@@ -190,6 +234,9 @@ impl Session {
         if decisions == 0 {
             return Err("a rollout needs at least one decision".into());
         }
+        if message.arrays.iter().any(|a| a.name == "lead_in") {
+            return Err("a rollout starts from the guard: send a lead-in with reset and use steps".into());
+        }
         let mut reset = message.clone();
         reset.header.insert("frames".into(), json!(decisions * self.decision_period));
         self.reset(&reset, world)?;
@@ -223,7 +270,8 @@ impl Session {
     /// from this frame's readings (each slot is read from the engine once per frame).
     fn drive_all(&mut self, world: &mut impl World, readings: &[FrameReading]) {
         let Some(run) = self.run.as_mut() else { return };
-        if run.command == Command::Rollout && run.frames_done % self.decision_period == 0 {
+        let open_loop = matches!(run.command, Command::Rollout | Command::LeadIn(_));
+        if open_loop && run.frames_done % self.decision_period == 0 {
             let decision = run.frames_done / self.decision_period;
             for (slot, controller) in self.slots.iter_mut().enumerate() {
                 let start = (slot * run.decisions + decision) * DOF_COUNT;
@@ -243,22 +291,38 @@ impl Session {
     pub fn physics_frame(&mut self, world: &mut impl World) -> Option<Message> {
         let run = self.run.as_mut()?;
         let readings: Vec<FrameReading> = (0..self.slots.len()).map(|slot| world.read(slot)).collect();
-        for ((slot, controller), reading) in self.slots.iter_mut().enumerate().zip(&readings) {
-            let features = controller.features(reading);
-            if features[FLAGS] as u32 & guard::JOINT_SEPARATED != 0 {
-                self.broken[slot] = true;
+        let lead_in = match run.command {
+            Command::LeadIn(spec) => Some(spec),
+            _ => None,
+        };
+        if lead_in.is_none() {
+            for ((slot, controller), reading) in self.slots.iter_mut().enumerate().zip(&readings) {
+                let features = controller.features(reading);
+                if features[FLAGS] as u32 & guard::JOINT_SEPARATED != 0 {
+                    self.broken[slot] = true;
+                }
+                run.features.extend_from_slice(&features);
+                self.last_features[slot] = features;
             }
-            run.features.extend_from_slice(&features);
-            self.last_features[slot] = features;
+            self.frame_index += 1;
         }
         run.frames_done += 1;
-        self.frame_index += 1;
         if run.frames_done < run.frames_total {
             self.drive_all(world, &readings);
             return None;
         }
         let run = self.run.take()?;
-        Some(self.reply(run))
+        match lead_in {
+            Some(spec) => {
+                // The episode starts from the pose the lead-in left, with the bag as placed (a swinging bag is
+                // the placement's to say).
+                for (slot, placement) in self.placements.iter().enumerate() {
+                    world.place_bag(slot, placement);
+                }
+                Some(self.start_episode(spec, world))
+            }
+            None => Some(self.reply(run)),
+        }
     }
 
     fn reply(&self, run: Run) -> Message {
@@ -275,7 +339,7 @@ impl Session {
         let features = Array::new("features", vec![slot_count, run.frames_total, FEATURE_COUNT], features);
         let executed = Array::new("executed_actions", vec![slot_count, run.decisions, DOF_COUNT], run.executed);
         match run.command {
-            Command::Rollout => Message::new("rollout_done").with_array(features).with_array(executed),
+            Command::Rollout | Command::LeadIn(_) => Message::new("rollout_done").with_array(features).with_array(executed),
             Command::Step => {
                 let decision = self.frame_index / self.decision_period;
                 let over = self.frame_index >= self.frames_per_episode;
@@ -314,11 +378,15 @@ fn parse_placements(value: Option<&Value>, slot_count: usize) -> Result<Vec<BagP
                 "distance_m" if (0.3..=3.0).contains(&number) => placement.distance_m = number,
                 "height_m" if (0.6..=2.2).contains(&number) => placement.height_m = number,
                 "side_m" if (-1.5..=1.5).contains(&number) => placement.side_m = number,
-                "distance_m" | "height_m" | "side_m" => {
+                "velocity_side_mps" if number.abs() <= 3.0 => placement.velocity_side_mps = number,
+                "velocity_forward_mps" if number.abs() <= 3.0 => placement.velocity_forward_mps = number,
+                "distance_m" | "height_m" | "side_m" | "velocity_side_mps" | "velocity_forward_mps" => {
                     return Err(format!("bag '{key}' = {number} is out of range"));
                 }
                 _ => {
-                    return Err(format!("unknown bag field '{key}' (distance_m, height_m, side_m)"));
+                    return Err(format!(
+                        "unknown bag field '{key}' (distance_m, height_m, side_m, velocity_side_mps, velocity_forward_mps)"
+                    ));
                 }
             }
         }
@@ -440,5 +508,39 @@ mod tests {
         assert_eq!(executed.data[0], 0.8, "smoothing starts from the first action itself");
         assert_eq!(world.driven.len(), 2 * 20, "every slot driven once per frame");
         assert_eq!(DOFS.len(), DOF_COUNT);
+    }
+
+    #[test]
+    fn a_reset_with_a_lead_in_starts_the_episode_where_the_lead_in_left_each_character() {
+        let (mut session, mut world) = (Session::new(5), FakeWorld::new(2));
+        let mut lead_in = vec![0.0; 2 * 3 * DOF_COUNT];
+        lead_in[..3 * DOF_COUNT].fill(0.8); // slot 0 moves before its episode, slot 1 stays in guard
+        let reset = message(
+            json!({"type": "reset", "frames": 10, "smoothing_window": 3}),
+            Some(Array::new("lead_in", vec![2, 3, DOF_COUNT], lead_in)),
+        );
+        assert!(matches!(session.handle(&reset, &mut world), Outcome::Running));
+        let (done, frames) = run(&mut session, &mut world);
+        assert_eq!((done.message_type(), frames), ("reset_done", 15));
+        let observations = done.array("observations", &[2, OBS_DIM]).expect("observations").data.clone();
+        assert!(observations[2] > observations[OBS_DIM + 2] + 0.05, "slot 0's fist starts further forward");
+        assert_eq!((observations[OBS_DIM - 1], observations[2 * OBS_DIM - 1]), (0.0, 0.0), "phase 0");
+        // The episode then runs its full length.
+        let step = message(json!({"type": "step"}), Some(Array::new("actions", vec![2, DOF_COUNT], vec![0.0; 20])));
+        assert!(matches!(session.handle(&step, &mut world), Outcome::Running));
+        assert_eq!(run(&mut session, &mut world).0.header["decision"], json!(1));
+        for (bad, shape) in [(f32::NAN, vec![2, 1, DOF_COUNT]), (0.0, vec![1, 1, DOF_COUNT])] {
+            let count = shape.iter().product();
+            let reset = message(json!({"type": "reset"}), Some(Array::new("lead_in", shape, vec![bad; count])));
+            assert_eq!(reply(session.handle(&reset, &mut world)).message_type(), "error");
+        }
+    }
+
+    #[test]
+    fn a_bag_may_start_moving() {
+        let placements = parse_placements(Some(&json!({"velocity_side_mps": 0.5, "velocity_forward_mps": -1.0})), 2)
+            .expect("valid");
+        assert_eq!(placements[1].velocity(), Vec3::new(0.5, 0.0, -1.0));
+        assert!(parse_placements(Some(&json!({"velocity_side_mps": 4.0})), 1).is_err());
     }
 }

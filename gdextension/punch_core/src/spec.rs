@@ -4,7 +4,8 @@
 //!   per-frame features (`FEATURE_NAMES`), and the spec version and hash that name their layout.
 //! - Timing: the physics rate (`PHYSICS_HZ`), the decision period, the frames of one punch, and the smoothing
 //!   window of the actions (`PolicySpec`).
-//! - The default target placement (`BagPlacement::DEFAULT`).
+//! - The default target placement (`BagPlacement::DEFAULT`) and the reach volume a policy covers
+//!   (`REACH_VOLUME`, `ReachVolume`).
 //!
 //! The training server's handshake (`handshake_fields`) and its reset replies (`PolicySpec::metadata`) are
 //! generated here; the trainer copies the reset's metadata into every policy file it writes, and
@@ -27,32 +28,145 @@ pub const MAX_DECISION_PERIOD: u32 = 60;
 pub const MAX_SMOOTHING_WINDOW: u32 = 50;
 
 /// Where a target (the bag) hangs, in the character's frame: `distance_m` ahead (+Z), `height_m` of its
-/// centre of mass above the ground, `side_m` to the character's left (+X).
+/// centre of mass above the ground, `side_m` to the character's left (+X); and how fast it moves when the
+/// episode starts (`velocity_side_mps` along +X, `velocity_forward_mps` along +Z: a bag still swinging).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BagPlacement {
     pub distance_m: f32,
     pub height_m: f32,
     pub side_m: f32,
+    pub velocity_side_mps: f32,
+    pub velocity_forward_mps: f32,
 }
 
 impl BagPlacement {
     /// The placement every policy is trained at unless told otherwise.
-    pub const DEFAULT: Self = Self { distance_m: 0.72, height_m: 1.35, side_m: 0.0 };
+    pub const DEFAULT: Self =
+        Self { distance_m: 0.72, height_m: 1.35, side_m: 0.0, velocity_side_mps: 0.0, velocity_forward_mps: 0.0 };
+
+    /// A bag at rest at a place.
+    pub const fn at(distance_m: f32, height_m: f32, side_m: f32) -> Self {
+        Self { distance_m, height_m, side_m, velocity_side_mps: 0.0, velocity_forward_mps: 0.0 }
+    }
 
     /// Centre of mass of the bag in the character's frame.
     pub fn position(&self) -> Vec3 {
         Vec3::new(self.side_m, self.height_m, self.distance_m)
     }
 
+    /// Velocity of the bag at the start, in the character's frame.
+    pub fn velocity(&self) -> Vec3 {
+        Vec3::new(self.velocity_side_mps, 0.0, self.velocity_forward_mps)
+    }
+
     /// As the protocol writes it (docs/protocol.md, `reset`).
     pub fn to_json(&self) -> Value {
-        json!({"distance_m": self.distance_m, "height_m": self.height_m, "side_m": self.side_m})
+        json!({"distance_m": self.distance_m, "height_m": self.height_m, "side_m": self.side_m,
+               "velocity_side_mps": self.velocity_side_mps, "velocity_forward_mps": self.velocity_forward_mps})
     }
 }
 
 impl Default for BagPlacement {
     fn default() -> Self {
         Self::DEFAULT
+    }
+}
+
+/// The target placements a policy covers, in the character's frame (`BagPlacement`'s conventions): a box of
+/// target centres, the target's largest speed when a punch starts, and whether a punch may start from any
+/// pose (the end of an earlier punch, mid-recovery) or only from the settled guard.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReachVolume {
+    pub distance_m: [f32; 2],
+    pub height_m: [f32; 2],
+    pub side_m: [f32; 2],
+    pub max_target_speed_mps: f32,
+    pub any_start_pose: bool,
+}
+
+/// The volume `punch train` covers by default: the target's centre 0.60 to 0.85 m in front of the root,
+/// 1.15 to 1.55 m high, 0.25 m to either side, moving at up to 1 m/s, from any pose.
+pub const REACH_VOLUME: ReachVolume = ReachVolume {
+    distance_m: [0.60, 0.85],
+    height_m: [1.15, 1.55],
+    side_m: [-0.25, 0.25],
+    max_target_speed_mps: 1.0,
+    any_start_pose: true,
+};
+
+/// How far outside its policy's reach volume a target may be and still be punched (m): a hanging bag sways
+/// by millimetres, and a game places things to a centimetre.
+pub const REACH_TOLERANCE_M: f32 = 0.03;
+
+impl ReachVolume {
+    /// The reach of a policy trained at one spot (the quickstart): that spot, at rest, from the guard.
+    pub fn spot(placement: BagPlacement) -> Self {
+        let BagPlacement { distance_m, height_m, side_m, .. } = placement;
+        Self {
+            distance_m: [distance_m; 2],
+            height_m: [height_m; 2],
+            side_m: [side_m; 2],
+            max_target_speed_mps: 0.0,
+            any_start_pose: false,
+        }
+    }
+
+    fn ranges(&self) -> [[f32; 2]; 3] {
+        [self.side_m, self.height_m, self.distance_m]
+    }
+
+    /// The point of the box nearest to `position` (x side, y height, z distance, as `BagPlacement::position`).
+    pub fn nearest(&self, position: Vec3) -> Vec3 {
+        let [x, y, z] = self.ranges();
+        Vec3::new(position.x.clamp(x[0], x[1]), position.y.clamp(y[0], y[1]), position.z.clamp(z[0], z[1]))
+    }
+
+    /// Whether a target centre lies in the box, give or take `REACH_TOLERANCE_M`.
+    pub fn contains(&self, position: Vec3) -> bool {
+        position.is_finite() && self.nearest(position).distance(position) <= REACH_TOLERANCE_M
+    }
+
+    /// As the handshake and a policy's metadata write it.
+    pub fn to_json(&self) -> Value {
+        json!({"distance_m": self.distance_m, "height_m": self.height_m, "side_m": self.side_m,
+               "max_target_speed_mps": self.max_target_speed_mps, "any_start_pose": self.any_start_pose})
+    }
+
+    /// Reads a volume back; every field must be there, ranges ordered, speeds not negative.
+    pub fn from_json(value: &Value) -> Result<Self, String> {
+        let range = |key: &str| -> Result<[f32; 2], String> {
+            let pair = value.get(key).and_then(Value::as_array).filter(|p| p.len() == 2);
+            let numbers: Option<Vec<f32>> =
+                pair.map(|p| p.iter().filter_map(Value::as_f64).filter(|v| v.is_finite()).map(|v| v as f32).collect());
+            match numbers.as_deref() {
+                Some(&[low, high]) if low <= high => Ok([low, high]),
+                _ => Err(format!("'{key}' must be [low, high] with low <= high")),
+            }
+        };
+        let speed = value
+            .get("max_target_speed_mps")
+            .and_then(Value::as_f64)
+            .filter(|v| v.is_finite() && *v >= 0.0)
+            .ok_or("'max_target_speed_mps' must be a number >= 0")?;
+        let any_start_pose =
+            value.get("any_start_pose").and_then(Value::as_bool).ok_or("'any_start_pose' must be true or false")?;
+        Ok(Self {
+            distance_m: range("distance_m")?,
+            height_m: range("height_m")?,
+            side_m: range("side_m")?,
+            max_target_speed_mps: speed as f32,
+            any_start_pose,
+        })
+    }
+
+    /// The reach written in a policy file's metadata (`keys::REACH_VOLUME`); required, as the rest of the
+    /// contract is.
+    pub fn from_metadata(lookup: impl Fn(&str) -> Option<String>) -> Result<Self, SpecError> {
+        let key = keys::REACH_VOLUME;
+        let text = lookup(key).ok_or(SpecError::MissingKey { key })?;
+        let bad = |reason: String| SpecError::BadValue { key, value: text.clone(), reason };
+        let value: Value = serde_json::from_str(&text).map_err(|e| bad(format!("not JSON: {e}")))?;
+        Self::from_json(&value).map_err(bad)
     }
 }
 
@@ -153,6 +267,8 @@ pub mod keys {
     pub const OBSERVATION_SIZE: &str = "punch_observation_size";
     pub const ACTION_SIZE: &str = "punch_action_size";
     pub const ACTION_SPEC: &str = "punch_action_spec";
+    /// The target placements the policy covers (`ReachVolume::to_json`), written by the trainer.
+    pub const REACH_VOLUME: &str = "punch_reach_volume";
 }
 
 /// The entries a policy file must have to be played; a missing one is an error, never a default.
@@ -299,7 +415,7 @@ impl PolicySpec {
 }
 
 /// The spec part of the training server's handshake for `decision_period`: versions, hash, rates, sizes,
-/// every name, the action bounds and the default bag placement.
+/// every name, the action bounds, the default bag placement and the reach volume training covers.
 pub fn handshake_fields(decision_period: u32) -> Map<String, Value> {
     let mut fields = Map::new();
     fields.insert("spec_version".into(), json!(OBS_SPEC_VERSION));
@@ -312,6 +428,7 @@ pub fn handshake_fields(decision_period: u32) -> Map<String, Value> {
     fields.insert("observation_names".into(), json!(observation_names()));
     fields.insert("feature_names".into(), json!(FEATURE_NAMES.to_vec()));
     fields.insert("default_bag".into(), BagPlacement::DEFAULT.to_json());
+    fields.insert("reach_volume".into(), REACH_VOLUME.to_json());
     fields
 }
 
@@ -396,5 +513,33 @@ mod tests {
         assert_eq!(fields["observation_names"].as_array().map(Vec::len), Some(OBS_DIM));
         assert_eq!(fields["action_names"].as_array().map(Vec::len), Some(DOF_COUNT));
         assert_eq!(fields["default_bag"]["distance_m"], json!(0.72f32));
+        assert_eq!(ReachVolume::from_json(&fields["reach_volume"]), Ok(REACH_VOLUME));
+    }
+
+    #[test]
+    fn the_reach_volume_contains_its_box_give_or_take_the_tolerance() {
+        let centre = BagPlacement::at(0.72, 1.35, 0.0).position();
+        assert!(REACH_VOLUME.contains(centre));
+        assert!(REACH_VOLUME.contains(Vec3::new(0.25 + REACH_TOLERANCE_M * 0.9, 1.55, 0.85)));
+        let far = Vec3::new(0.0, 1.35, 1.2);
+        assert!(!REACH_VOLUME.contains(far));
+        assert_eq!(REACH_VOLUME.nearest(far), Vec3::new(0.0, 1.35, 0.85));
+        assert!(!REACH_VOLUME.contains(Vec3::NAN));
+        let spot = ReachVolume::spot(BagPlacement::DEFAULT);
+        assert!(spot.contains(centre + Vec3::new(0.02, 0.0, 0.0)));
+        assert!(!spot.contains(centre + Vec3::new(0.0, 0.05, 0.0)));
+    }
+
+    #[test]
+    fn a_policy_must_state_its_reach() {
+        let written = REACH_VOLUME.to_json().to_string();
+        assert_eq!(ReachVolume::from_metadata(|_| Some(written.clone())), Ok(REACH_VOLUME));
+        let missing = ReachVolume::from_metadata(|_| None).expect_err("required");
+        assert_eq!(missing, SpecError::MissingKey { key: keys::REACH_VOLUME });
+        for bad in ["{}", "[1]", r#"{"distance_m": [0.9, 0.6], "height_m": [1, 2], "side_m": [0, 0],
+                    "max_target_speed_mps": 0, "any_start_pose": false}"#] {
+            let error = ReachVolume::from_metadata(|_| Some(bad.to_string())).expect_err(bad);
+            assert!(error.to_string().contains(keys::REACH_VOLUME), "{error}");
+        }
     }
 }

@@ -17,7 +17,7 @@ use godot::obj::{Base, Gd, InstanceId, Singleton};
 use godot::prelude::{GodotClass, godot_api};
 use punch_core::Policy;
 use punch_core::observation::{OBS_DIM, spec_hash};
-use punch_core::spec::PolicySpec;
+use punch_core::spec::{PolicySpec, ReachVolume};
 
 use crate::punch_controller::PunchController;
 use crate::punch_runtime::ensure_onnx_runtime;
@@ -32,6 +32,8 @@ pub struct SharedPolicy {
     pub spec: PolicySpec,
     /// The observation spec hash the policy was trained with.
     pub spec_hash: String,
+    /// The target placements it was trained to punch.
+    pub reach: ReachVolume,
 }
 
 impl SharedPolicy {
@@ -49,8 +51,11 @@ impl SharedPolicy {
         }
         let spec =
             PolicySpec::from_metadata(|key| policy.metadata(key)).map_err(|e| format!("policy '{path}': {e}"))?;
+        let reach =
+            ReachVolume::from_metadata(|key| policy.metadata(key)).map_err(|e| format!("policy '{path}': {e}"))?;
         Ok(Self {
             spec,
+            reach,
             spec_hash: policy.metadata(punch_core::spec::keys::SPEC_HASH).unwrap_or_default(),
             policy: std::cell::RefCell::new(policy),
         })

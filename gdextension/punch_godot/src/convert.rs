@@ -8,6 +8,10 @@ pub fn vec3(v: Vector3) -> Vec3 {
     Vec3::new(v.x, v.y, v.z)
 }
 
+pub fn vector3(v: Vec3) -> Vector3 {
+    Vector3::new(v.x, v.y, v.z)
+}
+
 pub fn quat(q: Quaternion) -> Quat {
     Quat::from_xyzw(q.x, q.y, q.z, q.w).normalize()
 }

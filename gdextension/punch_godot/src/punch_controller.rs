@@ -6,7 +6,7 @@
 use std::rc::Rc;
 
 use glam::Vec3;
-use godot::builtin::{GString, PackedFloat32Array, PackedStringArray, VarDictionary, Vector3};
+use godot::builtin::{GString, PackedFloat32Array, PackedStringArray, VarDictionary, Vector2, Vector3};
 use godot::classes::{Engine, INode, Node, Node3D, PhysicsShapeQueryParameters3D, ProjectSettings, SphereShape3D};
 use godot::global::{godot_error, godot_warn};
 use godot::meta::ToGodot;
@@ -18,6 +18,7 @@ use punch_core::punch::{Hit, Punch, PunchRecord, PunchSummary, Recovery, Runtime
 use punch_core::sensing::{CharacterGeometry, FEATURE_COUNT, FEATURE_NAMES, FrameReading};
 use punch_core::spec::{BagPlacement, PROJECT_SETTINGS, SettingValue, project_setting_problems};
 
+use crate::convert::vector3;
 use crate::batch::{DecisionRequest, PunchInference, SharedPolicy};
 use crate::engine_io::{add_area_touches, add_bag_contacts, read_forearm_contacts};
 use crate::punch_character::PunchCharacter;
@@ -136,6 +137,13 @@ impl PunchController {
     #[signal]
     fn punch_started();
 
+    /// Emitted when a punch starts with the target outside the policy's reach volume (`reach_volume()`):
+    /// the punch then goes at `nearest`, the nearest point the policy covers (global coordinates), and may
+    /// miss. `offset` is where the target is in the character's frame (+Z ahead, +Y up, +X its left).
+    /// Move the character (or the target) so that the target's centre is at `nearest` for a real punch.
+    #[signal]
+    fn target_out_of_reach(offset: Vector3, nearest: Vector3);
+
     /// Emitted when a fist starts touching something (the target, or a body on `hit_layers`), once per
     /// contact: `impulse` (N s) on it in that first frame, the fist's peak `speed` so far (m/s), where the
     /// fist was (`position`, global), what was hit (`body`: a CollisionObject3D, or null if it is gone), and
@@ -157,14 +165,18 @@ impl PunchController {
 
     /// Starts a punch from the character's current pose (a punch already running ends first, interrupted).
     /// Returns false (with the reason in the log) when the policy, the character or the target is missing or
-    /// unusable, or the project's physics settings are not the policy's.
+    /// unusable, or the project's physics settings are not the policy's. A target outside the policy's
+    /// reach gets a punch at the nearest point it covers, and `target_out_of_reach`.
     #[func]
     fn punch(&mut self) -> bool {
         self.interrupt();
         match self.start() {
-            Ok(()) => {
+            Ok(out_of_reach) => {
                 PunchInference::enlist(self.to_gd());
                 self.signals().punch_started().emit();
+                if let Some((offset, nearest)) = out_of_reach {
+                    self.signals().target_out_of_reach().emit(vector3(offset), vector3(nearest));
+                }
                 true
             }
             Err(error) => {
@@ -174,6 +186,28 @@ impl PunchController {
                 false
             }
         }
+    }
+
+    /// The target placements the policy was trained to punch, in the character's frame: `distance_m`,
+    /// `height_m` and `side_m` ranges of the target's centre (Vector2(low, high); +Z ahead, +Y up, +X the
+    /// character's left), `max_target_speed_mps` and `any_start_pose` (false: only from the settled guard).
+    /// Targets up to 3 cm outside still count. Empty when the policy cannot be loaded.
+    #[func]
+    fn reach_volume(&self) -> VarDictionary {
+        let mut result = VarDictionary::new();
+        let reach = match PunchInference::policy(&self.policy) {
+            Ok(policy) => policy.reach,
+            Err(error) => {
+                godot_error!("PunchController '{}': {error}", self.base().get_name());
+                return result;
+            }
+        };
+        for (key, [low, high]) in [("distance_m", reach.distance_m), ("height_m", reach.height_m), ("side_m", reach.side_m)] {
+            result.set(key, Vector2::new(low, high));
+        }
+        result.set("max_target_speed_mps", reach.max_target_speed_mps);
+        result.set("any_start_pose", reach.any_start_pose);
+        result
     }
 
     /// Ends the current punch (`punch_finished` reports it interrupted) or recovery; the joints then hold
@@ -317,7 +351,8 @@ impl PunchController {
 }
 
 impl PunchController {
-    fn start(&mut self) -> Result<(), String> {
+    /// Starts a punch; `Some((offset, nearest))` when the target is out of reach (`target_out_of_reach`).
+    fn start(&mut self) -> Result<Option<(Vec3, Vec3)>, String> {
         PunchInference::check_project_settings()?;
         if self.loaded.as_ref().is_some_and(|loaded| loaded.seed != self.seed) {
             // A new seed starts a new sequence of punches.
@@ -330,12 +365,20 @@ impl PunchController {
         }
         let loaded = self.loaded.as_ref().ok_or("no policy")?;
         loaded.policy.check_spec(self.decision_period.max(1) as u32)?;
-        let target = Target::resolve(live(&self.target).ok_or("no target set (or it was freed)")?);
+        let mut target = Target::resolve(live(&self.target).ok_or("no target set (or it was freed)")?);
         let mut geometry = self.geometry()?;
+        let offset = geometry.root_rotation.inverse() * (target.state().position - geometry.root_position);
+        let reach = loaded.policy.reach;
+        let out_of_reach = (!reach.contains(offset)).then(|| {
+            // The policy sees the target at the nearest point it covers, and punches there.
+            let nearest = geometry.root_position + geometry.root_rotation * reach.nearest(offset);
+            target.aim_at(nearest);
+            (offset, nearest)
+        });
         target.describe(&mut geometry);
         self.aim = Some(target);
         self.phase = Phase::Punching(Box::new(Punch::new(geometry, loaded.policy.spec, self.record)));
-        Ok(())
+        Ok(out_of_reach)
     }
 
     /// The character's rest geometry where it stands now.

@@ -32,6 +32,9 @@ pub struct Target {
     node: Gd<Node3D>,
     body: Option<Gd<CollisionObject3D>>,
     kind: Kind,
+    /// Added to the node's position where the policy sees it (a target out of reach is seen at the nearest
+    /// point the policy covers), global.
+    aim_shift: Vec3,
 }
 
 impl Target {
@@ -54,7 +57,12 @@ impl Target {
                 },
             },
         };
-        Self { node, body, kind }
+        Self { node, body, kind, aim_shift: Vec3::ZERO }
+    }
+
+    /// From now on the policy sees the target as if its node were at `point` (global), moving as it moves.
+    pub fn aim_at(&mut self, point: Vec3) {
+        self.aim_shift = point - vec3(self.node.get_global_position());
     }
 
     /// Both still exist (a target freed mid-punch ends it).
@@ -84,7 +92,8 @@ impl Target {
         }
     }
 
-    /// The target's state: the node's pose and its physics object's velocity (zero for static ones).
+    /// The target's state as the policy sees it: the node's pose (shifted by `aim_at`) and its physics
+    /// object's velocity (zero for static ones).
     pub fn state(&self) -> BodyState {
         let transform = self.node.get_global_transform();
         let (linear_velocity, angular_velocity) = match &self.kind {
@@ -93,7 +102,7 @@ impl Target {
             Kind::None | Kind::Area(_) | Kind::Fixed => (Vec3::ZERO, Vec3::ZERO),
         };
         BodyState {
-            position: vec3(transform.origin),
+            position: vec3(transform.origin) + self.aim_shift,
             rotation: quat(transform.basis.get_quaternion()),
             linear_velocity,
             angular_velocity,

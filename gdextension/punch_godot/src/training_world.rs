@@ -269,7 +269,9 @@ impl TrainingWorld {
         let bag = self.bag.body.create(server, space, offset, bag_layer, character_layer);
         server.body_set_max_contacts_reported(bag, BAG_MAX_CONTACTS);
         let pin = server.joint_create();
-        server.joint_make_pin(pin, bag, self.bag.pin_local, Rid::Invalid, self.bag.pin_from_root + offset);
+        let pin_point = self.bag.pin_from_root + offset;
+        server.joint_make_pin(pin, bag, self.bag.pin_local, Rid::Invalid, pin_point);
+        self.set_bag_motion(server, bag, placement);
 
         let state = |server: &mut Gd<PhysicsServer3D>, rid: Rid| server.body_get_direct_state(rid);
         let states = bodies.iter().filter_map(|&rid| state(server, rid)).collect();
@@ -279,6 +281,18 @@ impl TrainingWorld {
         geometry.bag_height_m = self.bag.height_m;
         geometry.bag_mass_kg = self.bag.body.mass_kg;
         Slot { bodies, states, joints, bag, bag_state, pin, geometry }
+    }
+}
+
+impl TrainingWorld {
+    /// Sets a bag's velocity from its placement: a bag swinging on its rope turns about the pin as it moves,
+    /// ω = r × v / |r|² (r from the pin to the centre of mass).
+    fn set_bag_motion(&self, server: &mut Gd<PhysicsServer3D>, bag: Rid, placement: &BagPlacement) {
+        let v = placement.velocity();
+        let velocity = Vector3::new(v.x, v.y, v.z);
+        let arm = -self.bag.pin_from_root;
+        server.body_set_state(bag, ServerBodyState::LINEAR_VELOCITY, &velocity.to_variant());
+        server.body_set_state(bag, ServerBodyState::ANGULAR_VELOCITY, &(arm.cross(velocity) / arm.length_squared()).to_variant());
     }
 }
 
@@ -323,6 +337,15 @@ impl World for TrainingWorld {
             return Err("a body of the character has no direct state".into());
         }
         Ok(())
+    }
+
+    fn place_bag(&mut self, slot: usize, placement: &BagPlacement) {
+        let mut server = PhysicsServer3D::singleton();
+        let Some(bag) = self.slots.get(slot).map(|s| s.bag) else { return };
+        let mut transform = self.bag.body.transform;
+        transform.origin += Vector3::new(placement.side_m, placement.height_m, placement.distance_m);
+        server.body_set_state(bag, ServerBodyState::TRANSFORM, &transform.to_variant());
+        self.set_bag_motion(&mut server, bag, placement);
     }
 
     fn geometry(&self, slot: usize) -> CharacterGeometry {

@@ -144,6 +144,20 @@ def _resume_hint(command: str, out: Path | None) -> Iterator[None]:
         raise SystemExit(130) from None
 
 
+def _eval(args: argparse.Namespace) -> int:
+    from punch_trainer.cli.evaluate import EvalArgs, run_eval
+    from punch_trainer.cli.replay import parse_sigmas
+    from punch_trainer.learn.reach import HELD_OUT_SEED
+
+    eval_args = EvalArgs(policy=args.policy, baseline=args.baseline, placements=args.placements,
+                         seed=HELD_OUT_SEED if args.seed is None else args.seed, sigmas=parse_sigmas(args.sigmas),
+                         noisy_episodes=args.noisy_episodes, search_iterations=args.search_iterations, out=args.out)
+    out, _ = run_eval(eval_args)
+    print((out / "report.md").read_text())
+    print(f"report: {out / 'report.md'}")
+    return 0
+
+
 def _fig6(args: argparse.Namespace) -> int:
     import shutil
 
@@ -250,7 +264,14 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--pretrain-epochs", dest="pretrain_epochs", type=int)
     train.add_argument("--a2c-characters", dest="a2c_characters", type=int)
     train.add_argument("--a2c-time-budget-s", dest="a2c_time_budget_s", type=float,
-                       help="stop A2C after this much wall time (default 60; 0: no limit, which makes runs reproducible)")
+                       help="stop A2C after this much wall time (default 900 over the volume, 60 at a spot; 0: no limit, which makes runs reproducible)")
+    train.add_argument("--reach", choices=["volume", "spot"],
+                       help="'volume' (default): every target placement of the spec's reach volume (docs/env.md), minutes; "
+                            "'spot': the default placement only, seconds (the quickstart; the policy hits only there)")
+    train.add_argument("--grid", help="volume: search placements along distance,height,side (default 3,3,3)")
+    train.add_argument("--volume-search-iterations", dest="volume_search_iterations", type=int)
+    train.add_argument("--volume-search-rollouts", dest="volume_search_rollouts", type=int,
+                       help="volume: rollouts per placement and iteration (default 16)")
     train.add_argument("--resume", type=Path, metavar="RUN_DIR",
                        help="continue an interrupted run from its checkpoints, with its own arguments (other options are ignored)")
     train.set_defaults(run=_train)
@@ -261,6 +282,19 @@ def build_parser() -> argparse.ArgumentParser:
     pre.add_argument("--epochs", type=int, default=1500)
     pre.add_argument("--seed", type=int, default=0)
     pre.set_defaults(run=_pretrain)
+
+    evaluation = commands.add_parser("eval", help="success and quality of a policy on held-out target placements, with noise, "
+                                                  "through PunchController in Godot")
+    evaluation.add_argument("--policy", type=Path, required=True, help="an exported policy.onnx")
+    evaluation.add_argument("--baseline", type=Path, help="a second policy to evaluate on the same placements")
+    evaluation.add_argument("--placements", type=int, default=64)
+    evaluation.add_argument("--seed", type=int, help="seed of the placements (default: one no training stage uses)")
+    evaluation.add_argument("--sigmas", default="0,0.1,0.3,0.5", help="noise sigmas (a,b,c or start:stop:step)")
+    evaluation.add_argument("--noisy-episodes", dest="noisy_episodes", type=int, default=2, help="punches per placement at each sigma > 0")
+    evaluation.add_argument("--search-iterations", dest="search_iterations", type=int, default=20,
+                            help="per-placement search for the best return (0: none)")
+    evaluation.add_argument("--out", type=Path)
+    evaluation.set_defaults(run=_eval)
 
     replay = commands.add_parser("replay", help="replay a policy through PunchController in Godot at several noise sigmas (paper Fig. 10-11)")
     replay.add_argument("--policy", type=Path, required=True, help="an exported policy.onnx")

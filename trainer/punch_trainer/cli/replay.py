@@ -60,6 +60,10 @@ class ReplayArgs:
     """output directory (default: next to the policy, replay_<time>)"""
     keep_frames: bool = False
     """keep Godot's raw per-frame files (large: 11 kB per punch)"""
+    bags: Path | None = None
+    """a JSON list of bag placements, episode e at entry e modulo its length (default: --bag or the spec's)"""
+    start: str = "guard"
+    """'guard', or 'after_punch': every recorded punch starts where an earlier one ended"""
     timeout_s: float = 3600.0
 
 
@@ -93,6 +97,7 @@ def run_godot_replay(args: ReplayArgs, frames_dir: Path, progress: bool = True) 
         f"--policy={Path(args.policy).resolve()}", f"--sigmas={','.join(map(str, args.sigmas))}",
         f"--episodes={args.episodes}", f"--out={frames_dir.resolve()}", f"--noise-decisions={args.noise_decisions}",
         f"--characters={args.characters}", f"--characters-per-world={args.characters_per_world}", f"--seed={args.seed}",
+        f"--start={args.start}", *([f"--bags={Path(args.bags).resolve()}"] if args.bags else []),
     ]
     log: list[str] = []
     total_punches = len(args.sigmas) * args.episodes

@@ -1,6 +1,11 @@
 """`punch train`: the whole pipeline for one reward. Trajectory search, then the dataset, supervised
 pretraining, A2C, and export to ONNX, ending with a noise-free run of the exported policy in the
-simulator. Everything goes into one run directory with a short report."""
+simulator. Everything goes into one run directory with a short report.
+
+By default the policy covers the spec's reach volume (`punch_trainer.learn.volume`: a search at a grid of
+placements warm-started from the default one, all best trajectories in the dataset, A2C over random
+placements, swinging bags and starts after earlier punches). `--reach spot` trains at the default placement
+only, as the paper does: the quickstart, in seconds, and a policy that hits only there."""
 
 from __future__ import annotations
 
@@ -16,14 +21,17 @@ import onnxruntime
 from punch_trainer.cli.search import run_search
 from punch_trainer.learn.a2c import A2CArgs, evaluate_noise_free, train_a2c
 from punch_trainer.learn.checkpoint import CONFIG_FILE, CheckpointError, default_run_dir, load_checkpoint, save_checkpoint, write_config
-from punch_trainer.learn.dataset import load_datasets
+from punch_trainer.learn.dataset import load_datasets, record_datasets
 from punch_trainer.learn.export import export_policy
 from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.pretrain import PretrainArgs, pretrain
-from punch_trainer.learn.search import SearchArgs
+from punch_trainer.learn.reach import ReachVolume
+from punch_trainer.learn.search import SearchArgs, SearchResult, placement_search
+from punch_trainer.learn.volume import EpisodeConditions, VolumeArgs, distribution_observations, validate
 from punch_trainer.report.motion import motion_report
 from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.rewards import Reward, load_reward, score
+from punch_trainer.sim.rollouts import RolloutPool
 
 
 @dataclass
@@ -36,11 +44,20 @@ class TrainArgs:
     search_rollouts: int = 64
     smoothing_window: int = 3
     pretrain_epochs: int = 1500
-    a2c_updates: int = 40
+    a2c_updates: int | None = None
+    """A2C updates (default: 40 at a spot; over the volume 5000, so that the time budget decides)"""
     a2c_characters: int = 32
+    """characters per A2C process (two processes over the volume)"""
     advantage: str = "gae"
-    a2c_time_budget_s: float | None = 60.0
-    """stop A2C after this much wall time (None or 0: no limit, which makes a run reproducible)"""
+    a2c_time_budget_s: float | None = None
+    """stop A2C after this much wall time (default: 60 s at a spot, 900 s over the volume; 0: no limit,
+    which makes a run reproducible)"""
+    reach: str = "volume"
+    """'volume': the spec's reach volume; 'spot': the default placement only (the quickstart)"""
+    grid: str = "3,3,3"
+    """search placements along distance, height and side (volume)"""
+    volume_search_iterations: int = 60
+    volume_search_rollouts: int = 16
 
     def run_dir(self) -> Path:
         """`out`, or a new runs/train_<reward>__<seed>__<time>."""
@@ -65,10 +82,47 @@ def run_exported_policy(path: Path, env: PunchVectorEnv, reward: Reward, sigma: 
             return total_return, np.concatenate(frames)
 
 
+def parse_grid(text: str) -> tuple[int, int, int]:
+    """`3,3,3`: search placements along distance, height and side."""
+    try:
+        distance, height, side = (int(v) for v in text.split(","))
+    except ValueError:
+        distance = height = side = 0
+    if min(distance, height, side) < 1:
+        raise ValueError(f"--grid is three counts >= 1 (distance,height,side), not '{text}'")
+    return distance, height, side
+
+
+def search_volume(args: TrainArgs, volume: VolumeArgs, reward: Reward, centre: SearchResult, progress: bool,
+                  resume: bool) -> tuple[list[Path], ReachVolume, list[float], np.ndarray]:
+    """The search over the reach volume's grid, warm-started from the default placement's best (`centre`),
+    and one dataset per placement in volume_search/datasets/. Returns the dataset paths, the reach, each
+    placement's best return and best actions [P, decisions, A]."""
+    out = args.run_dir() / "volume_search"
+    search_args = SearchArgs(reward=args.reward, frames=reward.frames, seed=args.seed, out=out,
+                             iterations=volume.search_iterations, rollouts=volume.search_rollouts,
+                             sigma_init=volume.search_sigma_init, characters_per_process=64,
+                             smoothing_window=args.smoothing_window)
+    with RolloutPool(1, 64) as pool:
+        reach = ReachVolume.from_json(pool.info.reach_volume)
+        placements = reach.grid(volume.grid)
+        bests = placement_search(search_args, reward, pool, progress, run_dir=out, placements=placements,
+                                 init_mu=centre.best_actions)
+    paths = [out / "datasets" / f"placement_{index:03d}.npz" for index in range(len(bests))]
+    if not (resume and all(path.exists() for path in paths)):
+        paths[0].parent.mkdir(parents=True, exist_ok=True)
+        for path, dataset in zip(paths, record_datasets(bests, reward, search_args, placements, reach), strict=True):
+            np.savez_compressed(path, **dataset)  # type: ignore[arg-type]  # numpy's stub types **kwargs as its bool option
+    return paths, reach, [b.best_return for b in bests], np.stack([b.best_actions for b in bests])
+
+
 def run_train(args: TrainArgs, progress: bool = True, resume: bool = False) -> Path:
     """The whole `punch train` command. Every stage checkpoints in its own folder of the run directory
-    (search/, pretrain/, a2c/); `resume` continues the run in `args.out` from them."""
+    (search/, volume_search/, pretrain/, a2c/); `resume` continues the run in `args.out` from them."""
     started = time.perf_counter()
+    if args.reach not in ("volume", "spot"):
+        raise ValueError(f"--reach is 'volume' or 'spot', not '{args.reach}'")
+    over_volume = args.reach == "volume"
     reward = load_reward(args.reward, args.frames)
     out = args.run_dir()
     if not resume and (out / CONFIG_FILE).exists():
@@ -80,30 +134,47 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False) -> P
                              iterations=args.search_iterations, rollouts=args.search_rollouts,
                              characters_per_process=min(64, args.search_rollouts), smoothing_window=args.smoothing_window)
     _, search, _ = run_search(search_args, progress, resume=resume)
+    dataset_paths = [out / "search" / "dataset.npz"]
+    volume = VolumeArgs(grid=parse_grid(args.grid), search_iterations=args.volume_search_iterations,
+                        search_rollouts=args.volume_search_rollouts)
+    reach, punches, grid_bests = None, search.best_actions[None], [search.best_return]
+    if over_volume:
+        dataset_paths, reach, grid_bests, punches = search_volume(args, volume, reward, search, progress, resume)
     timings["search_s"] = time.perf_counter() - started
 
-    data = load_datasets([out / "search" / "dataset.npz"])
+    data = load_datasets(dataset_paths)
     model = ActorCritic(data["observations"].shape[1], data["actions"].shape[1], seed=args.seed)
-    pretrained = load_checkpoint(out / "pretrain", "pretrain") if resume else None
-    if pretrained is None:
-        pretrain_history = pretrain(model, data, PretrainArgs(epochs=args.pretrain_epochs, seed=args.seed), progress)
-        save_checkpoint(out / "pretrain", "pretrain", {"model": model.state_dict(), "history": pretrain_history})
-    else:
-        model.load_state_dict(pretrained["model"])
-        pretrain_history = pretrained["history"]
-    timings["pretrain_s"] = time.perf_counter() - started - timings["search_s"]
-
-    env = PunchVectorEnv(1, args.a2c_characters, frames=reward.frames, smoothing_window=args.smoothing_window)
+    processes = 2 if over_volume else 1
+    env = PunchVectorEnv(processes, args.a2c_characters, frames=reward.frames, smoothing_window=args.smoothing_window)
     try:
+        conditions = EpisodeConditions(reach, punches, volume, seed=args.seed + 1) if reach is not None else None
+        validation = reach.sample(np.random.default_rng(args.seed + 2), env.num_envs) if reach is not None else None
+        pretrained = load_checkpoint(out / "pretrain", "pretrain") if resume else None
+        if pretrained is None:
+            statistics = distribution_observations(env, conditions, punches) if conditions is not None else None
+            pretrain_args = PretrainArgs(epochs=args.pretrain_epochs, seed=args.seed, initial_sigma=0.3 if over_volume else 0.1)
+            pretrain_history = pretrain(model, data, pretrain_args, progress, statistics)
+            save_checkpoint(out / "pretrain", "pretrain", {"model": model.state_dict(), "history": pretrain_history})
+        else:
+            model.load_state_dict(pretrained["model"])
+            pretrain_history = pretrained["history"]
+        timings["pretrain_s"] = time.perf_counter() - started - timings["search_s"]
+
         pretrained_return = evaluate_noise_free(model, env, reward)
-        a2c_args = A2CArgs(updates=args.a2c_updates, characters=args.a2c_characters, advantage=args.advantage,
-                           smoothing_window=args.smoothing_window, time_budget_s=args.a2c_time_budget_s or None, seed=args.seed)
+        updates = args.a2c_updates or (5000 if over_volume else 40)
+        budget = args.a2c_time_budget_s if args.a2c_time_budget_s is not None else (900.0 if over_volume else 60.0)
+        a2c_args = A2CArgs(updates=updates, characters=env.num_envs, advantage=args.advantage,
+                           smoothing_window=args.smoothing_window, time_budget_s=budget or None, seed=args.seed)
         model, a2c_history = train_a2c(model, reward, a2c_args, env, progress, run_dir=out / "a2c",
-                                       start_rollouts=search.history[-1]["rollouts"] if search.history else 0)
+                                       start_rollouts=search.history[-1]["rollouts"] if search.history else 0,
+                                       conditions=conditions, validation=validation)
         timings["a2c_s"] = time.perf_counter() - started - timings["search_s"] - timings["pretrain_s"]
 
         summary = {"search_best_return": search.best_return, "pretrained_return": pretrained_return,
-                   "a2c_best_eval_return": max(h["eval_return"] for h in a2c_history), "a2c_updates": len(a2c_history) - 1}
+                   "a2c_best_eval_return": max(h["eval_return"] for h in a2c_history), "a2c_updates": len(a2c_history) - 1,
+                   "reach": args.reach, "grid_best_returns": [round(r, 4) for r in grid_bests]}
+        if validation is not None:
+            summary["validation"] = validate(model, env, reward, validation)
         policy_path = export_policy(model, out / "policy.onnx", contract=data["policy_metadata"], reward=reward.name, summary=summary)
         exported_return, features = run_exported_policy(policy_path, env, reward)
     finally:
@@ -126,6 +197,9 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False) -> P
         f"- after A2C ({len(a2c_history) - 1} updates x {args.a2c_characters} episodes, advantage '{args.advantage}'): "
         f"best noise-free return {max(h['eval_return'] for h in a2c_history):.4f}",
         f"- exported policy (onnxruntime, sigma 0) in the simulator: return {exported_return:.4f} = {100 * ratio:.1f}% of the search's best",
+        f"- reach: {args.reach}" + (f" ({len(grid_bests)} search placements; on {len(summary['validation'] and validation or [])} validation placements, "
+                                    f"sigma 0: success {100 * summary['validation']['success']:.1f}%, mean return {summary['validation']['return']:.4f})"
+                                    if validation is not None else " (the default placement only)"),
         f"- the exported policy's punch: peak right-fist speed {motion['peak_fist_speed_mps']:.2f} m/s; {impact}",
         f"- timings: search {timings['search_s']:.1f} s, pretraining {timings['pretrain_s']:.1f} s, A2C {timings['a2c_s']:.1f} s, "
         f"total {timings['total_s']:.1f} s",

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import copy
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -22,6 +23,7 @@ from tqdm import tqdm
 
 from punch_trainer.learn.checkpoint import load_checkpoint, save_checkpoint
 from punch_trainer.learn.policy import ActorCritic
+from punch_trainer.learn.volume import validate
 from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.rewards import Reward, score
 from punch_trainer.sim.server_group import SimulatorRestarts
@@ -60,10 +62,12 @@ def evaluate_noise_free(model: ActorCritic, env: PunchVectorEnv, reward: Reward)
             return episode
 
 
-def collect_episodes(model: ActorCritic, env: PunchVectorEnv, reward: Reward) -> dict[str, torch.Tensor]:
-    """One episode on every character with actions sampled from the policy: per decision [T, N, ...] the
-    observations, actions, log-probabilities, values and rewards."""
-    obs, _ = env.reset()
+def collect_episodes(model: ActorCritic, env: PunchVectorEnv, reward: Reward,
+                     options: dict[str, Any] | None = None) -> dict[str, torch.Tensor]:
+    """One episode on every character with actions sampled from the policy (reset with `options`: bag
+    placements, lead-ins): per decision [T, N, ...] the observations, actions, log-probabilities, values
+    and rewards."""
+    obs, _ = env.reset(options=options)
     batch: dict[str, list[torch.Tensor]] = {"obs": [], "actions": [], "logp": [], "values": [], "rewards": []}
     done = np.zeros(env.num_envs, dtype=bool)
     while not done.all():
@@ -98,21 +102,35 @@ def advantages_and_returns(rewards: torch.Tensor, values: torch.Tensor, best_epi
 
 
 def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVectorEnv, progress: bool = True,
-              start_rollouts: int = 0, run_dir: Path | None = None, max_restarts: int = 3) -> tuple[ActorCritic, list[dict[str, Any]]]:
+              start_rollouts: int = 0, run_dir: Path | None = None, max_restarts: int = 3,
+              conditions: Callable[[int], dict[str, Any]] | None = None,
+              validation: list[dict[str, float]] | None = None) -> tuple[ActorCritic, list[dict[str, Any]]]:
     """Trains in place and returns the parameters with the best noise-free return, with the history.
+
+    `conditions(count)` gives each update's reset options (training over the reach volume: random
+    placements, swinging bags, lead-ins); the noise-free return is then the mean over the fixed `validation`
+    placements (and `eval_success` their success rate), else character 0's at the default placement.
 
     With `run_dir` it checkpoints after every update (model, optimizer, best model, history and the random
     state) and first continues from the checkpoint it finds there. A Godot process that crashes, is killed or
     hangs during an update is restarted, and the update's episodes run again with the same random numbers, so
     either way the result is the one an uninterrupted run gives."""
     torch.manual_seed(args.seed)
+
+    def evaluate() -> tuple[float, float | None]:
+        if validation is None:
+            return evaluate_noise_free(model, env, reward), None
+        result = validate(model, env, reward, validation)
+        return result["return"], result["success"]
+
     optimizer = torch.optim.Adam(model.parameters(), lr=args.learning_rate)
     restarts = SimulatorRestarts(env.restart, max_restarts)
     saved = load_checkpoint(run_dir, "a2c") if run_dir is not None else None
     if saved is None:
-        best_model, best_eval = copy.deepcopy(model), restarts.run(lambda: evaluate_noise_free(model, env, reward))
-        best_episode_return = -np.inf
-        history = [{"update": 0, "episodes": 0, "env_steps": start_rollouts, "elapsed_s": 0.0, "mean_return": float("nan"), "eval_return": best_eval}]
+        best_eval, eval_success = restarts.run(evaluate)
+        best_model, best_episode_return = copy.deepcopy(model), -np.inf
+        history: list[dict[str, Any]] = [{"update": 0, "episodes": 0, "env_steps": start_rollouts, "elapsed_s": 0.0,
+                                          "mean_return": float("nan"), "eval_return": best_eval, "eval_success": eval_success}]
         done_updates, elapsed_before, stopped = 0, 0.0, False
     else:
         model.load_state_dict(saved["model"])
@@ -129,10 +147,11 @@ def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVecto
     for update in tqdm(range(done_updates + 1, args.updates + 1), desc=f"a2c ({args.advantage})", unit="update",
                        initial=done_updates, total=args.updates, disable=not progress):
         rng_state = torch.get_rng_state()
+        options = conditions(env.num_envs) if conditions is not None else None
 
-        def collect(rng_state: torch.Tensor = rng_state) -> dict[str, torch.Tensor]:
+        def collect(rng_state: torch.Tensor = rng_state, options: dict[str, Any] | None = options) -> dict[str, torch.Tensor]:
             torch.set_rng_state(rng_state)  # a rerun after a restart samples the same actions
-            return collect_episodes(model, env, reward)
+            return collect_episodes(model, env, reward, options)
 
         batch = restarts.run(collect)
         episode_returns = batch["rewards"].sum(0)
@@ -152,14 +171,14 @@ def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVecto
             loss.backward()
             torch.nn.utils.clip_grad_norm_(model.parameters(), 0.5)
             optimizer.step()
-        evaluation = restarts.run(lambda: evaluate_noise_free(model, env, reward))
+        evaluation, eval_success = restarts.run(evaluate)
         if evaluation > best_eval:
             best_eval, best_model = evaluation, copy.deepcopy(model)
         elapsed = time.perf_counter() - start
         steps = batch["rewards"].numel()
         history.append({"update": update, "episodes": history[-1]["episodes"] + env.num_envs,
                         "env_steps": history[-1]["env_steps"] + steps, "elapsed_s": round(elapsed, 3),
-                        "mean_return": float(episode_returns.mean()), "eval_return": evaluation})
+                        "mean_return": float(episode_returns.mean()), "eval_return": evaluation, "eval_success": eval_success})
         stopped = update == args.updates or (args.time_budget_s is not None and elapsed >= args.time_budget_s)
         if run_dir is not None:
             save_checkpoint(run_dir, "a2c", {

@@ -2,8 +2,9 @@
 pretraining learns from), and loading several of them as one.
 
 A dataset (`dataset.npz`) holds per decision the observation seen, the raw and executed action and the
-reward, every frame's features, and the policy contract of the episodes it was recorded in
-(`policy_metadata`, as the training server announced it), which every policy trained on it carries."""
+reward, every frame's features, the bag's placement, and the policy contract of the episodes it was recorded in
+(`policy_metadata`, as the training server announced it, with the reach volume the training covers), which
+every policy trained on it carries."""
 
 from __future__ import annotations
 
@@ -14,9 +15,10 @@ from typing import Any
 import numpy as np
 
 from punch_trainer.errors import PunchError
+from punch_trainer.learn.reach import METADATA_KEY, ReachVolume
 from punch_trainer.learn.search import SearchArgs, SearchResult
 from punch_trainer.sim.rewards import Reward, score
-from punch_trainer.sim.server import TrainingServer
+from punch_trainer.sim.server import ServerInfo, TrainingServer
 
 
 class DatasetError(PunchError):
@@ -24,22 +26,56 @@ class DatasetError(PunchError):
 
 
 def record_dataset(result: SearchResult, reward: Reward, args: SearchArgs) -> dict[str, np.ndarray]:
-    """Steps through the best trajectory one decision at a time, in the same slot of a server of the same size
-    as the search's (so that it is bitwise the same trajectory: docs/env.md, Episodes), and stores what each
-    decision saw and did. The recording must reproduce the search's features exactly."""
-    slot, slot_count = result.best_slot, args.characters_per_process
+    """The dataset of a search at the default placement (`record_datasets`), for a single-spot policy."""
+    return record_datasets([result], reward, args)[0]
+
+
+def record_datasets(results: list[SearchResult], reward: Reward, args: SearchArgs, bags: list[dict[str, float]] | None = None,
+                    reach: ReachVolume | None = None) -> list[dict[str, np.ndarray]]:
+    """Steps through best trajectories one decision at a time, each in the slot it was found in, of a server
+    of the same size as the search's (so that each is bitwise the same trajectory: docs/env.md, Episodes),
+    with its bag placement (`bags`, default: the spec's), and stores what each decision saw and did. The
+    recording must reproduce the search's features exactly. `reach` (default: the one placement) goes into
+    each dataset's policy contract, so every policy trained on them states what it covers."""
+    slot_count = args.characters_per_process
+    bags = bags or [None] * len(results)  # type: ignore[list-item]
+    recorded: list[dict[str, np.ndarray] | None] = [None] * len(results)
+    pending = list(range(len(results)))
     with TrainingServer(slot_count, decision_period=args.decision_period) as server:
         info = server.info
-        reply = server.reset(reward.frames, smoothing_window=args.smoothing_window)
-        contract = reply.fields["policy_metadata"]
-        observations, executed, frames = [reply.arrays["observations"][slot]], [], []
-        for action in result.best_actions:
-            actions = np.zeros((slot_count, info.action_size), dtype=np.float32)
-            actions[slot] = action
-            step = server.step(actions)
-            observations.append(step.arrays["observations"][slot])
-            executed.append(step.arrays["executed_actions"][slot, 0])
-            frames.append(step.arrays["features"][slot])
+        reach = reach or ReachVolume.spot(bags[0] or info.default_bag)
+        while pending:
+            # One pass plays every pending trajectory whose slot is still free in it.
+            by_slot: dict[int, int] = {}
+            for index in pending:
+                by_slot.setdefault(results[index].best_slot, index)
+            pending = [index for index in pending if index not in by_slot.values()]
+            slot_bags = [dict(info.default_bag) for _ in range(slot_count)]
+            for slot, index in by_slot.items():
+                slot_bags[slot] = dict(info.default_bag, **(bags[index] or {}))
+            reply = server.reset(reward.frames, bags=slot_bags, smoothing_window=args.smoothing_window)
+            contract = dict(reply.fields["policy_metadata"], **{METADATA_KEY: reach.to_json()})
+            observations = [[reply.arrays["observations"][slot]] for slot in range(slot_count)]
+            executed: list[list[np.ndarray]] = [[] for _ in range(slot_count)]
+            frames: list[list[np.ndarray]] = [[] for _ in range(slot_count)]
+            for decision in range(len(results[0].best_actions)):
+                actions = np.zeros((slot_count, info.action_size), dtype=np.float32)
+                for slot, index in by_slot.items():
+                    actions[slot] = results[index].best_actions[decision]
+                step = server.step(actions)
+                for slot in by_slot:
+                    observations[slot].append(step.arrays["observations"][slot])
+                    executed[slot].append(step.arrays["executed_actions"][slot, 0])
+                    frames[slot].append(step.arrays["features"][slot])
+            for slot, index in by_slot.items():
+                recorded[index] = _dataset(results[index], reward, args, info, contract, slot_bags[slot],
+                                           observations[slot], executed[slot], frames[slot])
+    return [dataset for dataset in recorded if dataset is not None]
+
+
+def _dataset(result: SearchResult, reward: Reward, args: SearchArgs, info: ServerInfo, contract: dict[str, str],
+             bag: dict[str, float], observations: list[np.ndarray], executed: list[np.ndarray],
+             frames: list[np.ndarray]) -> dict[str, np.ndarray]:
     features = np.concatenate(frames)
     decisions = len(result.best_actions)
     rewards = score(reward, features.reshape(decisions, args.decision_period, -1), info.feature_names)
@@ -56,6 +92,7 @@ def record_dataset(result: SearchResult, reward: Reward, args: SearchArgs) -> di
         "observation_names": np.array(info.observation_names),
         "spec_hash": np.array(info.spec_hash),
         "policy_metadata": np.array(json.dumps(contract, sort_keys=True)),
+        "bag": np.array(json.dumps(bag, sort_keys=True)),
         "reward": np.array(reward.name),
         "frames": np.array(reward.frames),
         "decision_period": np.array(args.decision_period),

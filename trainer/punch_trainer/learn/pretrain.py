@@ -25,10 +25,14 @@ class PretrainArgs:
     seed: int = 0
 
 
-def pretrain(model: ActorCritic, data: dict[str, np.ndarray], args: PretrainArgs, progress: bool = True) -> list[dict[str, Any]]:
-    """Fits the actor's mean to the dataset's actions and the critic to the returns-to-go; sets sigma."""
+def pretrain(model: ActorCritic, data: dict[str, np.ndarray], args: PretrainArgs, progress: bool = True,
+             statistics_observations: np.ndarray | None = None) -> list[dict[str, Any]]:
+    """Fits the actor's mean to the dataset's actions and the critic to the returns-to-go; sets sigma. The
+    observation normalisation comes from the dataset's observations and `statistics_observations` (what
+    the policy will meet beyond them: a bag that was never moved in the dataset must not look fixed)."""
     torch.manual_seed(args.seed)
-    model.set_normalization(data["observations"])
+    extra = [] if statistics_observations is None else [statistics_observations]
+    model.set_normalization(np.concatenate([data["observations"], *extra]))
     obs = torch.as_tensor(data["observations"])
     actions = torch.as_tensor(data["actions"])
     targets = torch.as_tensor(data["returns_to_go"])

@@ -32,6 +32,7 @@ import numpy as np
 from tqdm import tqdm
 
 from punch_trainer.learn.checkpoint import CheckpointError, default_run_dir, load_checkpoint, save_checkpoint
+from punch_trainer.learn.reach import position
 from punch_trainer.sim.rewards import Reward, Terms, score_terms
 from punch_trainer.sim.rollouts import RolloutPool
 
@@ -104,71 +105,107 @@ def evaluate_actions(pool: RolloutPool, reward: Reward, actions: np.ndarray,
 
 def trajectory_search(args: SearchArgs, reward: Reward, pool: RolloutPool, progress: bool = True,
                       run_dir: Path | None = None) -> SearchResult:
-    """Runs TTR on `pool` until a stopping rule fires. With `run_dir` it checkpoints after every iteration
-    and first continues from the checkpoint it finds there: mu, sigma, the best so far and the sampler's
-    state, so a resumed search ends exactly where an uninterrupted one would."""
+    """Runs TTR at the spec's default placement on `pool` until a stopping rule fires (`placement_search`
+    with one placement)."""
+    return placement_search(args, reward, pool, progress, run_dir)[0]
+
+
+def placement_search(args: SearchArgs, reward: Reward, pool: RolloutPool, progress: bool = True,
+                     run_dir: Path | None = None, placements: list[dict[str, float]] | None = None,
+                     init_mu: np.ndarray | None = None, neighbours: int = 4) -> list[SearchResult]:
+    """Runs TTR at several bag placements at once (one table per placement, all rollouts in the same
+    batches); None: the default placement only. Each placement's search may start from `init_mu` (a best
+    trajectory found elsewhere, [decisions, A], or one per placement: a warm start), and from the second iteration on one of its rollouts is the
+    best so far of one of its `neighbours` nearest placements, so what one placement finds spreads to the
+    others. Stops when no placement improved for `plateau_iterations`.
+
+    With `run_dir` it checkpoints after every iteration and first continues from the checkpoint it finds
+    there: the tables, the bests and the sampler's state, so a resumed search ends exactly where an
+    uninterrupted one would."""
     rng = np.random.default_rng(args.seed)
     names = pool.info.feature_names
     clip_epsilon = args.clip_epsilon if args.clip_epsilon is not None else reward.search_clip_epsilon
     decisions = reward.frames // args.decision_period
     action_size = pool.info.action_size
+    count = 1 if placements is None else len(placements)
+    scale = np.ptp([position(p) for p in placements], axis=0) + 1e-6 if placements else np.ones(3)
+    near = [np.argsort([np.linalg.norm((position(q) - position(p)) / scale) for q in placements])[1:neighbours + 1]
+            for p in placements] if placements else [np.array([], dtype=int)]
 
-    def returns_of(actions: np.ndarray) -> tuple[np.ndarray, Terms, np.ndarray, np.ndarray]:
-        return evaluate_actions(pool, reward, actions, args.smoothing_window)
+    def returns_of(actions: np.ndarray, per_placement: int) -> tuple[np.ndarray, Terms, np.ndarray, np.ndarray]:
+        bags = None if placements is None else [bag for bag in placements for _ in range(per_placement)]
+        features, executed = pool.run(actions.reshape(-1, decisions, action_size), args.smoothing_window, bags)
+        returns, terms = score_terms(reward, features, names)
+        return returns.reshape(count, per_placement), terms, features, executed
+
+    def best_of(index: int, samples: np.ndarray, returns: np.ndarray, terms: Terms, features: np.ndarray,
+                executed: np.ndarray, history: list[dict[str, Any]]) -> SearchResult:
+        return SearchResult(samples.reshape(-1, decisions, action_size)[index].copy(), executed[index],
+                            float(returns.reshape(-1)[index]), features[index],
+                            {k: float(v[index].sum()) for k, v in terms.items()}, history, names,
+                            best_slot=index % pool.characters_per_process)
 
     saved = load_checkpoint(run_dir, "search") if run_dir is not None else None
     if saved is None:
-        mu = np.zeros((decisions, action_size), dtype=np.float32)
-        sigma = np.full((decisions, action_size), args.sigma_init, dtype=np.float64)
-        returns, terms, features, executed = returns_of(mu[None])
-        best = SearchResult(mu.copy(), executed[0], float(returns[0]), features[0],
-                            {k: float(v[0].sum()) for k, v in terms.items()}, feature_names=names)
-        done_iterations, rollouts_done, last_improvement, elapsed_before, stopped = 0, 1, 0, 0.0, False
+        start_mu = np.zeros((decisions, action_size), dtype=np.float32) if init_mu is None else np.asarray(init_mu, dtype=np.float32)
+        mu = np.broadcast_to(start_mu, (count, decisions, action_size)).copy()
+        sigma = np.full((count, decisions, action_size), args.sigma_init, dtype=np.float64)
+        returns, terms, features, executed = returns_of(mu, 1)
+        history: list[dict[str, Any]] = []
+        bests = [best_of(p, mu, returns, terms, features, executed, history) for p in range(count)]
+        done_iterations, rollouts_done, last_improvement, elapsed_before, stopped = 0, count, 0, 0.0, False
     else:
         mu, sigma = saved["mu"].numpy(), saved["sigma"].numpy()
-        if mu.shape != (decisions, action_size):
-            raise CheckpointError(f"the checkpoint in {run_dir} holds {mu.shape[0]} decisions; this search has {decisions}")
+        if mu.shape != (count, decisions, action_size):
+            raise CheckpointError(f"the checkpoint in {run_dir} holds tables of shape {tuple(mu.shape)}; this search needs "
+                                  f"{(count, decisions, action_size)}")
         rng.bit_generator.state = saved["rng_state"]
-        best = SearchResult(saved["best_actions"].numpy(), saved["best_executed"].numpy(), saved["best_return"],
-                            saved["best_features"].numpy(), saved["best_terms"], saved["history"], names, saved["best_slot"])
+        history = saved["history"]
+        bests = [SearchResult(b["actions"].numpy(), b["executed"].numpy(), b["return"], b["features"].numpy(), b["terms"],
+                              history, names, b["slot"]) for b in saved["bests"]]
         done_iterations, rollouts_done, last_improvement = saved["iteration"], saved["rollouts"], saved["last_improvement"]
         elapsed_before, stopped = saved["elapsed_s"], saved["stopped"]
     if stopped:
-        return best
+        return bests
 
     start = time.perf_counter() - elapsed_before
-    bar = tqdm(range(done_iterations + 1, args.iterations + 1), desc=f"search {reward.name}", unit="it",
+    label = f"search {reward.name}" + (f" x {count} placements" if count > 1 else "")
+    bar = tqdm(range(done_iterations + 1, args.iterations + 1), desc=label, unit="it",
                initial=done_iterations, total=args.iterations, disable=not progress)
     for iteration in bar:
-        samples = np.clip(mu + sigma * rng.standard_normal((args.rollouts, decisions, action_size)), -1.0, 1.0).astype(np.float32)
-        returns, terms, features, executed = returns_of(samples)
-        rollouts_done += args.rollouts
-        top = int(np.argmax(returns))
-        if returns[top] > best.best_return:
-            mu = samples[top].copy()
-            best = SearchResult(mu.copy(), executed[top], float(returns[top]), features[top],
-                                {k: float(v[top].sum()) for k, v in terms.items()}, best.history, names,
-                                best_slot=top % pool.characters_per_process)
-            last_improvement = iteration
-        sigma = update_sigma(samples, returns, mu, best.best_return, sigma, clip_epsilon, args.sigma_min)
+        noise = rng.standard_normal((count, args.rollouts, decisions, action_size))
+        samples = np.clip(mu[:, None] + sigma[:, None] * noise, -1.0, 1.0).astype(np.float32)
+        if count > 1 and neighbours > 0 and iteration > 1:
+            for p in range(count):
+                samples[p, 0] = bests[int(rng.choice(near[p]))].best_actions
+        returns, terms, features, executed = returns_of(samples, args.rollouts)
+        rollouts_done += samples.shape[0] * samples.shape[1]
+        for p in range(count):
+            top = int(np.argmax(returns[p]))
+            if returns[p, top] > bests[p].best_return:
+                mu[p] = samples[p, top]
+                bests[p] = best_of(p * args.rollouts + top, samples, returns, terms, features, executed, history)
+                last_improvement = iteration
+            sigma[p] = update_sigma(samples[p], returns[p], mu[p], bests[p].best_return, sigma[p], clip_epsilon, args.sigma_min)
         elapsed = time.perf_counter() - start
-        best.history.append({
+        best_returns = np.array([b.best_return for b in bests])
+        history.append({
             "iteration": iteration, "rollouts": rollouts_done, "elapsed_s": round(elapsed, 4),
-            "best_return": best.best_return, "mean_return": float(returns.mean()), "sigma_mean": float(sigma.mean()),
-            **{f"best_{k}": v for k, v in best.best_terms.items()},
+            "best_return": float(best_returns.mean()), "mean_return": float(returns.mean()), "sigma_mean": float(sigma.mean()),
+            **({f"best_{k}": v for k, v in bests[0].best_terms.items()} if count == 1 else {"worst_best_return": float(best_returns.min())}),
         })
-        bar.set_postfix(best=f"{best.best_return:.3f}", rollouts_per_s=f"{rollouts_done / elapsed:.0f}")
+        bar.set_postfix(best=f"{best_returns.mean():.3f}", rollouts_per_s=f"{rollouts_done / elapsed:.0f}")
         stopped = (iteration == args.iterations
                    or bool(args.plateau_iterations and iteration - last_improvement >= args.plateau_iterations)
                    or (args.time_budget_s is not None and elapsed >= args.time_budget_s))
         if run_dir is not None:
             save_checkpoint(run_dir, "search", {
                 "iteration": iteration, "mu": mu, "sigma": sigma, "rng_state": rng.bit_generator.state,
-                "best_actions": best.best_actions, "best_executed": best.best_executed, "best_return": best.best_return,
-                "best_features": best.best_features, "best_terms": best.best_terms, "best_slot": best.best_slot,
-                "history": best.history, "rollouts": rollouts_done, "last_improvement": last_improvement,
+                "bests": [{"actions": b.best_actions, "executed": b.best_executed, "return": b.best_return, "features": b.best_features,
+                           "terms": b.best_terms, "slot": b.best_slot} for b in bests],
+                "history": history, "rollouts": rollouts_done, "last_improvement": last_improvement,
                 "elapsed_s": elapsed, "stopped": stopped})
         if stopped:
             break
     bar.close()
-    return best
+    return bests

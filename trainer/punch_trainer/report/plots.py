@@ -107,6 +107,47 @@ def plot_replay(out: Path, sigmas: list[float], rows: list[dict[str, Any]], anal
     return paths
 
 
+def plot_eval(out: Path, placements: list[dict[str, float]], evaluations: list[dict[str, Any]]) -> list[Path]:
+    """`punch eval`: success at sigma 0 over the reach volume (side x height, one panel per distance band,
+    one row per policy) and success against sigma (noise on every decision and on the first 4 only)."""
+    points = np.array([[p["distance_m"], p["height_m"], p["side_m"]] for p in placements])
+    edges = np.quantile(points[:, 0], [0, 1 / 3, 2 / 3, 1])
+    figure, axes = plt.subplots(len(evaluations), 3, figsize=(11, 3.6 * len(evaluations)), squeeze=False)
+    for row, evaluation in enumerate(evaluations):
+        hits = np.array(evaluation["success_at_sigma0"], dtype=bool)
+        for band in range(3):
+            axis = axes[row][band]
+            inside = (points[:, 0] >= edges[band]) & (points[:, 0] <= edges[band + 1])
+            for mask, colour, label in [(inside & hits, "tab:green", "success"), (inside & ~hits, "tab:red", "miss")]:
+                axis.scatter(points[mask, 2], points[mask, 1], color=colour, s=40, label=label)
+            axis.set_xlim(points[:, 2].max() + 0.03, points[:, 2].min() - 0.03)  # the character's right on the right
+            axis.set_xlabel("side (m, + = the character's left)")
+            axis.set_ylabel("height (m)")
+            axis.grid(alpha=0.3)
+            axis.set_title(f"{Path(evaluation['policy']).name}: {edges[band]:.2f}-{edges[band + 1]:.2f} m ahead", fontsize=9)
+        axes[row][0].legend(fontsize=8)
+    figure.suptitle("Success at sigma 0 on held-out placements, seen from behind the character")
+    figure.tight_layout()
+    paths = [_save(figure, out / "eval_volume.png")]
+
+    figure, axis = plt.subplots(figsize=(6.5, 4))
+    for evaluation in evaluations:
+        for condition, style in [("every decision", "-"), ("first 4 decisions", "--")]:
+            rows = [r for r in evaluation["rows"] if r["condition"] == condition or (r["sigma"] == 0 and r["condition"] == "every decision")]
+            rows = sorted(rows, key=lambda r: r["sigma"])
+            axis.plot([r["sigma"] for r in rows], [100 * r["success_rate"] for r in rows], style, marker="o",
+                      label=f"{Path(evaluation['policy']).name}, noise on {condition}")
+    axis.set_xlabel("runtime noise sigma")
+    axis.set_ylabel("success (%)")
+    axis.set_ylim(0, 102)
+    axis.grid(alpha=0.3)
+    axis.legend(fontsize=8)
+    figure.suptitle("Success against noise on held-out placements")
+    figure.tight_layout()
+    paths.append(_save(figure, out / "eval_sigma.png"))
+    return paths
+
+
 def _save(figure: Figure, path: Path) -> Path:
     figure.savefig(path, dpi=110)
     plt.close(figure)

@@ -42,14 +42,15 @@ def _spaces(info: ServerInfo) -> tuple[gym.spaces.Box, gym.spaces.Box]:
 def _bag_options(options: dict[str, Any] | None, default: dict[str, float], rng: np.random.Generator, count: int,
                  jitter_m: float) -> list[dict[str, float]]:
     """Bag placement for `count` slots: options["bag"] (one dict or a list) or the spec's default (from the
-    handshake), plus uniform jitter of +-jitter_m on each coordinate drawn from the env's seeded generator."""
+    handshake), plus uniform jitter of +-jitter_m on each position coordinate drawn from the env's seeded
+    generator."""
     bags = (options or {}).get("bag", default)
     bags = [dict(default, **bag) for bag in (bags if isinstance(bags, list) else [bags] * count)]
     if len(bags) != count:
         raise ValueError(f"options['bag'] lists {len(bags)} placements for {count} characters")
     if jitter_m > 0:
         for bag in bags:
-            for key in bag:
+            for key in ("distance_m", "height_m", "side_m"):
                 bag[key] = float(bag[key] + rng.uniform(-jitter_m, jitter_m))
     return bags
 
@@ -84,7 +85,9 @@ class PunchEnv(gym.Env, _EpisodeSettings):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
         bags = _bag_options(options, self.info.default_bag, self.np_random, 1, self.bag_jitter_m)
-        reply = self.server.reset(self.frames, bags=bags, smoothing_window=self.smoothing_window)
+        lead_in = (options or {}).get("lead_in")
+        reply = self.server.reset(self.frames, bags=bags, smoothing_window=self.smoothing_window,
+                                  lead_in=None if lead_in is None else np.asarray(lead_in, dtype=np.float32).reshape(1, -1, self.info.action_size))
         return reply.arrays["observations"][0].copy(), {"features": reply.arrays["features"][0].copy(), "bag": bags[0]}
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
@@ -125,8 +128,10 @@ class PunchVectorEnv(gym.vector.VectorEnv, _EpisodeSettings):
         if seed is not None:
             self._np_random, self._np_random_seed = gym.utils.seeding.np_random(seed)
         bags = _bag_options(options, self.info.default_bag, self.np_random, self.num_envs, self.bag_jitter_m)
+        lead_in = (options or {}).get("lead_in")  # [num_envs, decisions, A]: reset_message
         n = self.characters_per_process
-        replies = exchange(self.servers, [reset_message(self.frames, bags=bags[p * n:(p + 1) * n], smoothing_window=self.smoothing_window)
+        replies = exchange(self.servers, [reset_message(self.frames, bags=bags[p * n:(p + 1) * n], smoothing_window=self.smoothing_window,
+                                                        lead_in=None if lead_in is None else lead_in[p * n:(p + 1) * n])
                                           for p in range(len(self.servers))])
         self._needs_reset = False
         observations = np.concatenate([r.arrays["observations"] for r in replies])

@@ -13,7 +13,7 @@ import numpy as np
 
 from punch_trainer.errors import PunchError
 
-PROTOCOL_VERSION = 2
+PROTOCOL_VERSION = 3
 MAX_HEADER_BYTES = 64 * 1024
 MAX_PAYLOAD_BYTES = 256 * 1024 * 1024
 
@@ -88,11 +88,14 @@ def hello_message() -> Message:
     return Message("hello", {"protocol_version": PROTOCOL_VERSION})
 
 
-def reset_message(frames: int, *, bags: Bags = None, smoothing_window: int = 1) -> Message:
+def reset_message(frames: int, *, bags: Bags = None, smoothing_window: int = 1, lead_in: np.ndarray | None = None) -> Message:
+    """`lead_in`: raw actions [N, decisions, A] played (unsmoothed, unrecorded) before the episode starts, so
+    that it starts from wherever they leave each character: the end of an earlier punch, mid-recovery."""
     fields: dict[str, object] = {"frames": frames, "smoothing_window": smoothing_window}
     if bags is not None:
         fields["bags"] = bags
-    return Message("reset", fields)
+    arrays = {"lead_in": np.asarray(lead_in, dtype=np.float32)} if lead_in is not None else {}
+    return Message("reset", fields, arrays)
 
 
 def step_message(actions: np.ndarray) -> Message:

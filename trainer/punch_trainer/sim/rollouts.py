@@ -36,17 +36,28 @@ class RolloutPool:
         """How many times the Godot processes were restarted."""
         return self._restarts.count
 
-    def run(self, actions: np.ndarray, smoothing_window: int = 1) -> tuple[np.ndarray, np.ndarray]:
-        """Raw actions [M, decisions, 10] -> (features [M, frames, F], executed actions [M, decisions, 10])."""
+    def run(self, actions: np.ndarray, smoothing_window: int = 1,
+            bags: list[dict[str, float]] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Raw actions [M, decisions, 10] -> (features [M, frames, F], executed actions [M, decisions, 10]).
+        `bags`: one placement per sequence (default: the spec's)."""
         actions = np.asarray(actions, dtype=np.float32)
         count = actions.shape[0]
+        if bags is not None and len(bags) != count:
+            raise ValueError(f"{len(bags)} bag placements for {count} action sequences")
         features, executed = [], []
+        per_process = self.characters_per_process
         for start in range(0, count, self.slots):
             chunk = actions[start:start + self.slots]
             padded = np.zeros((self.slots, *actions.shape[1:]), dtype=np.float32)
             padded[:len(chunk)] = chunk  # unused slots run the guard pose; their results are dropped
             parts = np.split(padded, len(self.servers))
-            messages = [rollout_message(part, smoothing_window=smoothing_window) for part in parts]
+            if bags is None:
+                messages = [rollout_message(part, smoothing_window=smoothing_window) for part in parts]
+            else:
+                chunk_bags = bags[start:start + self.slots]
+                chunk_bags = chunk_bags + [self.info.default_bag] * (self.slots - len(chunk_bags))
+                messages = [rollout_message(part, smoothing_window=smoothing_window, bags=chunk_bags[p * per_process:(p + 1) * per_process])
+                            for p, part in enumerate(parts)]
             replies = self._restarts.run(functools.partial(self._exchange, messages))
             features.append(np.concatenate([r.arrays["features"] for r in replies])[:len(chunk)])
             executed.append(np.concatenate([r.arrays["executed_actions"] for r in replies])[:len(chunk)])

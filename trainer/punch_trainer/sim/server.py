@@ -52,7 +52,9 @@ class ServerInfo:
     observation_names: list[str]
     feature_names: list[str]
     default_bag: dict[str, float]
-    """where the bag hangs unless a reset says otherwise (distance_m, height_m, side_m)"""
+    """where the bag hangs unless a reset says otherwise (distance_m, height_m, side_m, and its velocity)"""
+    reach_volume: dict[str, object]
+    """the target placements training covers by default (punch_core::spec::REACH_VOLUME)"""
 
     @property
     def observation_size(self) -> int:
@@ -119,7 +121,7 @@ class TrainingServer:
         f = reply.fields
         return ServerInfo(f["slot_count"], f["decision_period"], f["physics_hz"], f["spec_hash"], f["spec_version"],
                           f["extension_version"], f["action_names"], f["action_lower_rad"], f["action_upper_rad"],
-                          f["observation_names"], f["feature_names"], f["default_bag"])
+                          f["observation_names"], f["feature_names"], f["default_bag"], f["reach_volume"])
 
     @property
     def pid(self) -> int | None:
@@ -140,10 +142,11 @@ class TrainingServer:
         self.send(message)
         return self.receive()
 
-    def reset(self, frames: int = 50, bags: Bags = None, smoothing_window: int = 1) -> Message:
-        """A new episode for every slot. The reply holds `observations` [N, O], `features` [N, F] and the
-        `policy_metadata` that a policy trained on such episodes must carry."""
-        return self.request(reset_message(frames, bags=bags, smoothing_window=smoothing_window))
+    def reset(self, frames: int = 50, bags: Bags = None, smoothing_window: int = 1, lead_in: np.ndarray | None = None) -> Message:
+        """A new episode for every slot (after the `lead_in` actions, if any: `reset_message`). The reply holds
+        `observations` [N, O], `features` [N, F] and the `policy_metadata` that a policy trained on such
+        episodes must carry."""
+        return self.request(reset_message(frames, bags=bags, smoothing_window=smoothing_window, lead_in=lead_in))
 
     def step(self, actions: np.ndarray) -> Message:
         """One decision of actions [N, A]; the reply holds its `features` [N, period, F] and the next

@@ -1,0 +1,50 @@
+## The reach volume in the game (demo straight policy): three characters, each turned and moved, with a
+## sandbag at the policy's default offset ("inside"), 1.4 m ahead ("far") and 0.6 m above its head ("high").
+## Records `target_out_of_reach` (offset and nearest point, turned back into the character's frame), whether
+## punch() started, and the punch's hits; prints `REACH <json>` with `reach_volume()` and quits.
+extends SceneTree
+
+const POLICY := "res://demo/policies/straight.onnx"
+const CASES := {"inside": Vector3.ZERO, "far": Vector3(0, 0, 0.68), "high": Vector3(0, 0.9, 0)}
+var _report := {}
+var _pending := 0
+
+
+func _initialize() -> void:
+	var index := 0
+	for name in CASES:
+		var character: Node3D = load("res://addons/punch_controller/scenes/punch_character.tscn").instantiate()
+		character.position = Vector3(5.0 * index, 0, -2.0)
+		character.rotation.y = 0.7 * index
+		root.add_child(character)
+		var sandbag: Node3D = load("res://addons/punch_controller/scenes/punch_sandbag.tscn").instantiate()
+		sandbag.position = character.transform * (PunchController.default_target_offset() + CASES[name])
+		root.add_child(sandbag)
+		var controller: Node = ClassDB.instantiate("PunchController")
+		controller.set("character", character)
+		controller.set("target", sandbag.get_node("Bag"))
+		controller.set("policy", POLICY)
+		controller.set("auto_recover", false)
+		_report[name] = {"out_of_reach": [], "hits": -1}
+		controller.connect("target_out_of_reach", func(offset: Vector3, nearest: Vector3):
+			var local := character.global_transform.affine_inverse() * nearest
+			_report[name].out_of_reach.append([offset.x, offset.y, offset.z, local.x, local.y, local.z]))
+		controller.connect("punch_finished", func(metrics: Dictionary):
+			_report[name].hits = metrics.hits
+			_pending -= 1
+			if _pending == 0:
+				_finish(controller))
+		root.add_child(controller)
+		controller.ready.connect(func(): _report[name].started = controller.call("punch"))
+		_pending += 1
+		index += 1
+
+
+func _finish(controller: Node) -> void:
+	var reach: Dictionary = controller.call("reach_volume")
+	_report["reach_volume"] = {}
+	for key in reach:
+		var value = reach[key]
+		_report["reach_volume"][key] = [value.x, value.y] if value is Vector2 else value
+	print("REACH ", JSON.stringify(_report))
+	quit()

@@ -1,0 +1,57 @@
+"""Training over the reach volume: the volume is in the spec, the handshake and every policy's metadata; a
+policy trained over it (on a small budget) beats a single-spot policy trained with the same budget on
+held-out placements, as `punch eval` measures it through PunchController in Godot."""
+
+import json
+
+import pytest
+
+from punch_trainer.cli.evaluate import EvalArgs, run_eval
+from punch_trainer.cli.replay import policy_metadata
+from punch_trainer.cli.train import TrainArgs, run_train
+from punch_trainer.learn.reach import HELD_OUT_SEED, METADATA_KEY, ReachVolume
+from punch_trainer.sim.server import TrainingServer
+
+pytestmark = pytest.mark.godot
+BUDGET = dict(reward="straight", seed=3, search_iterations=15, search_rollouts=32, pretrain_epochs=600,
+              a2c_updates=30, a2c_characters=16, a2c_time_budget_s=0)
+
+
+def test_the_spec_announces_the_reach_volume():
+    with TrainingServer(1) as server:
+        reach = ReachVolume.from_json(server.info.reach_volume)
+    assert reach == ReachVolume((0.6, 0.85), (1.15, 1.55), (-0.25, 0.25), 1.0, True)
+    grid = reach.grid((2, 3, 3))
+    assert len(grid) == 18 and grid[0]["height_m"] == pytest.approx(1.35) and grid[0]["side_m"] == 0.0
+
+
+def test_a_volume_policy_beats_a_single_spot_policy_on_held_out_placements(tmp_path):
+    volume = run_train(TrainArgs(out=tmp_path / "volume", reach="volume", grid="2,3,3", volume_search_iterations=12,
+                                 **BUDGET), progress=False)
+    spot = run_train(TrainArgs(out=tmp_path / "spot", reach="spot", **BUDGET), progress=False)
+    with TrainingServer(1) as server:
+        announced = ReachVolume.from_json(server.info.reach_volume)
+    assert ReachVolume.from_json(policy_metadata(volume / "policy.onnx")[METADATA_KEY]) == announced
+    spot_reach = ReachVolume.from_json(policy_metadata(spot / "policy.onnx")[METADATA_KEY])
+    assert spot_reach.is_spot and not spot_reach.any_start_pose
+
+    out, report = run_eval(EvalArgs(policy=volume / "policy.onnx", baseline=spot / "policy.onnx", placements=16,
+                                    sigmas=[0.0, 0.3], noisy_episodes=1, search_iterations=3, out=tmp_path / "eval"), progress=False)
+    assert report["seed"] == HELD_OUT_SEED and len(report["placements"]) == 16
+    for placement in report["placements"]:
+        assert announced.distance_m[0] <= placement["distance_m"] <= announced.distance_m[1]
+    rows = {name: {(r["condition"], r["sigma"]): r for r in e["rows"]}
+            for name, e in zip(["volume", "spot"], report["evaluations"], strict=True)}
+    for name in rows:
+        assert set(rows[name]) == {("every decision", 0.0), ("every decision", 0.3), ("first 4 decisions", 0.3),
+                                   ("bag swinging", 0.0), ("after a punch", 0.0)}
+    print({name: {f"{k[0]} {k[1]}": (round(r["success_rate"], 3), round(r["return_fraction_of_search_best"], 3))
+                  for k, r in table.items()} for name, table in rows.items()})
+    volume_sigma0, spot_sigma0 = rows["volume"][("every decision", 0.0)], rows["spot"][("every decision", 0.0)]
+    assert volume_sigma0["return_fraction_of_search_best"] > spot_sigma0["return_fraction_of_search_best"] + 0.1
+    assert volume_sigma0["success_rate"] >= spot_sigma0["success_rate"]
+    assert (rows["volume"][("after a punch", 0.0)]["success_rate"]
+            > rows["spot"][("after a punch", 0.0)]["success_rate"]), "the volume policy trained starts after punches"
+    for name in ["report.md", "eval.json", "eval_volume.png", "eval_sigma.png"]:
+        assert (out / name).is_file(), name
+    assert json.loads((out / "eval.json").read_text())["seed"] == HELD_OUT_SEED

@@ -1,0 +1,194 @@
+"""`punch eval`: how well a policy punches wherever the target is, and under noise, on held-out placements.
+
+The placements are drawn from the spec's reach volume with a seed that training never uses (`HELD_OUT_SEED`,
+written into the report). Every punch runs in headless Godot through `PunchController` itself (as `punch
+replay` does), in these conditions:
+
+- noise on every decision, and on the first 4 decisions only, at each sigma (default 0, 0.1, 0.3, 0.5);
+- sigma 0 with the bag already swinging (up to the volume's largest speed, random direction);
+- sigma 0 starting from the end of an earlier punch.
+
+Per condition: the success rate (a positive return and the right fist touched the bag), the mean return as a
+fraction of the trajectory search's best at that placement, and the spread of the impact points. The
+per-placement search best comes from a short search at every held-out placement, warm-started from the
+policy's own noise-free actions there (so it is at least the policy's own return, give or take the small
+difference between the game and the training server). `--baseline` evaluates a second policy (today's
+single-spot one, say) on the same placements for comparison.
+
+    punch eval --policy runs/NAME/policy.onnx [--baseline OTHER.onnx] [--placements 64] [--sigmas 0,0.1,0.3,0.5]
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from punch_trainer.cli.replay import ReplayArgs, ReplayError, analyse_sigma, policy_metadata, run_godot_replay
+from punch_trainer.learn.reach import HELD_OUT_SEED, ReachVolume
+from punch_trainer.learn.search import SearchArgs, placement_search
+from punch_trainer.learn.volume import success
+from punch_trainer.sim.rewards import Reward, load_reward
+from punch_trainer.sim.rollouts import RolloutPool
+
+FIRST_DECISIONS = 4
+"""the "first decisions only" noise condition (the paper's "Noise < 4")"""
+
+
+@dataclass
+class EvalArgs:
+    policy: Path
+    """the policy to evaluate (an exported .onnx)"""
+    baseline: Path | None = None
+    """a second policy evaluated on the same placements (e.g. a single-spot one)"""
+    placements: int = 64
+    """held-out placements drawn from the reach volume"""
+    seed: int = HELD_OUT_SEED
+    """seed of the placements (the default is one no training stage uses)"""
+    sigmas: list[float] = field(default_factory=lambda: [0.0, 0.1, 0.3, 0.5])
+    noisy_episodes: int = 2
+    """punches per placement at each sigma > 0 (sigma 0: one)"""
+    search_iterations: int = 20
+    """iterations of the per-placement search (0: no search; fractions of the best are then left out)"""
+    out: Path | None = None
+    """output directory (default: next to the policy, eval_<time>)"""
+
+
+def held_out_placements(reach: ReachVolume, count: int, seed: int) -> tuple[list[dict[str, float]], list[dict[str, float]]]:
+    """`count` placements at rest, and the same places with the bag swinging, from `seed`."""
+    rng = np.random.default_rng(seed)
+    still = reach.sample(rng, count)
+    moving = reach.sample(rng, count, moving=1.0)
+    for bag, place in zip(moving, still, strict=True):
+        bag.update(distance_m=place["distance_m"], height_m=place["height_m"], side_m=place["side_m"])
+    return still, moving
+
+
+def run_condition(policy: Path, bags: list[dict[str, float]], sigmas: list[float], reward: Reward, *, episodes_per_bag: int = 1,
+                  noise_decisions: int = -1, start: str = "guard", keep_actions: bool = False, seed: int = 0) -> list[dict[str, Any]]:
+    """Punches through PunchController in Godot at every placement of `bags` (`episodes_per_bag` each) for each
+    sigma; per sigma: returns, success, the placement of every episode, the analysis of `punch replay`."""
+    with tempfile.TemporaryDirectory(prefix="punch_eval_") as directory:
+        frames_dir = Path(directory)
+        bags_file = frames_dir / "bags.json"
+        bags_file.write_text(json.dumps(bags))
+        episodes = len(bags) * episodes_per_bag
+        args = ReplayArgs(policy=policy, sigmas=sigmas, episodes=episodes, noise_decisions=noise_decisions, seed=seed,
+                          bags=bags_file, start=start, characters=min(64, episodes))
+        meta = run_godot_replay(args, frames_dir, progress=False)
+        names = [str(n) for n in meta["feature_names"]]
+        results = []
+        for index, sigma in enumerate(sigmas):
+            features = np.fromfile(frames_dir / f"features_{index}.f32", dtype="<f4").reshape(episodes, meta["frames"], len(names))
+            analysis = analyse_sigma(features, names, reward)
+            result = {"sigma": sigma, "returns": analysis["returns"], "success": success(analysis["returns"], features, names),
+                      "placement": np.arange(episodes) % len(bags), "impact_spread_m": analysis["impact_spread_m"]}
+            if keep_actions:
+                actions = np.fromfile(frames_dir / f"actions_{index}.f32", dtype="<f4").reshape(episodes, meta["decisions"], -1)
+                result["actions"] = actions
+            results.append(result)
+        return results
+
+
+def search_bests(policy_actions: np.ndarray, bags: list[dict[str, float]], reward: Reward, smoothing_window: int,
+                 iterations: int, seed: int) -> np.ndarray:
+    """The best return a short trajectory search finds at each placement, warm-started from `policy_actions`
+    [P, decisions, A] (the policy's own noise-free actions there)."""
+    args = SearchArgs(reward=reward.name, frames=reward.frames, seed=seed, iterations=iterations, rollouts=16,
+                      sigma_init=0.3, smoothing_window=smoothing_window, plateau_iterations=0)
+    with RolloutPool(1, 64) as pool:
+        results = placement_search(args, reward, pool, progress=False, placements=bags, init_mu=policy_actions, neighbours=0)
+    return np.array([r.best_return for r in results])
+
+
+def policy_reward(policy: Path) -> tuple[Reward, dict[str, str]]:
+    """The reward a policy was trained for (from its metadata), and the metadata."""
+    metadata = policy_metadata(policy)
+    reward_name = metadata.get("punch_reward")
+    if not reward_name:
+        raise ReplayError(f"{policy} names no reward in its metadata")
+    return load_reward(reward_name, int(metadata.get("punch_frames", 50))), metadata
+
+
+def evaluate_policy(policy: Path, args: EvalArgs, still: list[dict[str, float]], moving: list[dict[str, float]],
+                    base: dict[str, Any], best: np.ndarray | None) -> dict[str, Any]:
+    """Every condition for one policy (`base`: its noise-free punches, already run): rows for the report."""
+    reward, metadata = policy_reward(policy)
+    noisy = [s for s in args.sigmas if s > 0]
+    conditions = [("every decision", base)]
+    if noisy:
+        conditions += [("every decision", r) for r in run_condition(policy, still, noisy, reward, episodes_per_bag=args.noisy_episodes)]
+        conditions += [(f"first {FIRST_DECISIONS} decisions", r) for r in run_condition(
+            policy, still, noisy, reward, episodes_per_bag=args.noisy_episodes, noise_decisions=FIRST_DECISIONS, seed=1)]
+    conditions += [("bag swinging", run_condition(policy, moving, [0.0], reward)[0]),
+                   ("after a punch", run_condition(policy, still, [0.0], reward, start="after_punch")[0])]
+    rows = []
+    for name, result in conditions:
+        fraction = None
+        if best is not None:
+            scored = best[result["placement"]] > 0  # a placement where nothing scores has no fraction
+            fraction = float(np.mean(result["returns"][scored] / best[result["placement"]][scored])) if scored.any() else None
+        rows.append({"condition": name, "sigma": result["sigma"], "episodes": len(result["returns"]),
+                     "success_rate": float(result["success"].mean()), "return_fraction_of_search_best": fraction,
+                     "impact_spread_m": result["impact_spread_m"]})
+    return {"policy": str(policy), "reward": reward.name, "reach": metadata.get("punch_reach_volume"), "rows": rows,
+            "success_at_sigma0": base["success"].tolist()}
+
+
+def run_eval(args: EvalArgs, progress: bool = True) -> tuple[Path, dict[str, Any]]:
+    started = time.perf_counter()
+    with RolloutPool(1, 1) as pool:
+        reach = ReachVolume.from_json(pool.info.reach_volume)
+    still, moving = held_out_placements(reach, args.placements, args.seed)
+    out = Path(args.out or Path(args.policy).parent / f"eval_{int(time.time())}")
+    out.mkdir(parents=True, exist_ok=True)
+    policies = [Path(args.policy)] + ([Path(args.baseline)] if args.baseline else [])
+    reward, metadata = policy_reward(policies[0])
+    if any(policy_reward(p)[0].name != reward.name for p in policies):
+        raise ReplayError("--baseline must be trained for the same reward as --policy")
+    if progress:
+        print(f"punching at {len(still)} held-out placements, sigma 0 ...", flush=True)
+    bases = [run_condition(policy, still, [0.0], reward, keep_actions=True)[0] for policy in policies]
+    best = None
+    if args.search_iterations > 0:
+        if progress:
+            print("searching the best punch at every placement ...", flush=True)
+        best = search_bests(bases[0]["actions"], still, reward, int(metadata.get("punch_smoothing_window", 1)),
+                            args.search_iterations, args.seed)
+        best = np.max([best, *[base["returns"] for base in bases]], axis=0)  # a policy may beat the short search
+    evaluations = []
+    for policy, base in zip(policies, bases, strict=True):
+        if progress:
+            print(f"evaluating {policy} ...", flush=True)
+        evaluations.append(evaluate_policy(policy, args, still, moving, base, best))
+    report = {"seed": args.seed, "placements": still, "moving_placements": moving, "reach": json.loads(reach.to_json()),
+              "search_best": best.tolist() if best is not None else None, "evaluations": evaluations,
+              "wall_s": round(time.perf_counter() - started, 1)}
+    (out / "eval.json").write_text(json.dumps(report, indent=2) + "\n")
+
+    from punch_trainer.report.plots import plot_eval
+
+    plots = plot_eval(out, still, evaluations)
+    lines = [f"# punch eval: {args.policy}", "",
+             f"{len(still)} held-out placements drawn from the reach volume with seed {args.seed} (a seed no training "
+             f"stage uses); {args.noisy_episodes} punches per placement at each sigma > 0; every punch through "
+             f"PunchController in headless Godot ({report['wall_s']:.0f} s in all). Success: a positive return and the "
+             f"right fist touched the bag. Return: the mean of return / the best return known at that placement (a "
+             f"{args.search_iterations}-iteration search warm-started from the first policy's punch, or a policy's own "
+             "noise-free punch if better); placements where nothing scores are left out.", ""]
+    for evaluation in evaluations:
+        lines += [f"## {evaluation['policy']} (reward `{evaluation['reward']}`)", "",
+                  "| noise on | sigma | punches | success | return / best known | impact spread (cm) |", "|---|---|---|---|---|---|"]
+        for row in evaluation["rows"]:
+            fraction = f"{row['return_fraction_of_search_best']:.2f}" if row["return_fraction_of_search_best"] is not None else "-"
+            lines.append(f"| {row['condition']} | {row['sigma']:.2f} | {row['episodes']} | {100 * row['success_rate']:.1f}% | "
+                         f"{fraction} | {100 * row['impact_spread_m']:.1f} |")
+        lines.append("")
+    lines += [f"![{p.stem}]({p.name})" for p in plots]
+    (out / "report.md").write_text("\n".join(lines) + "\n")
+    return out, report

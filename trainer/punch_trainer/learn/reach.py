@@ -1,0 +1,101 @@
+"""The reach volume: the target placements a policy covers (`punch_core::spec::ReachVolume`, announced in
+the training server's handshake and written into every policy file as `punch_reach_volume`), and the
+placements, bag motions and starting poses that training and evaluation draw from it.
+
+Seeds: training draws from its `--seed` (search grid: fixed; A2C episodes: seed + 1; A2C's validation
+placements: seed + 2). `punch eval` draws its held-out placements from `HELD_OUT_SEED` unless told otherwise,
+a seed no training stage uses.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+METADATA_KEY = "punch_reach_volume"
+HELD_OUT_SEED = 2_147_483_647
+"""the seed of `punch eval`'s placements (training seeds are small integers and their +1, +2)"""
+
+
+@dataclass(frozen=True)
+class ReachVolume:
+    """A box of target centres in the character's frame (m): `distance_m` ahead, `height_m` above the
+    ground, `side_m` to the character's left; the target's largest speed at the start (m/s); and whether a
+    punch may start from any pose."""
+
+    distance_m: tuple[float, float]
+    height_m: tuple[float, float]
+    side_m: tuple[float, float]
+    max_target_speed_mps: float
+    any_start_pose: bool
+
+    @classmethod
+    def from_json(cls, value: dict[str, Any] | str) -> ReachVolume:
+        data = json.loads(value) if isinstance(value, str) else value
+
+        def pair(key: str) -> tuple[float, float]:
+            return round(float(data[key][0]), 4), round(float(data[key][1]), 4)  # the handshake's f32s
+
+        return cls(pair("distance_m"), pair("height_m"), pair("side_m"), round(float(data["max_target_speed_mps"]), 4),
+                   bool(data["any_start_pose"]))
+
+    @classmethod
+    def spot(cls, bag: dict[str, float]) -> ReachVolume:
+        """A single placement, at rest, from the guard (the quickstart's reach)."""
+        def at(key: str) -> tuple[float, float]:
+            return round(float(bag[key]), 4), round(float(bag[key]), 4)
+
+        return cls(at("distance_m"), at("height_m"), at("side_m"), 0.0, False)
+
+    def to_json(self) -> str:
+        return json.dumps({key: list(value) if isinstance(value, tuple) else value for key, value in asdict(self).items()},
+                          sort_keys=True)
+
+    @property
+    def is_spot(self) -> bool:
+        return all(low == high for low, high in (self.distance_m, self.height_m, self.side_m))
+
+    def grid(self, counts: tuple[int, int, int] = (3, 3, 3)) -> list[dict[str, float]]:
+        """Placements at rest on a grid over the box: `counts` points along distance, height and side
+        (ends included), the centre first (where a search warm-starts from)."""
+        axes = [np.linspace(low, high, count) if count > 1 else np.array([(low + high) / 2])
+                for (low, high), count in zip((self.distance_m, self.height_m, self.side_m), counts, strict=True)]
+        points = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+        centre = np.array([np.mean(self.distance_m), np.mean(self.height_m), np.mean(self.side_m)])
+        points = points[np.argsort(np.linalg.norm((points - centre) / self.scale(), axis=1), kind="stable")]
+        return [placement(*p) for p in points]
+
+    def scale(self) -> np.ndarray:
+        """Each axis's extent (1 where the box is flat), to measure distances between placements."""
+        return np.array([max(high - low, 1e-6) for low, high in (self.distance_m, self.height_m, self.side_m)])
+
+    def sample(self, rng: np.random.Generator, count: int, *, moving: float = 0.0) -> list[dict[str, float]]:
+        """`count` placements drawn uniformly from the box; a share `moving` of them with the bag swinging at
+        a speed drawn uniformly up to the volume's largest, in a random horizontal direction."""
+        low = np.array([self.distance_m[0], self.height_m[0], self.side_m[0]])
+        high = np.array([self.distance_m[1], self.height_m[1], self.side_m[1]])
+        points = rng.uniform(low, high, size=(count, 3))
+        speeds = np.where(rng.uniform(size=count) < moving, rng.uniform(0, self.max_target_speed_mps, count), 0.0)
+        angles = rng.uniform(0, 2 * np.pi, count)
+        return [placement(*p, velocity_side_mps=s * np.sin(a), velocity_forward_mps=s * np.cos(a))
+                for p, s, a in zip(points, speeds, angles, strict=True)]
+
+
+def placement(distance_m: float, height_m: float, side_m: float, *, velocity_side_mps: float = 0.0,
+              velocity_forward_mps: float = 0.0) -> dict[str, float]:
+    """A bag placement as the protocol writes it (docs/protocol.md, `reset`)."""
+    return {"distance_m": float(distance_m), "height_m": float(height_m), "side_m": float(side_m),
+            "velocity_side_mps": float(velocity_side_mps), "velocity_forward_mps": float(velocity_forward_mps)}
+
+
+def position(bag: dict[str, float]) -> np.ndarray:
+    """(distance, height, side) of a placement."""
+    return np.array([bag["distance_m"], bag["height_m"], bag["side_m"]])
+
+
+def nearest(points: list[dict[str, float]], bag: dict[str, float], scale: np.ndarray) -> int:
+    """Index of the placement in `points` nearest to `bag` (distances measured in units of `scale`)."""
+    return int(np.argmin([np.linalg.norm((position(p) - position(bag)) / scale) for p in points]))

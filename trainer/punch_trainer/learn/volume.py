@@ -1,0 +1,125 @@
+"""Training over the reach volume (the paper's future work, "multi-trajectory initialisation"):
+
+1. Trajectory search at a grid of bag placements over the volume, all at once, warm-started from the search
+   at the default placement, each placement also trying its neighbours' best (`placement_search`).
+2. Every placement's best trajectory goes into one dataset; the actor-critic is pretrained on all of them,
+   with observation statistics from the whole distribution of A2C's episodes (`distribution_observations`).
+3. A2C with every episode's conditions drawn from the volume (`EpisodeConditions`): a random placement, the
+   bag already swinging in some, and in some a start from the end of an earlier punch or mid-recovery (a
+   lead-in of real actions before the episode); the policy's own sampling noise (sigma from 0.3) is the
+   training-time action noise it learns to correct.
+
+Success (`success`): a positive return and the right fist touched the bag, as `punch eval` counts it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch
+
+from punch_trainer.learn.policy import ActorCritic
+from punch_trainer.learn.reach import ReachVolume
+from punch_trainer.report.motion import first_right_contact
+from punch_trainer.sim.env import PunchVectorEnv
+from punch_trainer.sim.rewards import Reward, score
+
+
+@dataclass
+class VolumeArgs:
+    grid: tuple[int, int, int] = (3, 3, 3)
+    """search placements along distance, height and side"""
+    search_iterations: int = 60
+    search_rollouts: int = 16
+    """rollouts per placement and iteration"""
+    search_sigma_init: float = 0.5
+    """the warm-started tables' initial sigma (the default-placement search starts at 1)"""
+    moving_share: float = 0.25
+    """share of A2C episodes whose bag swings at the start"""
+    after_punch_share: float = 0.35
+    """share of lead-in episodes that start at the end of an earlier punch"""
+    recovering_share: float = 0.2
+    """share of lead-in episodes that start mid-recovery (a punch, then some decisions back toward guard)"""
+    lead_in_every: int = 2
+    """every k-th A2C update starts its episodes after lead-ins (they cost frames; 0: never)"""
+    validation_placements: int = 64
+
+
+class EpisodeConditions:
+    """Draws the conditions of every A2C episode from the reach volume: `options` for `PunchVectorEnv.reset`."""
+
+    def __init__(self, reach: ReachVolume, punches: np.ndarray, args: VolumeArgs, seed: int):
+        """`punches`: raw action sequences [K, decisions, A] (the search's bests) that lead-ins replay."""
+        self.reach, self.punches, self.args = reach, punches, args
+        self.rng = np.random.default_rng(seed)
+        self.draws = 0
+
+    def __call__(self, count: int) -> dict[str, Any]:
+        self.draws += 1
+        lead_ins = bool(self.reach.any_start_pose and self.args.lead_in_every and self.draws % self.args.lead_in_every == 0)
+        if not lead_ins:
+            return {"bag": self.reach.sample(self.rng, count, moving=self.args.moving_share)}
+        return {"bag": self.reach.sample(self.rng, count), "lead_in": self.lead_ins(count)}
+
+    def lead_ins(self, count: int) -> np.ndarray:
+        """[count, decisions + 4, A]: zeros (a start from the guard at rest), a whole punch (its end), or a
+        punch cut short and 1 to 4 decisions of the guard target (mid-recovery); aligned to end together."""
+        decisions, action_size = self.punches.shape[1:]
+        out = np.zeros((count, decisions + 4, action_size), dtype=np.float32)
+        kinds = self.rng.uniform(size=count)
+        for slot in range(count):
+            punch = self.punches[self.rng.integers(len(self.punches))]
+            if kinds[slot] < self.args.after_punch_share:
+                out[slot, 4:] = punch
+            elif kinds[slot] < self.args.after_punch_share + self.args.recovering_share:
+                back = int(self.rng.integers(1, 5))
+                out[slot, 4 - back:decisions + 4 - back] = punch  # then `back` decisions toward guard
+        return out
+
+
+def success(returns: np.ndarray, features: np.ndarray, names: list[str]) -> np.ndarray:
+    """Per episode: a positive return and the right fist touched the bag (features [..., frames, F])."""
+    touched, _ = first_right_contact(features, names)
+    result: np.ndarray = (returns > 0) & touched
+    return result
+
+
+def run_policy(model: ActorCritic, env: PunchVectorEnv, reward: Reward, options: dict[str, Any] | None = None,
+               sigma: float = 0.0, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """One episode on every character with the policy's mean (plus noise `sigma`): returns [N] and
+    features [N, frames, F]."""
+    rng = np.random.default_rng(seed)
+    obs, _ = env.reset(options=options)
+    returns, frames = np.zeros(env.num_envs), []
+    while True:
+        with torch.no_grad():
+            mean, _ = model(torch.as_tensor(obs))
+        action = np.clip(mean.numpy() + sigma * rng.standard_normal(mean.shape), -1, 1).astype(np.float32)
+        obs, _, terminated, truncated, info = env.step(action)
+        returns += score(reward, info["features"], env.feature_names)
+        frames.append(info["features"])
+        if np.all(terminated | truncated):
+            return returns, np.concatenate(frames, axis=1)
+
+
+def validate(model: ActorCritic, env: PunchVectorEnv, reward: Reward, placements: list[dict[str, float]]) -> dict[str, float]:
+    """Noise-free mean return and success rate over fixed validation placements (one per character)."""
+    returns, features = run_policy(model, env, reward, {"bag": placements})
+    return {"return": float(returns.mean()), "success": float(success(returns, features, env.feature_names).mean())}
+
+
+def distribution_observations(env: PunchVectorEnv, conditions: EpisodeConditions, punches: np.ndarray,
+                              batches: int = 2) -> np.ndarray:
+    """Observations of the search's best punches replayed open loop under A2C's conditions (placements,
+    swinging bags, lead-ins): what the policy will see, for its normalisation."""
+    observations = []
+    for _ in range(batches):
+        options = conditions(env.num_envs)
+        obs, _ = env.reset(options=options)
+        chosen = punches[np.arange(env.num_envs) % len(punches)]
+        for decision in range(chosen.shape[1]):
+            observations.append(obs)
+            obs, *_ = env.step(chosen[:, decision])
+    return np.concatenate(observations).astype(np.float32)
