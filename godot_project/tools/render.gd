@@ -2,6 +2,8 @@
 ## (each pair on its own collision layers, at most 16), every character punching again and again from its
 ## guard pose.
 ## Arguments after `--`: --policy=PATH --sigmas=0,0.3,0.6 [--noise-decisions=-1] [--seed=0]
+## [--bags=d,h,s;d,h,s;...: each pair's bag placement in metres (distance, height, side), cycled; default:
+## the training's default placement]
 extends Node3D
 
 const PunchPair := preload("res://tools/punch_pair.gd")
@@ -10,7 +12,7 @@ const SPACING_M := 2.2
 ## Seconds of rest between punches.
 const PAUSE_S := 0.35
 
-var _options := {"policy": "", "sigmas": "0", "noise-decisions": "-1", "seed": "0"}
+var _options := {"policy": "", "sigmas": "0", "noise-decisions": "-1", "seed": "0", "bags": ""}
 
 
 func _ready() -> void:
@@ -39,7 +41,12 @@ func _add_pair(index: int, count: int, sigma: float) -> void:
 	stand.mesh = stand_mesh
 	stand.position = Vector3(x, 0.48, 0)
 	add_child(stand)
-	var controller := PunchPair.add(self, index, Vector3(x, 0, 0), PunchController.default_target_offset(), _options.policy, sigma,
+	var offset := PunchController.default_target_offset()
+	if _options.bags != "":
+		var bags := (_options.bags as String).split(";")
+		var bag_m := bags[index % bags.size()].split_floats(",")
+		offset = Vector3(bag_m[2], bag_m[1], bag_m[0])
+	var controller := PunchPair.add(self, index, Vector3(x, 0, 0), offset, _options.policy, sigma,
 		int(_options["noise-decisions"]), int(_options.seed) + index)
 	var character: Node3D = controller.get("character")
 	var bag: RigidBody3D = controller.get("target")

@@ -84,3 +84,22 @@ def test_env_is_registered_with_the_right_spaces():
     with gym.make("punch/Punch-v0") as env:
         assert isinstance(env.action_space, gym.spaces.Box)
         assert env.action_space.low.min() == -1.0 and env.action_space.high.max() == 1.0
+
+
+def test_episodes_may_start_with_the_bag_swinging_or_after_a_lead_in():
+    """A placement's velocity sets the bag swinging; a lead-in's actions run before the episode, which then
+    starts where they left the character (its right fist elsewhere, the phase 0) with the bag as placed."""
+    names = None
+    with PunchVectorEnv(1, 3, frames=50) as env:
+        names = env.info.observation_names
+        lead_in = np.zeros((3, 6, 10), dtype=np.float32)
+        lead_in[1, :, 5] = 1.0  # slot 1 straightens its right elbow before its episode
+        bags = [{"velocity_forward_mps": 0.8}, {}, {}]
+        obs, info = env.reset(options={"bag": bags, "lead_in": lead_in})
+        col = names.index
+        assert obs[0, col("bag_vel_z")] == pytest.approx(0.8, abs=0.05) and obs[2, col("bag_vel_z")] == 0.0
+        assert abs(obs[1, col("angle_elbow_r_extension")] - obs[2, col("angle_elbow_r_extension")]) > 0.5
+        assert np.allclose(obs[1, col("bag_pos_x"):col("bag_pos_z") + 1], obs[2, col("bag_pos_x"):col("bag_pos_z") + 1], atol=1e-4)
+        assert (obs[:, col("episode_phase")] == 0).all()
+        obs, *_ = env.step(np.zeros((3, 10), dtype=np.float32))
+        assert obs[0, col("bag_pos_z")] > obs[2, col("bag_pos_z")] + 0.005, "the swinging bag moved away"

@@ -218,7 +218,7 @@ def _render(args: argparse.Namespace) -> int:
     from punch_trainer.cli.replay import parse_sigmas
 
     out = render(RenderArgs(policy=args.policy, out=args.out, sigmas=parse_sigmas(args.sigmas), noise_decisions=args.noise_decisions,
-                            seconds=args.seconds, width=args.width, height=args.height, seed=args.seed))
+                            seconds=args.seconds, width=args.width, height=args.height, seed=args.seed, bags=args.bags))
     print(f"wrote {out}")
     return 0
 
@@ -319,6 +319,7 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--width", type=int, default=640)
     render.add_argument("--height", type=int, default=360)
     render.add_argument("--seed", type=int, default=0)
+    render.add_argument("--bags", default="", help="each character's bag, distance,height,side;... in metres (cycled)")
     render.set_defaults(run=_render)
 
     experiment = commands.add_parser("experiment", help="experiments of the paper")

@@ -39,6 +39,8 @@ class RenderArgs:
     width: int = 640
     height: int = 360
     seed: int = 0
+    bags: str = ""
+    """each character's bag placement, `distance,height,side;...` in metres, cycled (default: the spec's)"""
 
 
 def _free_display() -> int:
@@ -100,7 +102,7 @@ def render(args: RenderArgs) -> Path:
                        "--write-movie", str(movie), "--fixed-fps", str(FPS), "--quit-after", str(frames), "--disable-vsync",
                        "res://tools/render.tscn", "--", f"--policy={Path(args.policy).resolve()}",
                        f"--sigmas={','.join(map(str, args.sigmas))}", f"--noise-decisions={args.noise_decisions}",
-                       f"--seed={args.seed}"], timeout_s=120 + 2 * frames, env=environment)
+                       f"--seed={args.seed}", f"--bags={args.bags}"], timeout_s=120 + 2 * frames, env=environment)
         except GodotRunError as error:
             if "OpenGL" in error.log or "MESA" in error.log or "glx" in error.log.lower():
                 raise RenderError("Godot could not open OpenGL on the virtual display: run ./dev setup-render "

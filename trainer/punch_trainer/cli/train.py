@@ -194,10 +194,10 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False) -> P
         f"# punch train: {reward.name}", "",
         f"- trajectory search: best return {search.best_return:.4f} ({search_args.iterations} iterations of {search_args.rollouts} rollouts)",
         f"- after pretraining ({args.pretrain_epochs} epochs, final actor MSE {pretrain_history[-1]['actor_mse']:.2e}): noise-free return {pretrained_return:.4f}",
-        f"- after A2C ({len(a2c_history) - 1} updates x {args.a2c_characters} episodes, advantage '{args.advantage}'): "
+        f"- after A2C ({len(a2c_history) - 1} updates x {processes * args.a2c_characters} episodes, advantage '{args.advantage}'): "
         f"best noise-free return {max(h['eval_return'] for h in a2c_history):.4f}",
         f"- exported policy (onnxruntime, sigma 0) in the simulator: return {exported_return:.4f} = {100 * ratio:.1f}% of the search's best",
-        f"- reach: {args.reach}" + (f" ({len(grid_bests)} search placements; on {len(summary['validation'] and validation or [])} validation placements, "
+        f"- reach: {args.reach}" + (f" ({len(grid_bests)} search placements; on {len(validation or [])} validation placements, "
                                     f"sigma 0: success {100 * summary['validation']['success']:.1f}%, mean return {summary['validation']['return']:.4f})"
                                     if validation is not None else " (the default placement only)"),
         f"- the exported policy's punch: peak right-fist speed {motion['peak_fist_speed_mps']:.2f} m/s; {impact}",

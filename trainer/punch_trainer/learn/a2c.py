@@ -103,11 +103,11 @@ def advantages_and_returns(rewards: torch.Tensor, values: torch.Tensor, best_epi
 
 def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVectorEnv, progress: bool = True,
               start_rollouts: int = 0, run_dir: Path | None = None, max_restarts: int = 3,
-              conditions: Callable[[int], dict[str, Any]] | None = None,
+              conditions: Callable[[int, int], dict[str, Any]] | None = None,
               validation: list[dict[str, float]] | None = None) -> tuple[ActorCritic, list[dict[str, Any]]]:
     """Trains in place and returns the parameters with the best noise-free return, with the history.
 
-    `conditions(count)` gives each update's reset options (training over the reach volume: random
+    `conditions(count, update)` gives each update's reset options (training over the reach volume: random
     placements, swinging bags, lead-ins); the noise-free return is then the mean over the fixed `validation`
     placements (and `eval_success` their success rate), else character 0's at the default placement.
 
@@ -147,7 +147,7 @@ def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVecto
     for update in tqdm(range(done_updates + 1, args.updates + 1), desc=f"a2c ({args.advantage})", unit="update",
                        initial=done_updates, total=args.updates, disable=not progress):
         rng_state = torch.get_rng_state()
-        options = conditions(env.num_envs) if conditions is not None else None
+        options = conditions(env.num_envs, update) if conditions is not None else None
 
         def collect(rng_state: torch.Tensor = rng_state, options: dict[str, Any] | None = options) -> dict[str, torch.Tensor]:
             torch.set_rng_state(rng_state)  # a rerun after a restart samples the same actions

@@ -26,6 +26,9 @@ from punch_trainer.report.motion import first_right_contact
 from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.rewards import Reward, score
 
+DISTRIBUTION_DRAWS = 10**9
+"""the first "update" number of the draws for the observation statistics (A2C updates count from 1)"""
+
 
 @dataclass
 class VolumeArgs:
@@ -52,29 +55,29 @@ class EpisodeConditions:
 
     def __init__(self, reach: ReachVolume, punches: np.ndarray, args: VolumeArgs, seed: int):
         """`punches`: raw action sequences [K, decisions, A] (the search's bests) that lead-ins replay."""
-        self.reach, self.punches, self.args = reach, punches, args
-        self.rng = np.random.default_rng(seed)
-        self.draws = 0
+        self.reach, self.punches, self.args, self.seed = reach, punches, args, seed
 
-    def __call__(self, count: int) -> dict[str, Any]:
-        self.draws += 1
-        lead_ins = bool(self.reach.any_start_pose and self.args.lead_in_every and self.draws % self.args.lead_in_every == 0)
+    def __call__(self, count: int, update: int) -> dict[str, Any]:
+        """The conditions of update `update`'s episodes (drawn from the seed and the update alone, so a resumed
+        run draws what an uninterrupted one would)."""
+        rng = np.random.default_rng([self.seed, update])
+        lead_ins = bool(self.reach.any_start_pose and self.args.lead_in_every and update % self.args.lead_in_every == 0)
         if not lead_ins:
-            return {"bag": self.reach.sample(self.rng, count, moving=self.args.moving_share)}
-        return {"bag": self.reach.sample(self.rng, count), "lead_in": self.lead_ins(count)}
+            return {"bag": self.reach.sample(rng, count, moving=self.args.moving_share)}
+        return {"bag": self.reach.sample(rng, count), "lead_in": self.lead_ins(rng, count)}
 
-    def lead_ins(self, count: int) -> np.ndarray:
+    def lead_ins(self, rng: np.random.Generator, count: int) -> np.ndarray:
         """[count, decisions + 4, A]: zeros (a start from the guard at rest), a whole punch (its end), or a
         punch cut short and 1 to 4 decisions of the guard target (mid-recovery); aligned to end together."""
         decisions, action_size = self.punches.shape[1:]
         out = np.zeros((count, decisions + 4, action_size), dtype=np.float32)
-        kinds = self.rng.uniform(size=count)
+        kinds = rng.uniform(size=count)
         for slot in range(count):
-            punch = self.punches[self.rng.integers(len(self.punches))]
+            punch = self.punches[rng.integers(len(self.punches))]
             if kinds[slot] < self.args.after_punch_share:
                 out[slot, 4:] = punch
             elif kinds[slot] < self.args.after_punch_share + self.args.recovering_share:
-                back = int(self.rng.integers(1, 5))
+                back = int(rng.integers(1, 5))
                 out[slot, 4 - back:decisions + 4 - back] = punch  # then `back` decisions toward guard
         return out
 
@@ -86,18 +89,15 @@ def success(returns: np.ndarray, features: np.ndarray, names: list[str]) -> np.n
     return result
 
 
-def run_policy(model: ActorCritic, env: PunchVectorEnv, reward: Reward, options: dict[str, Any] | None = None,
-               sigma: float = 0.0, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """One episode on every character with the policy's mean (plus noise `sigma`): returns [N] and
-    features [N, frames, F]."""
-    rng = np.random.default_rng(seed)
+def run_policy(model: ActorCritic, env: PunchVectorEnv, reward: Reward,
+               options: dict[str, Any] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """One episode on every character with the policy's mean actions: returns [N] and features [N, frames, F]."""
     obs, _ = env.reset(options=options)
     returns, frames = np.zeros(env.num_envs), []
     while True:
         with torch.no_grad():
             mean, _ = model(torch.as_tensor(obs))
-        action = np.clip(mean.numpy() + sigma * rng.standard_normal(mean.shape), -1, 1).astype(np.float32)
-        obs, _, terminated, truncated, info = env.step(action)
+        obs, _, terminated, truncated, info = env.step(mean.numpy())
         returns += score(reward, info["features"], env.feature_names)
         frames.append(info["features"])
         if np.all(terminated | truncated):
@@ -115,8 +115,8 @@ def distribution_observations(env: PunchVectorEnv, conditions: EpisodeConditions
     """Observations of the search's best punches replayed open loop under A2C's conditions (placements,
     swinging bags, lead-ins): what the policy will see, for its normalisation."""
     observations = []
-    for _ in range(batches):
-        options = conditions(env.num_envs)
+    for batch in range(batches):
+        options = conditions(env.num_envs, DISTRIBUTION_DRAWS + batch)  # draws no A2C update makes
         obs, _ = env.reset(options=options)
         chosen = punches[np.arange(env.num_envs) % len(punches)]
         for decision in range(chosen.shape[1]):

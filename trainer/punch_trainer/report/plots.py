@@ -124,7 +124,7 @@ def plot_eval(out: Path, placements: list[dict[str, float]], evaluations: list[d
             axis.set_xlabel("side (m, + = the character's left)")
             axis.set_ylabel("height (m)")
             axis.grid(alpha=0.3)
-            axis.set_title(f"{Path(evaluation['policy']).name}: {edges[band]:.2f}-{edges[band + 1]:.2f} m ahead", fontsize=9)
+            axis.set_title(f"{_short(evaluation['policy'])}: {edges[band]:.2f}-{edges[band + 1]:.2f} m ahead", fontsize=9)
         axes[row][0].legend(fontsize=8)
     figure.suptitle("Success at sigma 0 on held-out placements, seen from behind the character")
     figure.tight_layout()
@@ -136,7 +136,7 @@ def plot_eval(out: Path, placements: list[dict[str, float]], evaluations: list[d
             rows = [r for r in evaluation["rows"] if r["condition"] == condition or (r["sigma"] == 0 and r["condition"] == "every decision")]
             rows = sorted(rows, key=lambda r: r["sigma"])
             axis.plot([r["sigma"] for r in rows], [100 * r["success_rate"] for r in rows], style, marker="o",
-                      label=f"{Path(evaluation['policy']).name}, noise on {condition}")
+                      label=f"{_short(evaluation['policy'])}, noise on {condition}")
     axis.set_xlabel("runtime noise sigma")
     axis.set_ylabel("success (%)")
     axis.set_ylim(0, 102)
@@ -146,6 +146,12 @@ def plot_eval(out: Path, placements: list[dict[str, float]], evaluations: list[d
     figure.tight_layout()
     paths.append(_save(figure, out / "eval_sigma.png"))
     return paths
+
+
+def _short(policy: str) -> str:
+    """A policy's file and folder name: runs/demo_straight/policy.onnx -> demo_straight/policy.onnx."""
+    path = Path(policy)
+    return f"{path.parent.name}/{path.name}"
 
 
 def _save(figure: Figure, path: Path) -> Path:
