@@ -25,9 +25,8 @@ import onnx
 from tqdm import tqdm
 
 from punch_trainer.errors import GodotRunError, PunchError
-from punch_trainer.report.motion import first_right_contact
 from punch_trainer.sim.godot import FATAL_LOG_PATTERNS, GODOT_PROJECT, start_godot, stop_godot, tail
-from punch_trainer.sim.rewards import Reward, load_reward, score
+from punch_trainer.sim.rewards import Reward, first_right_contact, load_reward, score
 
 KINDS = ("features", "observations", "mean_actions", "actions")
 # Paths drawn per sigma in the Fig. 11 plot.

@@ -22,9 +22,8 @@ import torch
 
 from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.reach import ReachVolume
-from punch_trainer.report.motion import first_right_contact
 from punch_trainer.sim.env import PunchVectorEnv
-from punch_trainer.sim.rewards import Reward, score
+from punch_trainer.sim.rewards import Reward, first_right_contact, score
 
 DISTRIBUTION_DRAWS = 10**9
 """the first "update" number of the draws for the observation statistics (A2C updates count from 1)"""

@@ -5,16 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-CONTACT_IMPULSE_NS = 1e-3
-"""A right-fist impulse on the bag above this (N s) counts as contact."""
-
-
-def first_right_contact(features: np.ndarray, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
-    """Of features [..., frames, F]: whether the right fist touched the bag, and the first frame it did (0 if never)."""
-    col = names.index
-    impulse = np.linalg.norm(features[..., col("fist_r_impulse_x"):col("fist_r_impulse_z") + 1], axis=-1)
-    touched = impulse > CONTACT_IMPULSE_NS
-    return touched.any(axis=-1), touched.argmax(axis=-1)
+from punch_trainer.sim.rewards import first_right_contact
 
 
 def motion_report(dataset: dict[str, np.ndarray]) -> dict[str, float | list[float] | None]:
