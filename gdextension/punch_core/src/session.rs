@@ -149,7 +149,8 @@ impl Session {
             None => None,
             Some(array) => {
                 let decisions = array.shape.get(1).copied().unwrap_or(0);
-                let actions = message.array("lead_in", &[slot_count, decisions, DOF_COUNT]).map_err(|e| e.to_string())?;
+                let actions =
+                    message.array("lead_in", &[slot_count, decisions, DOF_COUNT]).map_err(|e| e.to_string())?;
                 if decisions == 0 || decisions > MAX_LEAD_IN_DECISIONS {
                     return Err(format!("a lead-in has 1 to {MAX_LEAD_IN_DECISIONS} decisions, not {decisions}"));
                 }
@@ -167,8 +168,7 @@ impl Session {
             None => Ok(Outcome::Reply(self.start_episode(spec, world))),
             Some((actions, decisions)) => {
                 // Unsmoothed, like the end of an earlier punch's actions; the episode's controllers start fresh.
-                self.slots =
-                    (0..slot_count).map(|slot| CharacterController::new(world.geometry(slot), 1)).collect();
+                self.slots = (0..slot_count).map(|slot| CharacterController::new(world.geometry(slot), 1)).collect();
                 self.episode_started = false;
                 self.begin(Command::LeadIn(spec), decisions * self.decision_period, actions, decisions, world);
                 Ok(Outcome::Running)
@@ -339,7 +339,9 @@ impl Session {
         let features = Array::new("features", vec![slot_count, run.frames_total, FEATURE_COUNT], features);
         let executed = Array::new("executed_actions", vec![slot_count, run.decisions, DOF_COUNT], run.executed);
         match run.command {
-            Command::Rollout | Command::LeadIn(_) => Message::new("rollout_done").with_array(features).with_array(executed),
+            Command::Rollout | Command::LeadIn(_) => {
+                Message::new("rollout_done").with_array(features).with_array(executed)
+            }
             Command::Step => {
                 let decision = self.frame_index / self.decision_period;
                 let over = self.frame_index >= self.frames_per_episode;
@@ -538,8 +540,8 @@ mod tests {
 
     #[test]
     fn a_bag_may_start_moving() {
-        let placements = parse_placements(Some(&json!({"velocity_side_mps": 0.5, "velocity_forward_mps": -1.0})), 2)
-            .expect("valid");
+        let placements =
+            parse_placements(Some(&json!({"velocity_side_mps": 0.5, "velocity_forward_mps": -1.0})), 2).expect("valid");
         assert_eq!(placements[1].velocity(), Vec3::new(0.5, 0.0, -1.0));
         assert!(parse_placements(Some(&json!({"velocity_side_mps": 4.0})), 1).is_err());
     }

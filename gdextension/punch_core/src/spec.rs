@@ -536,8 +536,12 @@ mod tests {
         assert_eq!(ReachVolume::from_metadata(|_| Some(written.clone())), Ok(REACH_VOLUME));
         let missing = ReachVolume::from_metadata(|_| None).expect_err("required");
         assert_eq!(missing, SpecError::MissingKey { key: keys::REACH_VOLUME });
-        for bad in ["{}", "[1]", r#"{"distance_m": [0.9, 0.6], "height_m": [1, 2], "side_m": [0, 0],
-                    "max_target_speed_mps": 0, "any_start_pose": false}"#] {
+        for bad in [
+            "{}",
+            "[1]",
+            r#"{"distance_m": [0.9, 0.6], "height_m": [1, 2], "side_m": [0, 0],
+                    "max_target_speed_mps": 0, "any_start_pose": false}"#,
+        ] {
             let error = ReachVolume::from_metadata(|_| Some(bad.to_string())).expect_err(bad);
             assert!(error.to_string().contains(keys::REACH_VOLUME), "{error}");
         }

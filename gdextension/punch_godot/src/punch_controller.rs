@@ -18,8 +18,8 @@ use punch_core::punch::{Hit, Punch, PunchRecord, PunchSummary, Recovery, Runtime
 use punch_core::sensing::{CharacterGeometry, FEATURE_COUNT, FEATURE_NAMES, FrameReading};
 use punch_core::spec::{BagPlacement, PROJECT_SETTINGS, SettingValue, project_setting_problems};
 
-use crate::convert::vector3;
 use crate::batch::{DecisionRequest, PunchInference, SharedPolicy};
+use crate::convert::vector3;
 use crate::engine_io::{add_area_touches, add_bag_contacts, read_forearm_contacts};
 use crate::punch_character::PunchCharacter;
 use crate::target::Target;
@@ -202,7 +202,9 @@ impl PunchController {
                 return result;
             }
         };
-        for (key, [low, high]) in [("distance_m", reach.distance_m), ("height_m", reach.height_m), ("side_m", reach.side_m)] {
+        for (key, [low, high]) in
+            [("distance_m", reach.distance_m), ("height_m", reach.height_m), ("side_m", reach.side_m)]
+        {
             result.set(key, Vector2::new(low, high));
         }
         result.set("max_target_speed_mps", reach.max_target_speed_mps);

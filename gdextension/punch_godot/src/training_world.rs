@@ -292,7 +292,11 @@ impl TrainingWorld {
         let velocity = Vector3::new(v.x, v.y, v.z);
         let arm = -self.bag.pin_from_root;
         server.body_set_state(bag, ServerBodyState::LINEAR_VELOCITY, &velocity.to_variant());
-        server.body_set_state(bag, ServerBodyState::ANGULAR_VELOCITY, &(arm.cross(velocity) / arm.length_squared()).to_variant());
+        server.body_set_state(
+            bag,
+            ServerBodyState::ANGULAR_VELOCITY,
+            &(arm.cross(velocity) / arm.length_squared()).to_variant(),
+        );
     }
 }
 
