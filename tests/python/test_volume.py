@@ -4,12 +4,16 @@ trained with the same budget, as `punch eval` measures it through PunchControlle
 
 import json
 
+import numpy as np
 import pytest
 
 from punch_trainer.cli.evaluate import EvalArgs, run_eval
+from punch_trainer.cli.experiments import after_punch_headroom
 from punch_trainer.cli.replay import policy_metadata
+from punch_trainer.cli.search import run_search
 from punch_trainer.cli.train import TrainArgs, run_train
 from punch_trainer.learn.reach import HELD_OUT_SEED, METADATA_KEY, ReachVolume
+from punch_trainer.learn.search import SearchArgs
 from punch_trainer.sim.server import TrainingServer
 
 pytestmark = pytest.mark.godot
@@ -58,3 +62,13 @@ def test_a_volume_policy_beats_a_single_spot_policy_on_held_out_placements(tmp_p
     for name in ["report.md", "eval.json", "eval_volume.png", "eval_sigma.png"]:
         assert (out / name).is_file(), name
     assert json.loads((out / "eval.json").read_text())["seed"] == HELD_OUT_SEED
+
+
+def test_the_after_punch_experiment_searches_from_both_starts(tmp_path):
+    out, _, _ = run_search(SearchArgs(out=tmp_path / "s", reward="straight", iterations=4, rollouts=16,
+                                      characters_per_process=16, plateau_iterations=0, seed=7), progress=False)
+    rows = after_punch_headroom(out / "dataset.npz", iterations=3, rollouts=8)
+    assert [row["start"] for row in rows] == ["the guard", "the end of the best punch"]
+    assert all(np.isfinite(row["best_return"]) and 0.0 <= row["last_batch_hit_share"] <= 1.0 for row in rows)
+    # The same search with the same seed from another start: the earlier punch changed what the actions did.
+    assert rows[0]["best_return"] != rows[1]["best_return"]

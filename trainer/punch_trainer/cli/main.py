@@ -181,6 +181,16 @@ def _fig6(args: argparse.Namespace) -> int:
     return 0
 
 
+def _after_punch(args: argparse.Namespace) -> int:
+    from punch_trainer.cli.experiments import after_punch_headroom
+
+    rows = after_punch_headroom(args.dataset, args.iterations, args.rollouts, seed=args.seed)
+    print("| start | best return found | share of the last batch that hit |\n|---|---|---|")
+    for row in rows:
+        print(f"| {row['start']} | {row['best_return']:.3f} | {100 * row['last_batch_hit_share']:.0f}% |")
+    return 0
+
+
 def _pretrain(args: argparse.Namespace) -> int:
     from punch_trainer.learn.dataset import load_datasets
     from punch_trainer.learn.export import export_policy
@@ -332,6 +342,12 @@ def build_parser() -> argparse.ArgumentParser:
     fig6.add_argument("--characters", type=int, default=32)
     fig6.add_argument("--no-write", action="store_true", help="print only; leave BENCHMARKS.md alone")
     fig6.set_defaults(run=_fig6)
+    after = experiments.add_parser("after-punch", help="what a punch from the end of an earlier one can score")
+    after.add_argument("dataset", type=Path, help="a search's dataset.npz: its best punch is the earlier one")
+    after.add_argument("--iterations", type=int, default=40)
+    after.add_argument("--rollouts", type=int, default=64)
+    after.add_argument("--seed", type=int, default=0)
+    after.set_defaults(run=_after_punch)
 
     bench = commands.add_parser("bench", help="measure speed and write BENCHMARKS.md")
     bench_targets = bench.add_subparsers(dest="target", required=True)
