@@ -163,7 +163,7 @@ impl Session {
         world.reset(&placements)?;
         self.placements = placements;
         self.frames_per_episode = spec.frames as usize;
-        self.frame_index = 0;
+        self.frame_index = 0; // a lead-in's frames do not count: the episode's frame 0 comes after them
         match lead_in {
             None => Ok(Outcome::Reply(self.start_episode(spec, world))),
             Some((actions, decisions)) => {

@@ -25,7 +25,7 @@ use punch_core::character::{Axis, Body, JOINTS};
 use punch_core::sensing::{BodyState, CharacterGeometry, FrameReading, MAX_BAG_CONTACTS};
 use punch_core::session::{BagPlacement, World};
 
-use crate::convert::godot_axis;
+use crate::convert::{godot_axis, vector3};
 use crate::engine_io::{add_bag_contacts, character_geometry, drive_joints, joint_axis_settings, read_state};
 
 /// Most slots per arena: a slot uses two of the 32 collision layers, one for its character and one for its bag.
@@ -269,8 +269,7 @@ impl TrainingWorld {
         let bag = self.bag.body.create(server, space, offset, bag_layer, character_layer);
         server.body_set_max_contacts_reported(bag, BAG_MAX_CONTACTS);
         let pin = server.joint_create();
-        let pin_point = self.bag.pin_from_root + offset;
-        server.joint_make_pin(pin, bag, self.bag.pin_local, Rid::Invalid, pin_point);
+        server.joint_make_pin(pin, bag, self.bag.pin_local, Rid::Invalid, self.bag.pin_from_root + offset);
         self.set_bag_motion(server, bag, placement);
 
         let state = |server: &mut Gd<PhysicsServer3D>, rid: Rid| server.body_get_direct_state(rid);
@@ -288,9 +287,8 @@ impl TrainingWorld {
     /// Sets a bag's velocity from its placement: a bag swinging on its rope turns about the pin as it moves,
     /// ω = r × v / |r|² (r from the pin to the centre of mass).
     fn set_bag_motion(&self, server: &mut Gd<PhysicsServer3D>, bag: Rid, placement: &BagPlacement) {
-        let v = placement.velocity();
-        let velocity = Vector3::new(v.x, v.y, v.z);
-        let arm = -self.bag.pin_from_root;
+        let velocity = vector3(placement.velocity());
+        let arm = self.bag.body.transform.origin - self.bag.pin_from_root;
         server.body_set_state(bag, ServerBodyState::LINEAR_VELOCITY, &velocity.to_variant());
         server.body_set_state(
             bag,

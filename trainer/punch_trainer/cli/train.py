@@ -50,7 +50,7 @@ class TrainArgs:
     """characters per A2C process (two processes over the volume)"""
     advantage: str = "gae"
     a2c_time_budget_s: float | None = None
-    """stop A2C after this much wall time (default: 60 s at a spot, 900 s over the volume; 0: no limit,
+    """stop A2C after this much wall time (default: 60 s at a spot, 600 s over the volume; 0: no limit,
     which makes a run reproducible)"""
     reach: str = "volume"
     """'volume': the spec's reach volume; 'spot': the default placement only (the quickstart)"""
@@ -162,7 +162,7 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False) -> P
 
         pretrained_return = evaluate_noise_free(model, env, reward)
         updates = args.a2c_updates or (5000 if over_volume else 40)
-        budget = args.a2c_time_budget_s if args.a2c_time_budget_s is not None else (900.0 if over_volume else 60.0)
+        budget = args.a2c_time_budget_s if args.a2c_time_budget_s is not None else (600.0 if over_volume else 60.0)
         a2c_args = A2CArgs(updates=updates, characters=env.num_envs, advantage=args.advantage,
                            smoothing_window=args.smoothing_window, time_budget_s=budget or None, seed=args.seed)
         model, a2c_history = train_a2c(model, reward, a2c_args, env, progress, run_dir=out / "a2c",
