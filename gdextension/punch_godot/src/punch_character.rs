@@ -35,6 +35,9 @@ pub struct Rig {
     pub joint_rids: [Rid; 5],
     /// The bodies' physics-server RIDs (`Body::ALL` order), to recognise their contacts on a target.
     pub body_rids: [Rid; 6],
+    /// Each body as a `RigidBody3D` when it is one (`Body::ALL` order), cast once here: a cast every frame
+    /// was a measurable part of the controller's per-frame work (BENCHMARKS.md, controller inference).
+    rigid: [Option<Gd<RigidBody3D>>; 6],
     /// The physics states of the forearms (`Body::ALL` index, state), to read the fists' contacts.
     pub forearm_states: Vec<(usize, Gd<PhysicsDirectBodyState3D>)>,
     /// Rest-pose geometry (without target data, which the controller adds).
@@ -54,14 +57,15 @@ impl Rig {
         geometry
     }
 
-    /// World state of every body, `Body::ALL` order.
+    /// World state of every body, `Body::ALL` order. The nodes are read rather than the physics-server
+    /// states: a node moved by the game (`reset_pose`, a character placed elsewhere) reads its new place at
+    /// once, its physics state only after the next physics step.
     pub fn read_bodies(&self) -> [BodyState; 6] {
         std::array::from_fn(|i| {
-            let body = &self.bodies[i];
-            let transform = body.get_global_transform();
-            let (linear, angular) = match body.clone().try_cast::<RigidBody3D>() {
-                Ok(rigid) => (vec3(rigid.get_linear_velocity()), vec3(rigid.get_angular_velocity())),
-                Err(_) => (Vec3::ZERO, Vec3::ZERO),
+            let transform = self.bodies[i].get_global_transform();
+            let (linear, angular) = match &self.rigid[i] {
+                Some(rigid) => (vec3(rigid.get_linear_velocity()), vec3(rigid.get_angular_velocity())),
+                None => (Vec3::ZERO, Vec3::ZERO),
             };
             BodyState {
                 position: vec3(transform.origin),
@@ -181,6 +185,7 @@ impl PunchCharacter {
         let root_inverse = base.get_global_transform().affine_inverse();
         let geometry = character_geometry(&base, &body_transforms, &joint_transforms, base.get_global_transform())?;
         Ok(Rig {
+            rigid: std::array::from_fn(|i| bodies[i].clone().try_cast::<RigidBody3D>().ok()),
             joint_rids: std::array::from_fn(|j| joints[j].get_rid()),
             body_rids: std::array::from_fn(|i| bodies[i].get_rid()),
             forearm_states,
