@@ -55,7 +55,7 @@ def server():
 def valid_frames():
     """Frames to mutate. None of them changes the shared episode (a reset or a well-formed step from the
     intruder would race the trainer's own requests), so the trainer's checks stay exact."""
-    hello = hello_message().encode()
+    hello = hello_message("not-this-server-s-secret").encode()
     bad_step = Message("step", arrays={"actions": np.zeros((2, 9), dtype=np.float32)}).encode()
     unknown = Message("jump", {"frames": 10}).encode()
     return st.sampled_from([hello, bad_step, unknown])

@@ -5,12 +5,13 @@
 //! - `character`, `sensing`, `observation`, `smoothing`, `controller`: the character's control spec, what
 //!   it senses each frame, the policy's observation, Eq. 1 smoothing, and the motor law.
 //! - `punch`: one punch in a game (decision clock, runtime noise, hits, its end); `session`: the training
-//!   server's episodes over N slots; `protocol`: the trainer's wire format.
+//!   server's episodes over N slots; `protocol`: the trainer's wire format; `access`: who may use a server.
 //! - `policy`, `runtime`, `noise`: ONNX Runtime inference and seeded Gaussian noise.
 //!
 //! Everything here is plain Rust and unit-tested with `cargo test` (with a fake world standing in for the
 //! engine); the Godot layer (`punch_godot`) only moves engine data in and out and reports errors.
 
+pub mod access;
 pub mod character;
 pub mod controller;
 pub mod error;

@@ -10,7 +10,7 @@ use std::io::{Read, Write};
 use serde_json::{Map, Value, json};
 
 /// Bumped on any change to the framing or to a message's fields.
-pub const PROTOCOL_VERSION: u32 = 3;
+pub const PROTOCOL_VERSION: u32 = 4;
 /// Largest header accepted, bytes.
 pub const MAX_HEADER_BYTES: usize = 64 * 1024;
 /// Largest payload accepted, bytes (256 slots x 400 frames x 50 features x 4 bytes is about 20 MB).
@@ -122,7 +122,7 @@ impl Message {
     pub fn read_from(reader: &mut impl Read) -> Result<Self, ProtocolError> {
         let mut lengths = [0u8; 8];
         read_exact_or_closed(reader, &mut lengths)?;
-        let (header_len, payload_len) = frame_lengths(&lengths)?;
+        let (header_len, payload_len) = frame_lengths(&lengths, MAX_PAYLOAD_BYTES)?;
         let header = read_growing(reader, header_len)?;
         let payload = read_growing(reader, payload_len)?;
         Self::decode_parts(&header, &payload)
@@ -175,16 +175,22 @@ impl Message {
     }
 }
 
-/// The header and payload lengths of a frame's 8-byte prefix, checked against the limits.
-fn frame_lengths(prefix: &[u8]) -> Result<(usize, usize), ProtocolError> {
+/// The header and payload lengths of a frame's 8-byte prefix, checked against the limits (`payload_limit`
+/// at most `MAX_PAYLOAD_BYTES`).
+fn frame_lengths(prefix: &[u8], payload_limit: usize) -> Result<(usize, usize), ProtocolError> {
     let length = |at: usize| u32::from_le_bytes([prefix[at], prefix[at + 1], prefix[at + 2], prefix[at + 3]]) as usize;
     let (header_len, payload_len) = (length(0), length(4));
     if header_len == 0 || header_len > MAX_HEADER_BYTES {
         return Err(ProtocolError::Framing(format!("header length {header_len} outside 1..={MAX_HEADER_BYTES}")));
     }
-    if payload_len > MAX_PAYLOAD_BYTES || payload_len % 4 != 0 {
+    if payload_len > payload_limit {
         return Err(ProtocolError::Framing(format!(
-            "payload length {payload_len} is not a multiple of 4 up to {MAX_PAYLOAD_BYTES}"
+            "payload length {payload_len} is over this connection's limit of {payload_limit} bytes"
+        )));
+    }
+    if payload_len % 4 != 0 {
+        return Err(ProtocolError::Framing(format!(
+            "payload length {payload_len} is not a multiple of 4 (the payload is f32 values)"
         )));
     }
     Ok((header_len, payload_len))
@@ -192,12 +198,34 @@ fn frame_lengths(prefix: &[u8]) -> Result<(usize, usize), ProtocolError> {
 
 /// Collects a stream's bytes as they arrive and cuts them into messages, so that a server never blocks on a
 /// peer that sent half a frame. It holds only the bytes received.
-#[derive(Debug, Default)]
+#[derive(Debug)]
 pub struct FrameReader {
     buffer: Vec<u8>,
+    payload_limit: usize,
+}
+
+impl Default for FrameReader {
+    fn default() -> Self {
+        Self { buffer: Vec::new(), payload_limit: MAX_PAYLOAD_BYTES }
+    }
 }
 
 impl FrameReader {
+    /// A reader that refuses payloads over `payload_limit` bytes (at most `MAX_PAYLOAD_BYTES`).
+    pub fn with_payload_limit(payload_limit: usize) -> Self {
+        Self { buffer: Vec::new(), payload_limit: payload_limit.min(MAX_PAYLOAD_BYTES) }
+    }
+
+    /// Changes the payload limit for the frames still to come (at most `MAX_PAYLOAD_BYTES`).
+    pub fn set_payload_limit(&mut self, payload_limit: usize) {
+        self.payload_limit = payload_limit.min(MAX_PAYLOAD_BYTES);
+    }
+
+    /// Bytes received and not yet taken as messages (a half-sent frame's, for one).
+    pub fn buffered_bytes(&self) -> usize {
+        self.buffer.len()
+    }
+
     /// One `read` of at most `max_bytes` from `reader`, straight into the buffer (call it when the stream is
     /// readable, so that it does not block). `Ok(0)` is the end of the stream.
     pub fn read_available(&mut self, reader: &mut impl Read, max_bytes: usize) -> std::io::Result<usize> {
@@ -211,7 +239,7 @@ impl FrameReader {
     /// The next complete message, if one has arrived. A `Framing` error means the stream cannot be
     /// resynchronised; a `Content` error consumed its frame and the stream goes on.
     pub fn next_message(&mut self) -> Option<Result<Message, ProtocolError>> {
-        let (header_len, payload_len) = match frame_lengths(self.buffer.get(..8)?) {
+        let (header_len, payload_len) = match frame_lengths(self.buffer.get(..8)?, self.payload_limit) {
             Ok(lengths) => lengths,
             Err(error) => return Some(Err(error)),
         };

@@ -13,7 +13,7 @@ import numpy as np
 
 from punch_trainer.errors import PunchError
 
-PROTOCOL_VERSION = 3
+PROTOCOL_VERSION = 4
 MAX_HEADER_BYTES = 64 * 1024
 MAX_PAYLOAD_BYTES = 256 * 1024 * 1024
 
@@ -84,8 +84,9 @@ class Message:
 Bags = list[dict[str, float]] | dict[str, float] | None
 
 
-def hello_message() -> Message:
-    return Message("hello", {"protocol_version": PROTOCOL_VERSION})
+def hello_message(secret: str) -> Message:
+    """The handshake; `secret` is the one the server was started with (`TrainingServer.secret`)."""
+    return Message("hello", {"protocol_version": PROTOCOL_VERSION, "secret": secret})
 
 
 def reset_message(frames: int, *, bags: Bags = None, smoothing_window: int = 1, lead_in: np.ndarray | None = None) -> Message:

@@ -4,6 +4,8 @@ has a timeout, and the process is killed by its own PID on close."""
 
 from __future__ import annotations
 
+import os
+import secrets
 import selectors
 import socket
 import subprocess
@@ -28,6 +30,8 @@ from punch_trainer.sim.protocol import (
 )
 
 SERVER_SCENE = "res://training/training_server.tscn"
+SECRET_VARIABLE = "PUNCH_SERVER_SECRET"
+"""carries a server's secret to it: in its environment, which other users cannot read (a command line they can)"""
 READY_PREFIX = "PUNCH_SERVER_READY "
 
 
@@ -76,13 +80,15 @@ class TrainingServer:
         self._socket: socket.socket | None = None
         self.reply_timeout_s = reply_timeout_s
         self._log: list[str] = []
+        self.secret = secrets.token_hex(16)
+        """the server's secret, fresh for each server: a connection must say it in its hello"""
         self._process = start_godot([
             # --fixed-fps: run frames back to back without waiting for the wall clock. The server checks the
             # physics rate itself and blocks between commands, so this value only sets steps per frame.
             "--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), SERVER_SCENE, "--",
             "--port=0", f"--slots={slot_count}", f"--decision-period={decision_period}",
             f"--slots-per-world={slots_per_world}", f"--idle-timeout-s={idle_timeout_s}",
-        ])
+        ], env={**os.environ, SECRET_VARIABLE: self.secret})
         try:
             port = self.port = self._wait_until_ready(start_timeout_s)
             self._socket = socket.create_connection(("127.0.0.1", port), timeout=start_timeout_s)
@@ -112,7 +118,7 @@ class TrainingServer:
 
     def _handshake(self) -> ServerInfo:
         try:
-            reply = self.request(hello_message())
+            reply = self.request(hello_message(self.secret))
         except ServerError as error:
             raise ProtocolVersionError(f"the server refused our protocol version {PROTOCOL_VERSION}: {error} "
                                        "(rebuild the extension: ./dev setup)") from None
