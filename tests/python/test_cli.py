@@ -18,3 +18,23 @@ def test_unknown_command_is_a_usage_error() -> None:
     result = subprocess.run([PUNCH, "no-such-command"], capture_output=True, text=True)
     assert result.returncode == 2
     assert "invalid choice" in result.stderr
+
+
+def test_a_policy_whose_metadata_names_code_never_runs_it(tmp_path) -> None:
+    """A model file is data: `punch_reward` naming a .py file or a module is refused, and the code is not run."""
+    import onnx
+
+    marker = tmp_path / "ran"
+    (tmp_path / "evil.py").write_text(f"open({str(marker)!r}, 'w').write('x')\ndef reward(*a): return 0\n")
+    demo = Path(__file__).resolve().parents[2] / "godot_project" / "demo" / "policies" / "straight.onnx"
+    for named in [f"{tmp_path / 'evil.py'}:reward", "evil:reward"]:
+        model = onnx.load(str(demo))
+        for prop in model.metadata_props:
+            if prop.key == "punch_reward":
+                prop.value = named
+        policy = tmp_path / "lying.onnx"
+        onnx.save(model, str(policy))
+        for command in (["replay", "--policy", str(policy), "--episodes", "1"], ["eval", "--policy", str(policy)]):
+            result = subprocess.run([PUNCH, *command], capture_output=True, text=True, cwd=tmp_path, timeout=120)
+            assert result.returncode != 0 and "not a built-in preset" in result.stderr, result.stderr[-2000:]
+            assert "Traceback" not in result.stderr and not marker.exists()

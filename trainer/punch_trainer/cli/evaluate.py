@@ -33,7 +33,7 @@ from punch_trainer.cli.replay import ReplayArgs, ReplayError, analyse_sigma, pol
 from punch_trainer.learn.reach import HELD_OUT_SEED, ReachVolume
 from punch_trainer.learn.search import SearchArgs, placement_search
 from punch_trainer.learn.volume import success
-from punch_trainer.sim.rewards import Reward, load_reward
+from punch_trainer.sim.rewards import Reward, metadata_reward
 from punch_trainer.sim.rollouts import RolloutPool
 
 FIRST_DECISIONS = 4
@@ -109,10 +109,7 @@ def search_bests(policy_actions: np.ndarray, bags: list[dict[str, float]], rewar
 def policy_reward(policy: Path) -> tuple[Reward, dict[str, str]]:
     """The reward a policy was trained for (from its metadata), and the metadata."""
     metadata = policy_metadata(policy)
-    reward_name = metadata.get("punch_reward")
-    if not reward_name:
-        raise ReplayError(f"{policy} names no reward in its metadata")
-    return load_reward(reward_name, int(metadata.get("punch_frames", 50))), metadata
+    return metadata_reward(metadata, str(policy)), metadata
 
 
 def evaluate_policy(policy: Path, args: EvalArgs, still: list[dict[str, float]], moving: list[dict[str, float]],

@@ -26,7 +26,7 @@ from tqdm import tqdm
 
 from punch_trainer.errors import GodotRunError, PunchError
 from punch_trainer.sim.godot import FATAL_LOG_PATTERNS, GODOT_PROJECT, start_godot, stop_godot, tail
-from punch_trainer.sim.rewards import Reward, first_right_contact, load_reward, score
+from punch_trainer.sim.rewards import Reward, first_right_contact, metadata_reward, score
 
 KINDS = ("features", "observations", "mean_actions", "actions")
 # Paths drawn per sigma in the Fig. 11 plot.
@@ -147,11 +147,7 @@ def run_replay(args: ReplayArgs, progress: bool = True) -> tuple[Path, list[dict
         raise ReplayError(f"sigmas must lie in [0, 1], got {args.sigmas}")
     if args.episodes < 1:
         raise ReplayError("--episodes must be at least 1")
-    reward_name = args.reward or metadata.get("punch_reward")
-    if not reward_name:
-        raise ReplayError(f"{args.policy} names no reward in its metadata; pass --reward")
-    frames = int(metadata.get("punch_frames", 50))
-    reward = load_reward(reward_name, frames)
+    reward = metadata_reward(metadata, str(args.policy), args.reward)
     summary = json.loads(metadata.get("punch_training_summary", "{}"))
     best = summary.get("search_best_return")
     out = Path(args.out or Path(args.policy).parent / f"replay_{int(time.time())}")
@@ -183,12 +179,12 @@ def run_replay(args: ReplayArgs, progress: bool = True) -> tuple[Path, list[dict
     from punch_trainer.report.plots import plot_replay
 
     plots = plot_replay(out, args.sigmas, rows, analyses, best)
-    config = {"policy": str(args.policy), "reward": reward_name, "search_best_return": best, "noise_decisions": args.noise_decisions,
+    config = {"policy": str(args.policy), "reward": reward.name, "search_best_return": best, "noise_decisions": args.noise_decisions,
               "episodes": args.episodes, "seed": args.seed, "godot_s": round(godot_s, 1),
               "punches_per_s": round(len(args.sigmas) * args.episodes / godot_s, 1)}
     (out / "replay.json").write_text(json.dumps({"config": config, "rows": rows}, indent=2) + "\n")
     lines = [f"# punch replay: {Path(args.policy)}", "",
-             f"Reward `{reward_name}`, search best return {best}, noise on "
+             f"Reward `{reward.name}`, search best return {best}, noise on "
              f"{'every decision' if args.noise_decisions < 0 else f'the first {args.noise_decisions} decisions'}, "
              f"{args.episodes} punches per sigma through PunchController in Godot ({godot_s:.0f} s, "
              f"{config['punches_per_s']} punches/s).", "",

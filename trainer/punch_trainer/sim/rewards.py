@@ -136,6 +136,24 @@ def load_reward(spec: str, frames: int | None = None) -> Reward:
     return Reward(spec, function, frames or 50)
 
 
+def metadata_reward(metadata: dict[str, str], source: str, explicit: str | None = None) -> Reward:
+    """The reward to score a policy's punches with: `explicit` (the user's `--reward`, which may name their
+    own code) when given, else the policy's `punch_reward` metadata, which is only ever a preset name: a model
+    file is data and never chooses code to run."""
+    frames = metadata.get("punch_frames", "50")
+    if not frames.isdigit() or not 1 <= int(frames) <= 100_000:
+        raise RewardError(f"{source}: its metadata's punch_frames {frames!r} is not a frame count")
+    if explicit:
+        return load_reward(explicit, int(frames))
+    name = metadata.get("punch_reward")
+    if not name:
+        raise RewardError(f"{source} names no reward in its metadata; pass --reward")
+    if name not in PRESETS:
+        raise RewardError(f"{source} names the reward {name!r}, which is not a built-in preset ({', '.join(PRESETS)}); "
+                          f"a policy's metadata never chooses code to run: pass --reward {name} if you trust it")
+    return load_reward(name, int(frames))
+
+
 def evaluate(reward: Reward, features: np.ndarray, feature_names: list[str]) -> Terms:
     """Per-frame reward terms [..., frames] of `features` [..., frames, F], with guarded frames zeroed.
     Raises RewardError naming the reward when it raises, returns the wrong shape, or returns NaN."""
