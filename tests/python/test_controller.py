@@ -59,7 +59,7 @@ def nan_policy(path, contract: dict[str, str]):
     class NanActor(torch.nn.Module):
         def forward(self, obs):
             mean = obs[:, :10] * torch.tensor(float("nan"))
-            return mean, torch.ones_like(mean)
+            return mean, mean  # (ones_like would export as Expand, which a policy may not use)
 
     return export_onnx(NanActor(), 45, path, metadata=contract, verify=False)
 
@@ -258,3 +258,68 @@ def test_the_demo_with_the_bag_moved_about_keeps_hitting():
     assert report["punches"] == 20 and report["out_of_reach"] == 0, report
     assert len(set(report["placements"][1:])) >= 15, "every move hangs the bag somewhere else"
     assert report["hit"] >= 18, report
+
+
+def hostile_policy_files(policy, directory):
+    """Files a game might be handed: control flow (a Loop of 2^40 iterations), outputs swapped or misnamed,
+    and metadata out of range. Each is otherwise a real policy."""
+    import onnx
+    from onnx import TensorProto, helper
+
+    contract = policy_metadata(policy)
+    files = {}
+
+    class Swapped(torch.nn.Module):
+        def forward(self, obs):
+            mean = torch.tanh(obs[:, :10])
+            return mean * 0.5, mean
+
+    files["swapped"] = export_onnx(Swapped(), 45, directory / "swapped.onnx", metadata=contract,
+                                   output_names=("sigma", "mean"))
+    files["foo"] = export_onnx(Swapped(), 45, directory / "foo.onnx", metadata=contract, output_names=("foo", "sigma"))
+    for key, value in [("punch_frames", "0"), ("punch_frames", "7"), ("punch_frames", "1000000000000"),
+                       ("punch_smoothing_window", "0"), ("punch_smoothing_window", "999"), ("punch_physics_hz", "60"),
+                       ("punch_decision_period", "-5")]:
+        name = f"{key}_{value}"
+        files[name] = export_onnx(Swapped(), 45, directory / f"{name}.onnx", metadata={**contract, key: value})
+    # A Loop whose body runs 2^40 times: the graph is small and valid, and ONNX Runtime would run it.
+    body = helper.make_graph(
+        [helper.make_node("Identity", ["cond_in"], ["cond_out"]), helper.make_node("Identity", ["x_in"], ["x_out"])],
+        "body", [helper.make_tensor_value_info("i", TensorProto.INT64, []),
+                 helper.make_tensor_value_info("cond_in", TensorProto.BOOL, []),
+                 helper.make_tensor_value_info("x_in", TensorProto.FLOAT, ["batch", 45])],
+        [helper.make_tensor_value_info("cond_out", TensorProto.BOOL, []),
+         helper.make_tensor_value_info("x_out", TensorProto.FLOAT, ["batch", 45])])
+    graph = helper.make_graph(
+        [helper.make_node("Constant", [], ["trips"], value=helper.make_tensor("t", TensorProto.INT64, [], [2**40])),
+         helper.make_node("Constant", [], ["go"], value=helper.make_tensor("g", TensorProto.BOOL, [], [True])),
+         helper.make_node("Loop", ["trips", "go", "obs"], ["looped"], body=body),
+         helper.make_node("Slice", ["looped", "starts", "ends", "axes"], ["mean"])],
+        "loop", [helper.make_tensor_value_info("obs", TensorProto.FLOAT, ["batch", 45])],
+        [helper.make_tensor_value_info("mean", TensorProto.FLOAT, ["batch", 10])],
+        initializer=[helper.make_tensor("starts", TensorProto.INT64, [1], [0]),
+                     helper.make_tensor("ends", TensorProto.INT64, [1], [10]),
+                     helper.make_tensor("axes", TensorProto.INT64, [1], [1])])
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
+    for key, value in contract.items():
+        model.metadata_props.add(key=key, value=value)
+    onnx.save(model, str(directory / "loop.onnx"))
+    files["loop"] = directory / "loop.onnx"
+    return files
+
+
+def test_policy_files_that_lie_are_refused_once_per_file(policy, tmp_path):
+    files = hostile_policy_files(policy, tmp_path)
+    run = run_script("hostile_policies.gd", f"--files={','.join(str(f) for f in files.values())}")
+    assert run.returncode == 0 and run.fatal_lines() == [], run.log[-3000:]
+    line = next(line for line in run.log.splitlines() if line.startswith("HOSTILE "))
+    report = json.loads(line[len("HOSTILE "):])
+    errors = [line for line in run.log.splitlines() if line.startswith("ERROR:")]
+    for name, path in files.items():
+        assert report[str(path)] == [False, False, False], name
+        mine = [e for e in errors if path.name in e]
+        assert len(mine) == 1, (name, mine)  # one error per file, not one per controller
+    expected = {"swapped": "outputs are [sigma, mean]", "foo": "outputs are [foo, sigma]", "loop": "operator 'Loop'",
+                "punch_physics_hz_60": "120 Hz", "punch_frames_7": "multiple of the decision period"}
+    for name, text in expected.items():
+        assert text in next(e for e in errors if files[name].name in e), name

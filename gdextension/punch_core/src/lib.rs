@@ -6,7 +6,8 @@
 //!   it senses each frame, the policy's observation, Eq. 1 smoothing, and the motor law.
 //! - `punch`: one punch in a game (decision clock, runtime noise, hits, its end); `session`: the training
 //!   server's episodes over N slots; `protocol`: the trainer's wire format; `access`: who may use a server.
-//! - `policy`, `runtime`, `noise`: ONNX Runtime inference and seeded Gaussian noise.
+//! - `policy`, `model_check`, `runtime`, `noise`: ONNX Runtime inference (of files checked to be plain
+//!   feed-forward graphs) and seeded Gaussian noise.
 //!
 //! Everything here is plain Rust and unit-tested with `cargo test` (with a fake world standing in for the
 //! engine); the Godot layer (`punch_godot`) only moves engine data in and out and reports errors.
@@ -17,6 +18,7 @@ pub mod controller;
 pub mod error;
 #[cfg(test)]
 mod fake_world;
+pub mod model_check;
 pub mod noise;
 pub mod observation;
 pub mod policy;

@@ -5,6 +5,7 @@ use ort::session::{Session, builder::GraphOptimizationLevel};
 use ort::value::{TensorRef, ValueType};
 
 use crate::error::{CoreError, CoreResult};
+use crate::model_check::check_model;
 use crate::runtime;
 
 /// One named output of a policy run, row-major `[batch, width]`.
@@ -22,17 +23,22 @@ pub struct Policy {
     input_name: String,
     input_width: usize,
     output_names: Vec<String>,
+    /// Each output's fixed width k of [batch, k] (None when the model leaves it open).
+    output_widths: Vec<Option<usize>>,
 }
 
 impl Policy {
     /// Builds a policy from the bytes of an .onnx file (bytes, not a path, so models inside a Godot .pck
     /// work too). Fails if the runtime is not initialised, the bytes are not ONNX, or the model does not have
-    /// one float input of shape [batch, n] with a fixed n.
+    /// one float input of shape [batch, n] with a fixed n. The graph is checked first
+    /// (`model_check::check_model`): a file with control flow or other operators a policy may not use is
+    /// refused before ONNX Runtime sees it.
     pub fn from_bytes(model_bytes: &[u8]) -> CoreResult<Self> {
         let environment = runtime::environment()?;
         if model_bytes.is_empty() {
             return Err(CoreError::InvalidModel("the file is empty".into()));
         }
+        check_model(model_bytes).map_err(CoreError::InvalidModel)?;
         let invalid = |e: ort::Error| CoreError::InvalidModel(e.to_string());
         let session = Session::builder(environment)
             .map_err(invalid)?
@@ -66,7 +72,19 @@ impl Policy {
         };
         let input_name = input.name().to_string();
         let output_names = session.outputs().iter().map(|o| o.name().to_string()).collect();
-        Ok(Self { session, input_name, input_width, output_names })
+        let output_widths = session
+            .outputs()
+            .iter()
+            .map(|o| match o.dtype() {
+                ValueType::Tensor { ty: ort::value::TensorElementType::Float32, shape, .. }
+                    if shape.len() == 2 && shape[1] > 0 =>
+                {
+                    Some(shape[1] as usize)
+                }
+                _ => None,
+            })
+            .collect();
+        Ok(Self { session, input_name, input_width, output_names, output_widths })
     }
 
     /// Width n of the input `[batch, n]`.
@@ -82,6 +100,33 @@ impl Policy {
     /// Names of the model's outputs, in graph order.
     pub fn output_names(&self) -> &[String] {
         &self.output_names
+    }
+
+    /// Checks the model's interface: its input is `input` of [batch, `input_width`] and its outputs are, in
+    /// order, a leading part (at least the first) of `outputs`, each float32 [batch, width].
+    pub fn check_interface(&self, input: &str, input_width: usize, outputs: &[(&str, usize)]) -> CoreResult<()> {
+        let describe = |names: &[&str]| names.join(", ");
+        let wanted: Vec<&str> = outputs.iter().map(|(name, _)| *name).collect();
+        if self.input_name != input || self.input_width != input_width {
+            return Err(CoreError::NotAPolicy(format!(
+                "its input is '{}' [batch, {}]; a policy's is '{input}' [batch, {input_width}]",
+                self.input_name, self.input_width
+            )));
+        }
+        let found: Vec<&str> = self.output_names.iter().map(String::as_str).collect();
+        if found.is_empty() || found.len() > outputs.len() || found[..] != wanted[..found.len()] {
+            return Err(CoreError::NotAPolicy(format!(
+                "its outputs are [{}]; a policy's are [{}] in that order (the first alone will do)",
+                describe(&found),
+                describe(&wanted)
+            )));
+        }
+        for ((name, width), found) in outputs.iter().zip(&self.output_widths) {
+            if *found != Some(*width) {
+                return Err(CoreError::NotAPolicy(format!("output '{name}' must be float32 [batch, {width}]")));
+            }
+        }
+        Ok(())
     }
 
     /// A custom metadata entry of the model (written by the exporter), if present.

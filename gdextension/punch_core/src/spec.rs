@@ -20,6 +20,11 @@ pub use crate::sensing::{FEATURE_COUNT, FEATURE_NAMES};
 
 /// Physics frames of one punch unless a reset says otherwise (the paper's 50: 0.42 s at 120 Hz).
 pub const DEFAULT_FRAMES: u32 = 50;
+/// A policy's input: the observation, float32 [batch, OBS_DIM].
+pub const POLICY_INPUT: &str = "obs";
+/// A policy's outputs in order, float32 [batch, DOF_COUNT] each: the mean action, then (optional, unused in a
+/// game) the training sigma.
+pub const POLICY_OUTPUTS: [&str; 2] = ["mean", "sigma"];
 /// Longest episode, frames.
 pub const MAX_FRAMES: u32 = 10_000;
 /// Largest decision period, frames.

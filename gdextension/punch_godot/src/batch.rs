@@ -13,11 +13,13 @@ use std::time::Instant;
 
 use godot::builtin::{Callable, GString, StringName, Variant};
 use godot::classes::{FileAccess, Node, Object};
+use godot::global::godot_error;
 use godot::obj::{Base, Gd, InstanceId, Singleton};
 use godot::prelude::{GodotClass, godot_api};
 use punch_core::Policy;
+use punch_core::character::DOF_COUNT;
 use punch_core::observation::{OBS_DIM, spec_hash};
-use punch_core::spec::{PolicySpec, ReachVolume};
+use punch_core::spec::{POLICY_INPUT, POLICY_OUTPUTS, PolicySpec, ReachVolume};
 
 use crate::punch_controller::PunchController;
 use crate::punch_runtime::ensure_onnx_runtime;
@@ -43,12 +45,9 @@ impl SharedPolicy {
         }
         let bytes = FileAccess::get_file_as_bytes(path);
         let policy = Policy::from_bytes(bytes.as_slice()).map_err(|e| format!("policy '{path}': {e}"))?;
-        if policy.input_width() != OBS_DIM {
-            return Err(format!(
-                "incompatible policy '{path}': it takes {} inputs, the observation has {OBS_DIM}",
-                policy.input_width()
-            ));
-        }
+        policy
+            .check_interface(POLICY_INPUT, OBS_DIM, &[(POLICY_OUTPUTS[0], DOF_COUNT), (POLICY_OUTPUTS[1], DOF_COUNT)])
+            .map_err(|e| format!("incompatible policy '{path}': {e}"))?;
         let spec =
             PolicySpec::from_metadata(|key| policy.metadata(key)).map_err(|e| format!("policy '{path}': {e}"))?;
         let reach =
@@ -77,6 +76,9 @@ impl SharedPolicy {
     pub fn mean_actions(&self, observations: &[f32], batch: usize) -> Result<Vec<f32>, String> {
         let outputs = self.policy.borrow_mut().run(observations, batch).map_err(|e| e.to_string())?;
         let mean = outputs.into_iter().next().ok_or("the policy has no output")?;
+        if mean.data.iter().any(|v| !v.is_finite()) {
+            return Err("the policy returned NaN or infinite actions".into());
+        }
         Ok(mean.data)
     }
 }
@@ -86,8 +88,9 @@ impl SharedPolicy {
 #[derive(GodotClass)]
 #[class(init, singleton, base = Object)]
 pub struct PunchInference {
-    /// Loaded policies by path, with the file's modification time: a changed file is loaded again.
-    policies: HashMap<String, (u64, Rc<SharedPolicy>)>,
+    /// Loaded (or refused) policies by path, with the file's modification time: a changed file is loaded
+    /// again.
+    policies: HashMap<String, (u64, Result<Rc<SharedPolicy>, String>)>,
     /// The controllers with a punch running (or just started).
     active: Vec<Gd<PunchController>>,
     /// The scene tree whose `physics_frame` signal runs the batch.
@@ -114,7 +117,8 @@ impl PunchInference {
 
 impl PunchInference {
     /// The policy at `path` (read through Godot's file system, so it works inside a .pck), loaded once per
-    /// version of the file and shared by every controller that plays it.
+    /// version of the file and shared by every controller that plays it. The error is empty when the same
+    /// file was refused before (it was reported then).
     pub fn policy(path: &GString) -> Result<Rc<SharedPolicy>, String> {
         if path.is_empty() {
             return Err("no policy file set".into());
@@ -125,12 +129,14 @@ impl PunchInference {
         let key = path.to_string();
         let modified = FileAccess::get_modified_time(path);
         let mut hub = Self::singleton();
-        if let Some((_, shared)) = hub.bind().policies.get(&key).filter(|(m, _)| *m == modified) {
-            return Ok(shared.clone());
+        if let Some((_, loaded)) = hub.bind().policies.get(&key).filter(|(m, _)| *m == modified) {
+            // A file refused once is refused again with an empty error: one message per file, not per
+            // controller.
+            return loaded.clone().map_err(|_| String::new());
         }
-        let shared = Rc::new(SharedPolicy::load(path)?);
-        hub.bind_mut().policies.insert(key, (modified, shared.clone()));
-        Ok(shared)
+        let loaded = SharedPolicy::load(path).map(Rc::new);
+        hub.bind_mut().policies.insert(key, (modified, loaded.clone()));
+        loaded
     }
 
     /// Puts a controller on the list run every physics frame (it leaves by itself when its punch ends).
@@ -221,11 +227,15 @@ impl PunchInference {
                 hub.inference =
                     (calls + 1, rows + group.len() as u64, usec + inference_started.elapsed().as_secs_f64() * 1e6);
             }
+            if let Err(error) = &result {
+                // Once for the policy, not once per controller that asked it; each of their punches ends.
+                godot_error!("PunchController: inference failed for {} controllers: {error}", group.len());
+            }
             let width = result.as_ref().map_or(0, |m| m.len() / group.len());
             for (row, (index, _, _)) in group.iter().enumerate() {
                 means[*index] = Some(match &result {
                     Ok(mean) => Ok(mean[row * width..(row + 1) * width].to_vec()),
-                    Err(error) => Err(error.clone()),
+                    Err(_) => Err(String::new()),
                 });
             }
         }

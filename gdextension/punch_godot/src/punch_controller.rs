@@ -198,7 +198,9 @@ impl PunchController {
         let reach = match PunchInference::policy(&self.policy) {
             Ok(policy) => policy.reach,
             Err(error) => {
-                godot_error!("PunchController '{}': {error}", self.base().get_name());
+                if !error.is_empty() {
+                    godot_error!("PunchController '{}': {error}", self.base().get_name());
+                }
                 return result;
             }
         };
@@ -418,8 +420,11 @@ impl PunchController {
         }
     }
 
+    /// Ends the punch on an error (an empty one was already reported once for many controllers).
     fn stop_with_error(&mut self, error: &str) {
-        godot_error!("PunchController '{}': {error}; the punch stops", self.base().get_name());
+        if !error.is_empty() {
+            godot_error!("PunchController '{}': {error}; the punch stops", self.base().get_name());
+        }
         if let Phase::Punching(punch) = std::mem::take(&mut self.phase) {
             // Whoever waits for the end of the punch hears of it.
             self.events.push(Event::Finished(punch.interrupt().0));

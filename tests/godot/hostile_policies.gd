@@ -1,0 +1,22 @@
+## Policy files that lie about themselves, each played by three controllers at once (as a crowd sharing one
+## file would): every one must be refused when a punch starts, with one error per file, and the game goes on.
+## Args: --files=A.onnx,B.onnx,...  Prints `HOSTILE <json>` (file -> punch() results) and quits 0.
+extends SceneTree
+
+
+func _initialize() -> void:
+	var files := PackedStringArray()
+	for argument in OS.get_cmdline_user_args():
+		if argument.begins_with("--files="):
+			files = argument.trim_prefix("--files=").split(",")
+	var report := {}
+	for file in files:
+		var results := []
+		for i in 3:
+			var controller: Node = ClassDB.instantiate("PunchController")
+			controller.set("policy", file)
+			root.add_child(controller)
+			results.append(controller.call("punch"))
+		report[file] = results
+	print("HOSTILE ", JSON.stringify(report))
+	quit(0)
