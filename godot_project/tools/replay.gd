@@ -125,7 +125,10 @@ func _start_batch() -> void:
 		var lead_punches := [1 if _options.start == "after_punch" else 0]
 		var bag_body: RigidBody3D = controller.get("target")
 		var bag_start := [bag_body.global_transform, bag_body.linear_velocity, bag_body.angular_velocity]
-		controller.connect("punch_finished", func(_metrics):
+		controller.connect("punch_finished", func(metrics: Dictionary):
+			if metrics.get("ended") == "error":
+				_fail("a punch stopped on an error: %s" % metrics.get("error", "see the error above"))
+				return
 			if lead_punches[0] > 0:
 				lead_punches[0] -= 1
 				# The character starts where its earlier punch left it; the bag hangs as placed again.

@@ -75,6 +75,7 @@ func _bad_files() -> void:
 func _nan_outputs() -> void:
 	var controller := _scene()
 	controller.set("policy", _args["nan-policy"])
+	controller.connect("punch_finished", func(metrics): _report["nan_finished"] = metrics)
 	_report["nan_started"] = controller.call("punch")
 	_steps.push_front(func(): _report["nan_stopped"] = not controller.call("is_punching"))
 	_wait = 3

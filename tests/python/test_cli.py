@@ -38,3 +38,33 @@ def test_a_policy_whose_metadata_names_code_never_runs_it(tmp_path) -> None:
             result = subprocess.run([PUNCH, *command], capture_output=True, text=True, cwd=tmp_path, timeout=120)
             assert result.returncode != 0 and "not a built-in preset" in result.stderr, result.stderr[-2000:]
             assert "Traceback" not in result.stderr and not marker.exists()
+
+
+def test_user_errors_are_punch_messages_not_tracebacks(tmp_path) -> None:
+    """A reward that exits the process, an --out that cannot be a directory, and a model whose metadata is
+    garbage each end with one `punch:` line and a non-zero exit; --debug shows the traceback."""
+    import onnx
+
+    (tmp_path / "quits.py").write_text("import sys\ndef reward(f):\n    sys.exit(0)\n")
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    demo = Path(__file__).resolve().parents[2] / "godot_project" / "demo" / "policies" / "straight.onnx"
+    model = onnx.load(str(demo))
+    for prop in model.metadata_props:
+        if prop.key == "punch_training_summary":
+            prop.value = "{not json"
+    garbage = tmp_path / "garbage.onnx"
+    onnx.save(model, str(garbage))
+    cases = [
+        (["search", "--reward", f"{tmp_path / 'quits.py'}:reward", "--iterations", "1", "--rollouts", "8",
+          "--out", str(tmp_path / "run")], "tried to exit the process"),
+        (["search", "--reward", "straight", "--iterations", "1", "--rollouts", "8", "--out", str(blocker / "run")],
+         "Not a directory"),
+        (["replay", "--policy", str(garbage), "--episodes", "1", "--out", str(tmp_path / "replay")], "invalid input"),
+    ]
+    for command, message in cases:
+        result = subprocess.run([PUNCH, *command], capture_output=True, text=True, timeout=300)
+        assert result.returncode == 1 and "Traceback" not in result.stderr, result.stderr[-2000:]
+        assert result.stderr.strip().splitlines()[-1].startswith("punch: ") and message in result.stderr, result.stderr
+    result = subprocess.run([PUNCH, "--debug", *cases[1][0]], capture_output=True, text=True, timeout=300)
+    assert result.returncode != 0 and "Traceback" in result.stderr

@@ -83,6 +83,8 @@ def test_controller_faults_give_clear_errors_and_the_game_goes_on(policy, tmp_pa
                     "the character was freed", "noise_sigma 5 is outside 0..1; using 1"]:
         assert message in run.log, message
     assert report["nan_started"] and report["nan_stopped"]
+    # The punch that stopped on the error still finished, and says how it ended.
+    assert report["nan_finished"]["ended"] == "error" and "NaN" in report["nan_finished"]["error"]
     # A policy without the whole contract is refused, naming the missing key and how to re-export.
     assert report["incomplete_refused"]
     assert "has no 'punch_smoothing_window' metadata; export it again with `punch train` or `punch pretrain`" in run.log
@@ -166,6 +168,7 @@ def test_punch_after_punch_and_live_changes():
     switch = report["switch"]
     assert switch["punching_after_switch"], "the punch_finished handler already started the next punch"
     assert [f["interrupted"] for f in switch["finished"]] == [True, False], switch["finished"]
+    assert [f["ended"] for f in switch["finished"]] == ["interrupted", "completed"]
     assert switch["finished"][0]["frames"] < 50 and switch["finished"][1]["frames"] == 50
 
     cancel = report["cancel"]

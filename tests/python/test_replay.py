@@ -4,6 +4,7 @@ policy in the training server."""
 import json
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +13,7 @@ import torch
 
 from punch_trainer.cli.replay import ReplayArgs, ReplayError, parse_sigmas, replay_frames, run_replay
 from punch_trainer.cli.search import run_search
+from punch_trainer.errors import GodotRunError
 from punch_trainer.learn.dataset import load_datasets
 from punch_trainer.learn.export import export_policy
 from punch_trainer.learn.policy import ActorCritic
@@ -100,3 +102,31 @@ def test_replay_refuses_bad_policies_clearly(tmp_path, trained):
         run_replay(ReplayArgs(policy=corrupt, sigmas=[0.0], episodes=1), progress=False)
     with pytest.raises(ReplayError, match="sigmas must lie"):
         run_replay(ReplayArgs(policy=trained[0], sigmas=[1.5], episodes=1), progress=False)
+
+
+def test_a_policy_that_outputs_nan_ends_the_replay_with_an_error(tmp_path, trained):
+    """Its punches stop on the error and say so in `punch_finished`; the replay ends at once instead of
+    waiting forever for punches that stopped."""
+    import onnx
+    from onnx import numpy_helper
+
+    model = onnx.load(str(trained[0]))
+    for initializer in model.graph.initializer:  # every weight NaN: the real graph, NaN actions
+        initializer.CopyFrom(numpy_helper.from_array(np.full(numpy_helper.to_array(initializer).shape, np.nan,
+                                                             dtype=np.float32), initializer.name))
+    nan_policy = tmp_path / "nan.onnx"
+    onnx.save(model, str(nan_policy))
+    with pytest.raises((ReplayError, GodotRunError), match="stopped on an error: the policy returned NaN"):
+        run_replay(ReplayArgs(policy=nan_policy, sigmas=[0.0], episodes=2, timeout_s=120), progress=False)
+
+
+def test_a_godot_that_hangs_silently_is_stopped_at_the_deadline(tmp_path, trained, monkeypatch):
+    fake = tmp_path / "godot"
+    fake.write_text('#!/bin/sh\nfor a in "$@"; do [ "$a" = --version ] && { echo 4.6.3.stable.official; exit 0; }; done\n'
+                    "exec sleep 600\n")
+    fake.chmod(0o755)
+    monkeypatch.setenv("GODOT", str(fake))
+    started = time.monotonic()
+    with pytest.raises(ReplayError, match="did not finish within 3 s"):
+        run_replay(ReplayArgs(policy=trained[0], sigmas=[0.0], episodes=1, timeout_s=3), progress=False)
+    assert time.monotonic() - started < 30

@@ -61,3 +61,30 @@ def test_bad_rewards_are_named_in_the_error(tmp_path, body, message):
 def test_unloadable_rewards(spec, message):
     with pytest.raises(RewardError, match=message):
         load_reward(spec)
+
+
+@pytest.mark.parametrize("body, message", [
+    ("import time\n    time.sleep(30)\n    return f['fist_r_vel_z']", "took longer than 0.5 s"),
+    ("import sys\n    sys.exit(0)", "tried to exit the process"),
+    ("import os\n    os._exit(3)", r"tried to exit the process \(exit code 3\)"),
+    ("f['fist_r_vel_z'][...] = 1e6\n    return f['fist_r_vel_z']", "read-only"),
+    ("f.features[..., 0] = 0\n    return f['fist_r_vel_z']", "read-only"),
+    ("return 'a lot'", "returned str"),
+    ("return {}", "empty dict"),
+    ("return None", "returned NoneType"),
+])
+def test_misbehaving_user_rewards_get_an_error_naming_them(tmp_path, monkeypatch, body, message):
+    """A reward that hangs, exits the process, writes into its features or returns no numbers ends with an
+    error that names it; the features are untouched and the process goes on."""
+    import punch_trainer.sim.rewards as rewards
+
+    monkeypatch.setattr(rewards, "REWARD_TIME_LIMIT_S", 0.5)
+    (tmp_path / "bad.py").write_text(f"def reward(f):\n    {body}\n")
+    reward = load_reward(f"{tmp_path / 'bad.py'}:reward")
+    f = features(0.2, 1.0, 8.0)
+    before = f.copy()
+    with pytest.raises(RewardError, match=message) as error:
+        evaluate(reward, f, NAMES)
+    assert "bad.py:reward" in str(error.value)
+    np.testing.assert_array_equal(f, before)
+    assert f.flags.writeable, "the caller's own array stays writable"

@@ -235,7 +235,7 @@ impl PunchInference {
             for (row, (index, _, _)) in group.iter().enumerate() {
                 means[*index] = Some(match &result {
                     Ok(mean) => Ok(mean[row * width..(row + 1) * width].to_vec()),
-                    Err(_) => Err(String::new()),
+                    Err(error) => Err(error.clone()),
                 });
             }
         }

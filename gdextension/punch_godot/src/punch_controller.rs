@@ -118,8 +118,16 @@ struct Loaded {
 
 enum Event {
     Hit(Hit),
-    Finished(PunchSummary),
+    Finished(PunchSummary, Ending),
     Recovered,
+}
+
+/// How a punch ended (`punch_finished`'s `ended`).
+enum Ending {
+    Completed,
+    Interrupted,
+    /// The message was logged (an empty one was logged once for many controllers).
+    Error(String),
 }
 
 #[godot_api]
@@ -152,9 +160,11 @@ impl PunchController {
     #[signal]
     fn hit(impulse: f32, speed: f32, position: Vector3, body: Option<Gd<Node3D>>, push: Vector3);
 
-    /// Emitted when a punch is over, with `frames`, `peak_fist_speed_mps`, `hits`, `strongest_hit_ns`
-    /// (the largest fist impulse of one frame) and `interrupted` (cancelled, restarted, or its policy
-    /// changed before its last frame).
+    /// Emitted when a punch is over, however it ended, with `frames`, `peak_fist_speed_mps`, `hits`,
+    /// `strongest_hit_ns` (the largest fist impulse of one frame), `ended` ("completed"; "interrupted":
+    /// cancelled, restarted, or its policy changed before its last frame; "error": it stopped on an error,
+    /// given in `error` and logged), and `interrupted` (true unless completed). Every `punch_started` is
+    /// followed by one `punch_finished`, so code waiting for it never waits forever.
     #[signal]
     fn punch_finished(metrics: VarDictionary);
 
@@ -408,7 +418,7 @@ impl PunchController {
         let (summary, record) = punch.interrupt();
         self.last_record = record.unwrap_or_default();
         self.hold();
-        self.signals().punch_finished().emit(&finish_metrics(&summary));
+        self.signals().punch_finished().emit(&finish_metrics(&summary, &Ending::Interrupted));
     }
 
     /// Stops the joint motors: the character holds its pose.
@@ -420,14 +430,17 @@ impl PunchController {
         }
     }
 
-    /// Ends the punch on an error (an empty one was already reported once for many controllers).
+    /// Ends the punch on an error, logging it.
     fn stop_with_error(&mut self, error: &str) {
-        if !error.is_empty() {
-            godot_error!("PunchController '{}': {error}; the punch stops", self.base().get_name());
-        }
+        godot_error!("PunchController '{}': {error}; the punch stops", self.base().get_name());
+        self.stop_quietly(error);
+    }
+
+    /// Ends the punch on an error already logged (once for all the controllers a shared policy failed).
+    fn stop_quietly(&mut self, error: &str) {
         if let Phase::Punching(punch) = std::mem::take(&mut self.phase) {
             // Whoever waits for the end of the punch hears of it.
-            self.events.push(Event::Finished(punch.interrupt().0));
+            self.events.push(Event::Finished(punch.interrupt().0, Ending::Error(error.to_string())));
         }
         self.hold();
         self.loaded = None;
@@ -493,7 +506,7 @@ impl PunchController {
                 Ok(Some((policy, *observation)))
             }
             Sensed::Finished(summary, record) => {
-                self.events.push(Event::Finished(summary));
+                self.events.push(Event::Finished(summary, Ending::Completed));
                 self.last_record = record.unwrap_or_default();
                 self.phase = Phase::Idle;
                 if self.auto_recover {
@@ -509,14 +522,19 @@ impl PunchController {
     }
 
     /// Second half of a frame: takes the decision's mean action (when one was due), adds the noise, and
-    /// drives the joints.
+    /// drives the joints. A failed decision (`mean` an error, logged by the batch) ends the punch.
     pub(crate) fn act(&mut self, mean: Option<Result<Vec<f32>, String>>) {
-        if let Err(error) = self.try_act(mean) {
-            self.stop_with_error(&error);
+        match mean {
+            Some(Err(error)) => self.stop_quietly(&error),
+            mean => {
+                if let Err(error) = self.try_act(mean.and_then(Result::ok)) {
+                    self.stop_with_error(&error);
+                }
+            }
         }
     }
 
-    fn try_act(&mut self, mean: Option<Result<Vec<f32>, String>>) -> Result<(), String> {
+    fn try_act(&mut self, mean: Option<Vec<f32>>) -> Result<(), String> {
         let commands = match &mut self.phase {
             Phase::Idle => return Ok(()),
             Phase::Recovering(_, commands) => *commands,
@@ -525,7 +543,6 @@ impl PunchController {
                 // The inspector may change these at any time: they apply from the next decision.
                 loaded.noise.sigma = self.noise_sigma;
                 loaded.noise.noisy_decisions = self.noise_decisions;
-                let mean = mean.transpose()?;
                 punch.act(mean.as_deref(), &mut loaded.noise).map_err(|e| e.to_string())?
             }
         };
@@ -552,7 +569,9 @@ impl PunchController {
                         let position = Vector3::new(hit.position.x, hit.position.y, hit.position.z);
                         controller.signals().hit().emit(hit.impulse_ns(), hit.speed_mps, position, body.as_ref(), push);
                     }
-                    Event::Finished(summary) => controller.signals().punch_finished().emit(&finish_metrics(&summary)),
+                    Event::Finished(summary, ending) => {
+                        controller.signals().punch_finished().emit(&finish_metrics(&summary, &ending))
+                    }
                     Event::Recovered => controller.signals().recovered().emit(),
                 }
             }
@@ -576,8 +595,17 @@ fn fist_query(radius_m: f32) -> Gd<PhysicsShapeQueryParameters3D> {
     query
 }
 
-fn finish_metrics(summary: &PunchSummary) -> VarDictionary {
+fn finish_metrics(summary: &PunchSummary, ending: &Ending) -> VarDictionary {
     let mut metrics = VarDictionary::new();
+    let (ended, error) = match ending {
+        Ending::Completed => ("completed", ""),
+        Ending::Interrupted => ("interrupted", ""),
+        Ending::Error(error) => ("error", error.as_str()),
+    };
+    metrics.set("ended", ended);
+    if !error.is_empty() {
+        metrics.set("error", error);
+    }
     metrics.set("frames", summary.frames as i64);
     metrics.set("peak_fist_speed_mps", summary.peak_fist_speed_mps);
     metrics.set("hits", summary.hits);

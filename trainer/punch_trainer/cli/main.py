@@ -236,6 +236,7 @@ def _render(args: argparse.Namespace) -> int:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="punch", description="Train and run physics-based punching policies.")
     parser.add_argument("--version", action="version", version=f"punch {__version__}")
+    parser.add_argument("--debug", action="store_true", help="show the full traceback of an error, not only its message")
     commands = parser.add_subparsers(dest="command", required=True)
 
     selfcheck = commands.add_parser("selfcheck", help="check Godot, Jolt, the extension and ONNX Runtime end to end")
@@ -379,7 +380,20 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args.run(args))
     except PunchError as error:
+        if args.debug:
+            raise
         print(f"punch: {error}", file=sys.stderr)
+        return 1
+    except OSError as error:  # a read-only or full disk, a missing file: the user's to fix, not a bug
+        if args.debug:
+            raise
+        where = f": {error.filename}" if error.filename else ""
+        print(f"punch: {error.strerror or error}{where} (run with --debug for the traceback)", file=sys.stderr)
+        return 1
+    except ValueError as error:  # malformed input the checks above did not name (a file's garbage metadata)
+        if args.debug:
+            raise
+        print(f"punch: invalid input: {type(error).__name__}: {error} (run with --debug for the traceback)", file=sys.stderr)
         return 1
 
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import os
+import selectors
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -103,16 +104,25 @@ def run_godot_replay(args: ReplayArgs, frames_dir: Path, progress: bool = True) 
     deadline = time.monotonic() + args.timeout_s
     process = start_godot(command)
     assert process.stdout is not None
+    # The deadline is kept by the clock, not by Godot's output: a Godot that hangs silently is stopped too.
+    selector = selectors.DefaultSelector()
+    selector.register(process.stdout, selectors.EVENT_READ)
     with tqdm(total=total_punches, desc="replay (Godot)", unit="punch", disable=not progress) as bar:
         try:
-            for line in process.stdout:
+            while True:
+                left_s = deadline - time.monotonic()
+                if left_s <= 0 or not selector.select(timeout=left_s):
+                    raise ReplayError(f"the replay did not finish within {args.timeout_s:.0f} s (Godot was stopped):\n"
+                                      f"{tail(''.join(log))}")
+                line = process.stdout.readline()
+                if not line:
+                    break
                 log.append(line)
                 if line.startswith("REPLAY_PROGRESS "):
                     bar.update(int(line.split()[1]) - bar.n)
-                if time.monotonic() > deadline:
-                    raise ReplayError(f"the replay did not finish within {args.timeout_s:.0f} s")
             process.wait(timeout=60)
         finally:
+            selector.close()
             stop_godot(process)
     text = "".join(log)
     fatal = [line for line in log if any(p in line for p in FATAL_LOG_PATTERNS) or line.startswith("error: replay")]

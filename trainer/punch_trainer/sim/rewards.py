@@ -17,6 +17,10 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+import os
+import signal
+import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -157,12 +161,20 @@ def metadata_reward(metadata: dict[str, str], source: str, explicit: str | None 
 def evaluate(reward: Reward, features: np.ndarray, feature_names: list[str]) -> Terms:
     """Per-frame reward terms [..., frames] of `features` [..., frames, F], with guarded frames zeroed.
     Raises RewardError naming the reward when it raises, returns the wrong shape, or returns NaN."""
-    frames = Frames(features, feature_names)
-    try:
-        result = reward.function(frames)
-    except Exception as error:  # the user's code may fail in any way; say which reward and why
-        raise RewardError(f"reward '{reward.name}' raised {type(error).__name__}: {error}") from error
-    terms = result if isinstance(result, dict) else {"reward": result}
+    # The reward sees a read-only view: writing into it would corrupt the dataset and the report silently.
+    view = np.asarray(features).view()
+    view.flags.writeable = False
+    frames = Frames(view, feature_names)
+    result = _call_guarded(reward, frames)
+    if isinstance(result, dict):
+        terms = result
+    elif isinstance(result, (np.ndarray, float, int, np.floating)):
+        terms = {"reward": result}
+    else:
+        raise RewardError(f"reward '{reward.name}' returned {type(result).__name__}; it must return an array of "
+                          "per-frame rewards or a dict of such arrays")
+    if not terms:
+        raise RewardError(f"reward '{reward.name}' returned an empty dict; it must name at least one term")
     expected = features.shape[:-1]
     guarded = frames["exploit_flags"] != 0
     out = {}
@@ -174,6 +186,50 @@ def evaluate(reward: Reward, features: np.ndarray, feature_names: list[str]) -> 
             raise RewardError(f"reward '{reward.name}' term '{name}' returned NaN or infinity")
         out[name] = np.where(guarded, 0.0, values)
     return out
+
+
+REWARD_TIME_LIMIT_S = float(os.environ.get("PUNCH_REWARD_TIME_LIMIT_S", "60"))
+"""Longest one reward evaluation may take (a batch of trajectories); set PUNCH_REWARD_TIME_LIMIT_S to change it."""
+
+
+class _RewardExit(BaseException):
+    """Raised in place of exiting the process when a reward calls os._exit."""
+
+
+def _call_guarded(reward: Reward, frames: Frames) -> object:
+    """Calls the user's reward: its exceptions, `sys.exit` and `os._exit` become a RewardError naming it, and a
+    call longer than REWARD_TIME_LIMIT_S is stopped (in the main thread, where a timer signal can interrupt
+    it; elsewhere it is only measured)."""
+    def refuse_exit(code: int) -> None:
+        raise _RewardExit(code)
+
+    def too_slow(_signum: int, _frame: object) -> None:
+        raise TimeoutError
+
+    timed = threading.current_thread() is threading.main_thread() and hasattr(signal, "setitimer")
+    previous_handler = signal.signal(signal.SIGALRM, too_slow) if timed else None
+    real_exit, os._exit = os._exit, refuse_exit  # type: ignore[assignment]
+    started = time.monotonic()
+    try:
+        if timed:
+            signal.setitimer(signal.ITIMER_REAL, REWARD_TIME_LIMIT_S)
+        result = reward.function(frames)
+    except TimeoutError:
+        raise RewardError(f"reward '{reward.name}' took longer than {REWARD_TIME_LIMIT_S:g} s on one batch and was "
+                          "stopped (set PUNCH_REWARD_TIME_LIMIT_S to allow more)") from None
+    except (SystemExit, _RewardExit) as error:
+        raise RewardError(f"reward '{reward.name}' tried to exit the process (exit code {error.args[0] if error.args else 0}); "
+                          "a reward must return its values") from None
+    except Exception as error:  # the user's code may fail in any way; say which reward and why
+        raise RewardError(f"reward '{reward.name}' raised {type(error).__name__}: {error}") from error
+    finally:
+        os._exit = real_exit
+        if timed:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+            signal.signal(signal.SIGALRM, previous_handler)
+    if time.monotonic() - started > REWARD_TIME_LIMIT_S:
+        raise RewardError(f"reward '{reward.name}' took longer than {REWARD_TIME_LIMIT_S:g} s on one batch")
+    return result
 
 
 def total(terms: Terms) -> np.ndarray:
