@@ -65,6 +65,9 @@ def test_unloadable_rewards(spec, message):
 
 @pytest.mark.parametrize("body, message", [
     ("import time\n    time.sleep(30)\n    return f['fist_r_vel_z']", "took longer than 0.5 s"),
+    ("import time\n    try:\n        time.sleep(30)\n    except Exception:\n        pass\n    return f['fist_r_vel_z']",
+     "took longer than 0.5 s"),
+    ("raise TimeoutError('its own socket')", "raised TimeoutError: its own socket"),
     ("import sys\n    sys.exit(0)", "tried to exit the process"),
     ("import os\n    os._exit(3)", r"tried to exit the process \(exit code 3\)"),
     ("f['fist_r_vel_z'][...] = 1e6\n    return f['fist_r_vel_z']", "read-only"),

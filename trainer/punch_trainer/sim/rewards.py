@@ -188,12 +188,28 @@ def evaluate(reward: Reward, features: np.ndarray, feature_names: list[str]) -> 
     return out
 
 
-REWARD_TIME_LIMIT_S = float(os.environ.get("PUNCH_REWARD_TIME_LIMIT_S", "60"))
-"""Longest one reward evaluation may take (a batch of trajectories); set PUNCH_REWARD_TIME_LIMIT_S to change it."""
+def _time_limit_s(text: str | None, default_s: float = 60.0) -> float:
+    try:
+        value = float(text) if text else default_s
+    except ValueError:
+        raise RewardError(f"PUNCH_REWARD_TIME_LIMIT_S={text!r} is not a number of seconds") from None
+    if not value > 0:
+        raise RewardError(f"PUNCH_REWARD_TIME_LIMIT_S={text!r} must be positive")
+    return value
+
+
+REWARD_TIME_LIMIT_S: float | None = None
+"""Longest one reward evaluation may take (a batch of trajectories), seconds; None: PUNCH_REWARD_TIME_LIMIT_S,
+else 60 s."""
 
 
 class _RewardExit(BaseException):
     """Raised in place of exiting the process when a reward calls os._exit."""
+
+
+class _RewardTimeout(BaseException):
+    """Raised by the timer signal when a reward runs past its time limit (not an Exception, so the reward's
+    own `except Exception` cannot swallow it, and its own TimeoutErrors stay its own)."""
 
 
 def _call_guarded(reward: Reward, frames: Frames) -> object:
@@ -204,18 +220,19 @@ def _call_guarded(reward: Reward, frames: Frames) -> object:
         raise _RewardExit(code)
 
     def too_slow(_signum: int, _frame: object) -> None:
-        raise TimeoutError
+        raise _RewardTimeout
 
+    limit_s = REWARD_TIME_LIMIT_S or _time_limit_s(os.environ.get("PUNCH_REWARD_TIME_LIMIT_S"))
     timed = threading.current_thread() is threading.main_thread() and hasattr(signal, "setitimer")
     previous_handler = signal.signal(signal.SIGALRM, too_slow) if timed else None
     real_exit, os._exit = os._exit, refuse_exit  # type: ignore[assignment]
     started = time.monotonic()
     try:
         if timed:
-            signal.setitimer(signal.ITIMER_REAL, REWARD_TIME_LIMIT_S)
+            signal.setitimer(signal.ITIMER_REAL, limit_s)
         result = reward.function(frames)
-    except TimeoutError:
-        raise RewardError(f"reward '{reward.name}' took longer than {REWARD_TIME_LIMIT_S:g} s on one batch and was "
+    except _RewardTimeout:
+        raise RewardError(f"reward '{reward.name}' took longer than {limit_s:g} s on one batch and was "
                           "stopped (set PUNCH_REWARD_TIME_LIMIT_S to allow more)") from None
     except (SystemExit, _RewardExit) as error:
         raise RewardError(f"reward '{reward.name}' tried to exit the process (exit code {error.args[0] if error.args else 0}); "
@@ -227,8 +244,8 @@ def _call_guarded(reward: Reward, frames: Frames) -> object:
         if timed:
             signal.setitimer(signal.ITIMER_REAL, 0)
             signal.signal(signal.SIGALRM, previous_handler)
-    if time.monotonic() - started > REWARD_TIME_LIMIT_S:
-        raise RewardError(f"reward '{reward.name}' took longer than {REWARD_TIME_LIMIT_S:g} s on one batch")
+    if time.monotonic() - started > limit_s:
+        raise RewardError(f"reward '{reward.name}' took longer than {limit_s:g} s on one batch")
     return result
 
 
