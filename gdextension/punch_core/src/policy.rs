@@ -57,33 +57,16 @@ impl Policy {
         let [input] = session.inputs() else {
             return Err(CoreError::NotAPolicy(format!("expected 1 input, found {}", session.inputs().len())));
         };
-        let input_width = match input.dtype() {
-            ValueType::Tensor { ty: ort::value::TensorElementType::Float32, shape, .. }
-                if shape.len() == 2 && shape[1] > 0 =>
-            {
-                shape[1] as usize
-            }
-            other => {
-                return Err(CoreError::NotAPolicy(format!(
-                    "input '{}' must be float32 of shape [batch, n], found {other}",
-                    input.name()
-                )));
-            }
-        };
+        let input_width = float_width(input.dtype()).ok_or_else(|| {
+            CoreError::NotAPolicy(format!(
+                "input '{}' must be float32 of shape [batch, n], found {}",
+                input.name(),
+                input.dtype()
+            ))
+        })?;
         let input_name = input.name().to_string();
         let output_names = session.outputs().iter().map(|o| o.name().to_string()).collect();
-        let output_widths = session
-            .outputs()
-            .iter()
-            .map(|o| match o.dtype() {
-                ValueType::Tensor { ty: ort::value::TensorElementType::Float32, shape, .. }
-                    if shape.len() == 2 && shape[1] > 0 =>
-                {
-                    Some(shape[1] as usize)
-                }
-                _ => None,
-            })
-            .collect();
+        let output_widths = session.outputs().iter().map(|o| float_width(o.dtype())).collect();
         Ok(Self { session, input_name, input_width, output_names, output_widths })
     }
 
@@ -166,5 +149,17 @@ impl Policy {
             result.push(Tensor { name: name.clone(), batch, width, data: data.to_vec() });
         }
         Ok(result)
+    }
+}
+
+/// The fixed width n of a float32 tensor of shape [batch, n], if the type is one.
+fn float_width(value_type: &ValueType) -> Option<usize> {
+    match value_type {
+        ValueType::Tensor { ty: ort::value::TensorElementType::Float32, shape, .. }
+            if shape.len() == 2 && shape[1] > 0 =>
+        {
+            Some(shape[1] as usize)
+        }
+        _ => None,
     }
 }
