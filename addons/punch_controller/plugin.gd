@@ -2,21 +2,26 @@
 extends EditorPlugin
 ## The addon's editor side (the node classes themselves come from the GDExtension and are always there):
 ## Project > Tools > "Add Punching Character" adds a character, a sandbag in front of it and a
-## PunchController wired to both (with the demo's straight-punch policy when the project has it) to the open
+## PunchController wired to both (with the addon's default straight-punch policy) to the open
 ## 3D scene, as one undoable action.
 
 const MENU_ITEM := "Add Punching Character"
 const CHARACTER_SCENE := "res://addons/punch_controller/scenes/punch_character.tscn"
 const SANDBAG_SCENE := "res://addons/punch_controller/scenes/punch_sandbag.tscn"
-const DEFAULT_POLICY := "res://demo/policies/straight.onnx"
+const DEFAULT_POLICY := "res://addons/punch_controller/policies/straight.onnx"
 const SETTINGS_ITEM := "Apply Punch Physics Settings"
 const PhysicsSettings := preload("res://addons/punch_controller/physics_settings.gd")
 
 
 func _enter_tree() -> void:
 	if not ClassDB.class_exists("PunchController"):
-		push_error("Punch Controller: the GDExtension is not loaded. Build it (scons, see the project's README) "
-			+ "so that addons/punch_controller/bin/ has the library, then restart the editor.")
+		var platform := "%s %s" % [OS.get_name(), Engine.get_architecture_name()]
+		if platform != "Linux x86_64":
+			push_error("Punch Controller: this addon has libraries for Linux x86_64 only, so it does not run on "
+				+ platform + " (see the README, 'Platforms').")
+		else:
+			push_error("Punch Controller: the GDExtension is not loaded. Build it (scons, see the project's "
+				+ "README) so that addons/punch_controller/bin/ has the library, then restart the editor.")
 	add_tool_menu_item(MENU_ITEM, add_punching_character)
 	add_tool_menu_item(SETTINGS_ITEM, offer_physics_settings)
 	# `godot --editor SCENE -- --punch-select=NODE_PATH` opens with that node in the inspector (for docs).
@@ -69,7 +74,7 @@ func add_punching_character() -> void:
 	var controller: Node = ClassDB.instantiate("PunchController")
 	controller.name = "PunchController"
 	if ResourceLoader.exists(DEFAULT_POLICY) or FileAccess.file_exists(DEFAULT_POLICY):
-		controller.set("policy", DEFAULT_POLICY)
+		controller.set("policy", load(DEFAULT_POLICY))
 	var undo := get_undo_redo()
 	undo.create_action("Add Punching Character")
 	for node in [character, sandbag, controller]:

@@ -3,7 +3,7 @@
 extends Node3D
 
 const CHARACTER_SCENE := preload("res://addons/punch_controller/scenes/punch_character.tscn")
-const STRAIGHT_POLICY := "res://demo/policies/straight.onnx"
+const STRAIGHT_POLICY := preload("res://addons/punch_controller/policies/straight.onnx")
 
 ## Punches to play before printing the hit rate and quitting (0: never quit).
 var punch_limit := 0

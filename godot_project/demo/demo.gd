@@ -40,7 +40,7 @@ func _ready() -> void:
 	add_child(_repeat_timer)
 	for style in STYLES:
 		_style.add_item(style)
-	_style.item_selected.connect(func(index): _controller.policy = _policy_path(STYLES[index]))
+	_style.item_selected.connect(func(index): _controller.policy = load(_policy_path(STYLES[index])))
 	_sigma.value = _controller.noise_sigma
 	_sigma.value_changed.connect(_on_sigma_changed)
 	_on_sigma_changed(_sigma.value)
@@ -112,7 +112,7 @@ func _show_placement() -> void:
 
 
 func _policy_path(style: String) -> String:
-	return "res://demo/policies/%s.onnx" % style
+	return "res://addons/punch_controller/policies/%s.onnx" % style
 
 
 func _on_sigma_changed(value: float) -> void:

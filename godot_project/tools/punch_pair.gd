@@ -32,7 +32,7 @@ static func add(parent: Node, slot: int, origin: Vector3, bag_offset: Vector3, p
 	var controller: Node = ClassDB.instantiate("PunchController")
 	controller.set("character", character)
 	controller.set("target", sandbag.get_node("Bag"))
-	controller.set("policy", policy)
+	controller.set("policy", load(policy))
 	controller.set("noise_sigma", sigma)
 	controller.set("noise_decisions", noise_decisions)
 	controller.set("seed", seed)

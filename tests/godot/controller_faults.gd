@@ -47,7 +47,7 @@ func _scene() -> Node:
 	var controller: Node = ClassDB.instantiate("PunchController")
 	controller.set("character", _character)
 	controller.set("target", _sandbag.get_node("Bag"))
-	controller.set("policy", _args.policy)
+	controller.set("policy", load(_args.policy))
 	root.add_child(controller)
 	_controller = controller
 	return controller
@@ -57,9 +57,9 @@ func _bad_files() -> void:
 	var controller := _scene()
 	var refused := {}
 	for case in [["missing", "res://no/such/policy.onnx"], ["corrupt", _args.corrupt], ["incompatible", _args.tiny], ["empty", ""]]:
-		controller.set("policy", case[1])
+		controller.set("policy", load(case[1]) if case[1] != "" else null)
 		refused[case[0]] = not controller.call("punch")
-	controller.set("policy", _args.policy)
+	controller.set("policy", load(_args.policy))
 	controller.set("decision_period", 4)
 	refused["wrong_decision_period"] = not controller.call("punch")
 	controller.set("decision_period", 5)
@@ -67,14 +67,14 @@ func _bad_files() -> void:
 	_report["refused"] = refused
 	if _args.has("incomplete"):
 		var incomplete := _scene()
-		incomplete.set("policy", _args.incomplete)
+		incomplete.set("policy", load(_args.incomplete))
 		_report["incomplete_refused"] = not incomplete.call("punch")
 	_wait = 5
 
 
 func _nan_outputs() -> void:
 	var controller := _scene()
-	controller.set("policy", _args["nan-policy"])
+	controller.set("policy", load(_args["nan-policy"]))
 	controller.connect("punch_finished", func(metrics): _report["nan_finished"] = metrics)
 	_report["nan_started"] = controller.call("punch")
 	_steps.push_front(func(): _report["nan_stopped"] = not controller.call("is_punching"))
@@ -109,7 +109,7 @@ func _packed_policy() -> void:
 	packer.flush()
 	_report["pck_mounted"] = ProjectSettings.load_resource_pack(_args.pck)
 	var controller := _scene()
-	controller.set("policy", "res://packed_policies/straight.onnx")
+	controller.set("policy", load("res://packed_policies/straight.onnx"))
 	controller.connect("punch_finished", func(metrics): _report["pck_punch"] = metrics)
 	_report["pck_started"] = controller.call("punch")
 	_wait = 60

@@ -26,7 +26,7 @@ func _initialize() -> void:
 	_controller = ClassDB.instantiate("PunchController")
 	_controller.set("character", character)
 	_controller.set("target", sandbag.get_node("Bag"))
-	_controller.set("policy", policy)
+	_controller.set("policy", load(policy))
 	root.add_child(_controller)
 	_report["finished"] = []
 	_controller.connect("punch_finished", func(metrics): _report.finished.append(metrics))

@@ -1,5 +1,6 @@
 ## Policy files that lie about themselves, each played by three controllers at once (as a crowd sharing one
-## file would): every one must be refused when a punch starts, with one error per file, and the game goes on.
+## file would): every one must be refused, at load or when a punch starts, with one error per file, and the game
+## goes on.
 ## Args: --files=A.onnx,B.onnx,...  Prints `HOSTILE <json>` (file -> punch() results) and quits 0.
 extends SceneTree
 
@@ -12,9 +13,10 @@ func _initialize() -> void:
 	var report := {}
 	for file in files:
 		var results := []
+		var policy: Resource = load(file)  # null when the file is refused at load
 		for i in 3:
 			var controller: Node = ClassDB.instantiate("PunchController")
-			controller.set("policy", file)
+			controller.set("policy", policy)
 			root.add_child(controller)
 			results.append(controller.call("punch"))
 		report[file] = results

@@ -4,17 +4,21 @@
 ## - "switch": the policy changed to the hook mid-punch (frame 10): the punch ends interrupted, and a new
 ##   punch (the hook) runs to its end;
 ## - "cancel": cancel() on frame 5; "recover": auto_recover off, recover() called after the punch;
-## - "seeds": sigma 0.3, punches with seed 1, 2, then 1 again: the first decision's noise of each.
+## - "seeds": sigma 0.3, punches with seed 1, 2, then 1 again: the first decision's noise of each;
+## - "again" and "again_raw": a second punch asked for as the first ends (guard_first on, and off): the first
+##   frame's joint angles and the hits of each punch (the bag is put back still before the second).
 ## Prints `LIVE_CHANGES <json>` and quits.
 extends SceneTree
 
-const STRAIGHT := "res://demo/policies/straight.onnx"
-const HOOK := "res://demo/policies/hook.onnx"
-const CASES := ["ready", "ready_twin", "switch", "cancel", "recover", "seeds"]
+const STRAIGHT := "res://addons/punch_controller/policies/straight.onnx"
+const HOOK := "res://addons/punch_controller/policies/hook.onnx"
+const CASES := ["ready", "ready_twin", "switch", "cancel", "recover", "seeds", "again", "again_raw"]
+const ANGLE_COLUMNS := 32  # the joint angles' first feature column (punch_core sensing::columns::ANGLES)
 var _controllers := {}
 var _report := {}
 var _frames := 0
 var _seeds := [1, 2, 1]
+var _bag_starts := {}
 
 
 func _initialize() -> void:
@@ -29,14 +33,18 @@ func _initialize() -> void:
 		var controller: Node = ClassDB.instantiate("PunchController")
 		controller.set("character", character)
 		controller.set("target", sandbag.get_node("Bag"))
-		controller.set("policy", STRAIGHT)
+		_bag_starts[name] = sandbag.transform * sandbag.get_node("Bag").transform
+		controller.set("policy", load(STRAIGHT))
 		controller.set("record", true)
 		if name == "recover":
 			controller.set("auto_recover", false)
+		if name == "again_raw":
+			controller.set("guard_first", false)
 		if name == "seeds":
 			controller.set("noise_sigma", 0.3)
 			controller.set("noise_decisions", 1)
-		_report[name] = {"finished": [], "recovered": 0, "started": 0, "first_noise": [], "features": []}
+		_report[name] = {"finished": [], "recovered": 0, "started": 0, "first_noise": [], "features": [],
+			"first_angles": []}
 		controller.connect("punch_started", func(): _report[name].started += 1)
 		controller.connect("punch_finished", func(metrics): _on_finished(name, controller, metrics))
 		controller.connect("recovered", func(): _on_recovered(name, controller))
@@ -51,6 +59,15 @@ func _on_finished(name: String, controller: Node, metrics: Dictionary) -> void:
 	var record: Dictionary = controller.call("last_punch_record")
 	if name.begins_with("ready"):
 		_report[name].features = Array(record.features)
+	if name.begins_with("again"):
+		_report[name].first_angles.append(Array(record.features.slice(ANGLE_COLUMNS, ANGLE_COLUMNS + 10)))
+		if _report[name].finished.size() == 1:
+			# The bag hangs still again (as in `punch eval`'s "after a punch"): only the arms' pose differs.
+			var bag: RigidBody3D = controller.get("target")
+			bag.global_transform = _bag_starts[name]
+			bag.linear_velocity = Vector3.ZERO
+			bag.angular_velocity = Vector3.ZERO
+			controller.call("punch")
 	if name == "seeds" and record.decisions > 0:
 		var noise := []
 		for i in 10:
@@ -72,13 +89,13 @@ func _on_recovered(name: String, controller: Node) -> void:
 func _physics_process(_delta: float) -> bool:
 	_frames += 1
 	if _frames == 2:
-		for name in ["switch", "cancel", "recover", "seeds"]:
+		for name in ["switch", "cancel", "recover", "seeds", "again", "again_raw"]:
 			_controllers[name].call("punch")
 	if _frames == 5:
 		_controllers["cancel"].call("cancel")
 		_report["cancel"]["punching_after_cancel"] = _controllers["cancel"].call("is_punching")
 	if _frames == 10:
-		_controllers["switch"].set("policy", HOOK)
+		_controllers["switch"].set("policy", load(HOOK))
 		_report["switch"]["punching_after_switch"] = _controllers["switch"].call("is_punching")
 	if _frames > 600:
 		for name in CASES:

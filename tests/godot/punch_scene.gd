@@ -27,7 +27,7 @@ func _initialize() -> void:
 		var controller: Node = ClassDB.instantiate("PunchController")
 		controller.set("character", character)
 		controller.set("target", sandbag.get_node("Bag"))
-		controller.set("policy", policy)
+		controller.set("policy", load(policy))
 		root.add_child(controller)
 		controller.connect("punch_started", func(): _report.started += 1)
 		controller.connect("hit", func(impulse, speed, position, _body, _push): _report.hits.append([pair, impulse, speed, position.x]))

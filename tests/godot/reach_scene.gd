@@ -4,7 +4,7 @@
 ## punch() started, and the punch's hits; prints `REACH <json>` with `reach_volume()` and quits.
 extends SceneTree
 
-const POLICY := "res://demo/policies/straight.onnx"
+const POLICY := "res://addons/punch_controller/policies/straight.onnx"
 const CASES := {"inside": Vector3.ZERO, "far": Vector3(0, 0, 0.68), "high": Vector3(0, 0.9, 0)}
 var _report := {}
 var _pending := 0
@@ -23,7 +23,7 @@ func _initialize() -> void:
 		var controller: Node = ClassDB.instantiate("PunchController")
 		controller.set("character", character)
 		controller.set("target", sandbag.get_node("Bag"))
-		controller.set("policy", POLICY)
+		controller.set("policy", load(POLICY))
 		controller.set("auto_recover", false)
 		_report[name] = {"out_of_reach": [], "hits": -1}
 		controller.connect("target_out_of_reach", func(offset: Vector3, nearest: Vector3):

@@ -6,7 +6,7 @@
 ## `TARGETS_SCENE <json>`: per kind the `hit` signals (impulse, what was hit, push) and `punch_finished`.
 extends SceneTree
 
-const POLICY := "res://demo/policies/straight.onnx"
+const POLICY := "res://addons/punch_controller/policies/straight.onnx"
 const KINDS := ["sandbag", "rigid_box", "character_body", "static_post", "area", "marker_on_box", "bone_attachment", "empty",
 	"bystander", "bystander_off_hit_layers"]
 var _report := {}
@@ -27,7 +27,7 @@ func _initialize() -> void:
 		var controller: Node = ClassDB.instantiate("PunchController")
 		controller.set("character", character)
 		controller.set("target", target)
-		controller.set("policy", POLICY)
+		controller.set("policy", load(POLICY))
 		if kind == "bystander_off_hit_layers":
 			controller.set("hit_layers", 1 << 1)
 		root.add_child(controller)

@@ -34,7 +34,7 @@ func _initialize() -> void:
 		var controller: Node = ClassDB.instantiate("PunchController")
 		controller.set("character", character)
 		controller.set("target", sandbag.get_node("Bag"))
-		controller.set("policy", policy)
+		controller.set("policy", load(policy))
 		controller.set("record", true)
 		root.add_child(controller)
 		controller.connect("punch_finished", func(metrics):

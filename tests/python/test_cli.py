@@ -5,6 +5,7 @@ import sys
 from pathlib import Path
 
 from punch_trainer import __version__
+from punch_trainer.sim.godot import ADDON_POLICIES
 
 PUNCH = Path(sys.executable).with_name("punch")
 
@@ -26,7 +27,7 @@ def test_a_policy_whose_metadata_names_code_never_runs_it(tmp_path) -> None:
 
     marker = tmp_path / "ran"
     (tmp_path / "evil.py").write_text(f"open({str(marker)!r}, 'w').write('x')\ndef reward(*a): return 0\n")
-    demo = Path(__file__).resolve().parents[2] / "godot_project" / "demo" / "policies" / "straight.onnx"
+    demo = ADDON_POLICIES / "straight.onnx"
     for named in [f"{tmp_path / 'evil.py'}:reward", "evil:reward"]:
         model = onnx.load(str(demo))
         for prop in model.metadata_props:
@@ -48,7 +49,7 @@ def test_user_errors_are_punch_messages_not_tracebacks(tmp_path) -> None:
     (tmp_path / "quits.py").write_text("import sys\ndef reward(f):\n    sys.exit(0)\n")
     blocker = tmp_path / "a_file"
     blocker.write_text("")
-    demo = Path(__file__).resolve().parents[2] / "godot_project" / "demo" / "policies" / "straight.onnx"
+    demo = ADDON_POLICIES / "straight.onnx"
     model = onnx.load(str(demo))
     for prop in model.metadata_props:
         if prop.key == "punch_training_summary":

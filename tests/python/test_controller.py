@@ -11,7 +11,7 @@ import torch
 from punch_trainer.cli.replay import policy_metadata
 from punch_trainer.cli.train import TrainArgs, run_train
 from punch_trainer.learn.export import export_onnx
-from punch_trainer.sim.godot import GODOT_PROJECT, PROJECT_ROOT, run_godot
+from punch_trainer.sim.godot import ADDON_POLICIES, GODOT_PROJECT, PROJECT_ROOT, run_godot
 
 pytestmark = pytest.mark.godot
 FIXTURES = PROJECT_ROOT / "tests" / "fixtures"
@@ -78,7 +78,8 @@ def test_controller_faults_give_clear_errors_and_the_game_goes_on(policy, tmp_pa
     report = json.loads(line[len("FAULTS "):])
     assert report["refused"] == {"missing": True, "corrupt": True, "incompatible": True, "empty": True,
                                  "wrong_decision_period": True, "good_policy_afterwards_punches": True}
-    for message in ["policy file not found", "invalid ONNX model", "incompatible policy '", "no policy file set",
+    for message in ["model file not found: res://no/such/policy.onnx", "invalid ONNX model",
+                    "its input is '", "no policy set",
                     "incompatible policy: it was trained for spec", "returned NaN", "the target was freed",
                     "the character was freed", "noise_sigma 5 is outside 0..1; using 1"]:
         assert message in run.log, message
@@ -154,7 +155,8 @@ def test_punch_after_punch_and_live_changes():
     """punch() in _ready plays the same punch on two characters in the same state; a policy changed mid-punch
     ends it (interrupted) and a punch right after plays the new one to its end; cancel() ends a punch at once;
     recover() and auto_recover bring the character back (the `recovered` signal); a new seed takes effect at
-    the next punch, and going back to a seed restarts its sequence."""
+    the next punch, and going back to a seed restarts its sequence; a punch asked for off the guard pose first
+    returns to guard (guard_first) and then lands."""
     run = run_script("live_changes.gd")
     assert "ERROR" not in run.log, run.log[-3000:]
     report = printed(run, "LIVE_CHANGES")
@@ -179,6 +181,15 @@ def test_punch_after_punch_and_live_changes():
     assert report["ready"]["recovered"] == 1, "auto_recover on: back to guard after the punch"
     assert not any(report[name]["recovering"] for name in report), "every recovery ended"
 
+    # A punch asked for as the last one ends: first back to guard (guard_first), then the policy's punch,
+    # which lands; with guard_first off it starts from where the arms are.
+    for name in ("again", "again_raw"):
+        assert [f["ended"] for f in report[name]["finished"]] == ["completed", "completed"], name
+    again, raw = (np.abs(np.array(report[name]["first_angles"])).max(axis=1) for name in ("again", "again_raw"))
+    assert again[0] < 0.1 and again[1] < 0.1, again  # the first frame has moved one step from guard
+    assert raw[1] > 0.2, raw
+    assert [f["hits"] for f in report["again"]["finished"]] == [1, 1], report["again"]["finished"]
+
     noise = np.array(report["seeds"]["first_noise"])  # seeds 0, 1, 2, 1
     assert noise.shape == (4, 10)
     np.testing.assert_allclose(noise[1], noise[3], atol=1e-6)  # action - mean rounds in float32
@@ -194,7 +205,7 @@ def test_a_new_project_is_told_which_physics_settings_to_set_and_then_punches(tm
     (project / "project.godot").write_text('config_version=5\n\n[application]\n\nconfig/name="Game"\n')
     shutil.copytree(PROJECT_ROOT / "addons" / "punch_controller", project / "addons" / "punch_controller",
                     ignore=shutil.ignore_patterns("*.import"))
-    shutil.copy(GODOT_PROJECT / "demo" / "policies" / "straight.onnx", project / "straight.onnx")
+    shutil.copy(ADDON_POLICIES / "straight.onnx", project / "straight.onnx")
     run_godot(["--headless", "--path", str(project), "--import"], check=False, timeout_s=120)
     script = PROJECT_ROOT / "tests" / "godot" / "fresh_project.gd"
 
@@ -317,7 +328,9 @@ def test_policy_files_that_lie_are_refused_once_per_file(policy, tmp_path):
     assert run.returncode == 0 and run.fatal_lines() == [], run.log[-3000:]
     line = next(line for line in run.log.splitlines() if line.startswith("HOSTILE "))
     report = json.loads(line[len("HOSTILE "):])
-    errors = [line for line in run.log.splitlines() if line.startswith("ERROR:")]
+    # Godot adds its own "Failed loading resource" line after a loader's refusal; ours says why.
+    errors = [line for line in run.log.splitlines()
+              if line.startswith("ERROR:") and not line.startswith("ERROR: Failed loading resource")]
     for name, path in files.items():
         assert report[str(path)] == [False, False, False], name
         mine = [e for e in errors if path.name in e]

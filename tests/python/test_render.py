@@ -6,10 +6,10 @@ import pytest
 from PIL import Image
 
 from punch_trainer.cli.render import RenderArgs, RenderError, render
-from punch_trainer.sim.godot import GODOT_PROJECT, run_godot
+from punch_trainer.sim.godot import ADDON_POLICIES, GODOT_PROJECT, run_godot
 
 pytestmark = pytest.mark.godot
-POLICY = GODOT_PROJECT / "demo" / "policies" / "straight.onnx"
+POLICY = ADDON_POLICIES / "straight.onnx"
 
 
 @pytest.mark.skipif(shutil.which("Xvfb") is None, reason="no Xvfb on this machine (./dev setup-render installs it)")

@@ -7,12 +7,11 @@
 //! controllers that decide this frame, then each controller acts. Signals are emitted last, with no borrow of
 //! this singleton or of the controller held, so handlers may call back freely.
 
-use std::collections::HashMap;
 use std::rc::Rc;
 use std::time::Instant;
 
-use godot::builtin::{Callable, GString, StringName, Variant};
-use godot::classes::{FileAccess, Node, Object};
+use godot::builtin::{Callable, StringName, Variant};
+use godot::classes::{Node, Object};
 use godot::global::godot_error;
 use godot::obj::{Base, Gd, InstanceId, Singleton};
 use godot::prelude::{GodotClass, godot_api};
@@ -22,7 +21,6 @@ use punch_core::observation::{OBS_DIM, spec_hash};
 use punch_core::spec::{POLICY_INPUT, POLICY_OUTPUTS, PolicySpec, ReachVolume};
 
 use crate::punch_controller::PunchController;
-use crate::punch_runtime::ensure_onnx_runtime;
 
 /// A controller's request for a decision: the policy to ask and the observation to decide on.
 pub type DecisionRequest = (Rc<SharedPolicy>, [f32; OBS_DIM]);
@@ -39,25 +37,29 @@ pub struct SharedPolicy {
 }
 
 impl SharedPolicy {
-    fn load(path: &GString) -> Result<Self, String> {
-        if !ensure_onnx_runtime() {
-            return Err("ONNX Runtime could not be loaded (see the error above)".into());
-        }
-        let bytes = FileAccess::get_file_as_bytes(path);
-        let policy = Policy::from_bytes(bytes.as_slice()).map_err(|e| format!("policy '{path}': {e}"))?;
+    /// Checks that `policy` is a punching policy (its input, outputs and contract).
+    pub fn new(policy: Policy) -> Result<Self, String> {
         policy
             .check_interface(POLICY_INPUT, OBS_DIM, &[(POLICY_OUTPUTS[0], DOF_COUNT), (POLICY_OUTPUTS[1], DOF_COUNT)])
-            .map_err(|e| format!("incompatible policy '{path}': {e}"))?;
-        let spec =
-            PolicySpec::from_metadata(|key| policy.metadata(key)).map_err(|e| format!("policy '{path}': {e}"))?;
-        let reach =
-            ReachVolume::from_metadata(|key| policy.metadata(key)).map_err(|e| format!("policy '{path}': {e}"))?;
+            .map_err(|e| format!("incompatible policy: {e}"))?;
+        let spec = PolicySpec::from_metadata(|key| policy.metadata(key)).map_err(|e| e.to_string())?;
+        let reach = ReachVolume::from_metadata(|key| policy.metadata(key)).map_err(|e| e.to_string())?;
         Ok(Self {
             spec,
             reach,
             spec_hash: policy.metadata(punch_core::spec::keys::SPEC_HASH).unwrap_or_default(),
             policy: std::cell::RefCell::new(policy),
         })
+    }
+
+    /// Runs the model on `batch` rows (`PunchPolicy.run`).
+    pub fn run(&self, input: &[f32], batch: usize) -> punch_core::error::CoreResult<Vec<punch_core::Tensor>> {
+        self.policy.borrow_mut().run(input, batch)
+    }
+
+    /// Reads the model (`PunchPolicy`'s metadata and shape queries).
+    pub fn read<R>(&self, read: impl FnOnce(&Policy) -> R) -> R {
+        read(&self.policy.borrow())
     }
 
     /// Checks that the policy was trained for this character's observation with `decision_period`.
@@ -88,9 +90,6 @@ impl SharedPolicy {
 #[derive(GodotClass)]
 #[class(init, singleton, base = Object)]
 pub struct PunchInference {
-    /// Loaded (or refused) policies by path, with the file's modification time: a changed file is loaded
-    /// again.
-    policies: HashMap<String, (u64, Result<Rc<SharedPolicy>, String>)>,
     /// The controllers with a punch running (or just started).
     active: Vec<Gd<PunchController>>,
     /// The scene tree whose `physics_frame` signal runs the batch.
@@ -116,29 +115,6 @@ impl PunchInference {
 }
 
 impl PunchInference {
-    /// The policy at `path` (read through Godot's file system, so it works inside a .pck), loaded once per
-    /// version of the file and shared by every controller that plays it. The error is empty when the same
-    /// file was refused before (it was reported then).
-    pub fn policy(path: &GString) -> Result<Rc<SharedPolicy>, String> {
-        if path.is_empty() {
-            return Err("no policy file set".into());
-        }
-        if !FileAccess::file_exists(path) {
-            return Err(format!("policy file not found: '{path}'"));
-        }
-        let key = path.to_string();
-        let modified = FileAccess::get_modified_time(path);
-        let mut hub = Self::singleton();
-        if let Some((_, loaded)) = hub.bind().policies.get(&key).filter(|(m, _)| *m == modified) {
-            // A file refused once is refused again with an empty error: one message per file, not per
-            // controller.
-            return loaded.clone().map_err(|_| String::new());
-        }
-        let loaded = SharedPolicy::load(path).map(Rc::new);
-        hub.bind_mut().policies.insert(key, (modified, loaded.clone()));
-        loaded
-    }
-
     /// Puts a controller on the list run every physics frame (it leaves by itself when its punch ends).
     pub fn enlist(controller: Gd<PunchController>) {
         let mut hub = Self::singleton();

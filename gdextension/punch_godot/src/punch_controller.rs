@@ -22,6 +22,7 @@ use crate::batch::{DecisionRequest, PunchInference, SharedPolicy};
 use crate::convert::vector3;
 use crate::engine_io::{add_area_touches, add_bag_contacts, read_forearm_contacts};
 use crate::punch_character::PunchCharacter;
+use crate::punch_policy::PunchPolicy;
 use crate::target::Target;
 
 /// Makes a `PunchCharacter` punch a target with a trained policy (an .onnx file made by `punch train`).
@@ -29,19 +30,20 @@ use crate::target::Target;
 /// policy's mean action at every decision (or at the first `noise_decisions` only). All controllers that
 /// play the same policy file share one model and run in one inference call per decision tick.
 ///
-/// A punch starts from whatever pose the character is in; after it, the character returns to its guard pose
-/// under physics (`auto_recover`). Two punches are identical (sigma 0, or the same seed) when they start from
+/// A punch asked for away from the guard pose first returns the character to guard (`guard_first`); after
+/// it, the character returns to its guard pose under physics (`auto_recover`). Two punches are identical (sigma 0, or the same seed) when they start from
 /// the same state of the world: the character at rest in its guard pose (as after `recover()` from rest, or
 /// in a scene that has just started) and the target at rest at the same place relative to it.
 #[derive(GodotClass)]
 #[class(base = Node, init)]
 pub struct PunchController {
-    /// The policy: an .onnx file from `punch train`, read through Godot's file system (works in exported
-    /// games). Changing it during a punch ends that punch (`punch_finished` says it was interrupted); the
-    /// next punch plays the new policy.
-    #[export(file = "*.onnx")]
+    /// The policy: an .onnx file from `punch train` (a `PunchPolicy` resource: pick the file, or
+    /// `load("res://....onnx")`). The addon ships one per style in `addons/punch_controller/policies/`.
+    /// Changing it during a punch ends that punch (`punch_finished` says it was interrupted); the next punch
+    /// plays the new policy.
+    #[export]
     #[var(set = set_policy)]
-    policy: GString,
+    policy: Option<Gd<PunchPolicy>>,
     /// Standard deviation of the noise added to the policy's mean action, in action units (actions lie in
     /// [-1, 1]). Values outside 0..1 are clamped, with a warning. Takes effect at the next decision.
     #[export(range = (0.0, 1.0, 0.01))]
@@ -82,6 +84,13 @@ pub struct PunchController {
     #[export]
     #[init(val = true)]
     auto_recover: bool,
+    /// A punch asked for while the character is away from its guard pose (the end of an earlier punch,
+    /// mid-recovery) first returns it to guard under physics, at most 0.5 s, then plays the policy: punches
+    /// land far more often from there (BENCHMARKS.md, "after an earlier punch"). Off: the policy starts from
+    /// whatever pose the arms are in. A punch from the guard starts at once either way.
+    #[export]
+    #[init(val = true)]
+    guard_first: bool,
     /// Punch as soon as the scene starts.
     #[export]
     autostart: bool,
@@ -105,6 +114,9 @@ enum Phase {
     #[default]
     Idle,
     Punching(Box<Punch>),
+    /// A punch asked for away from the guard pose (`guard_first`): returning to guard before it starts;
+    /// the motor commands for the next step.
+    Guarding(Box<Punch>, Box<Recovery>, [Vec3; 5]),
     /// Returning to guard; the motor commands for the next step.
     Recovering(Box<Recovery>, [Vec3; 5]),
 }
@@ -173,7 +185,8 @@ impl PunchController {
     #[signal]
     fn recovered();
 
-    /// Starts a punch from the character's current pose (a punch already running ends first, interrupted).
+    /// Starts a punch (a punch already running ends first, interrupted): at once from the guard pose, else
+    /// after a return to guard (`guard_first`) or from the current pose.
     /// Returns false (with the reason in the log) when the policy, the character or the target is missing or
     /// unusable, or the project's physics settings are not the policy's. A target outside the policy's
     /// reach gets a punch at the nearest point it covers, and `target_out_of_reach`.
@@ -205,7 +218,7 @@ impl PunchController {
     #[func]
     fn reach_volume(&self) -> VarDictionary {
         let mut result = VarDictionary::new();
-        let reach = match PunchInference::policy(&self.policy) {
+        let reach = match self.shared_policy() {
             Ok(policy) => policy.reach,
             Err(error) => {
                 if !error.is_empty() {
@@ -245,10 +258,10 @@ impl PunchController {
         }
     }
 
-    /// True while a punch is running.
+    /// True while a punch is running (including its return to guard first, `guard_first`).
     #[func]
     pub fn is_punching(&self) -> bool {
-        matches!(self.phase, Phase::Punching(_))
+        matches!(self.phase, Phase::Punching(_) | Phase::Guarding(..))
     }
 
     /// True while the character returns to its guard pose.
@@ -338,9 +351,9 @@ impl PunchController {
         .collect()
     }
 
-    /// Sets the policy file; the next punch loads it (a punch running now ends, interrupted).
+    /// Sets the policy; the next punch plays it (a punch running now ends, interrupted).
     #[func]
-    fn set_policy(&mut self, policy: GString) {
+    fn set_policy(&mut self, policy: Option<Gd<PunchPolicy>>) {
         let changed = policy != self.policy;
         self.policy = policy;
         self.loaded = None;
@@ -373,7 +386,7 @@ impl PunchController {
             self.loaded = None;
         }
         if self.loaded.is_none() {
-            let policy = PunchInference::policy(&self.policy)?;
+            let policy = self.shared_policy()?;
             let noise = RuntimeNoise::new(self.seed as u64, self.noise_sigma, self.noise_decisions);
             self.loaded = Some(Loaded { policy, noise, seed: self.seed });
         }
@@ -391,8 +404,20 @@ impl PunchController {
         });
         target.describe(&mut geometry);
         self.aim = Some(target);
-        self.phase = Phase::Punching(Box::new(Punch::new(geometry, loaded.policy.spec, self.record)));
+        let punch = Box::new(Punch::new(geometry, loaded.policy.spec, self.record));
+        self.phase = if self.guard_first {
+            // Decided at the next frame's reading: a character already in guard punches in that same frame.
+            Phase::Guarding(punch, Box::new(Recovery::new(geometry)), [Vec3::ZERO; 5])
+        } else {
+            Phase::Punching(punch)
+        };
         Ok(out_of_reach)
+    }
+
+    /// The policy resource as a checked punching policy (an empty error: refused and reported before).
+    fn shared_policy(&self) -> Result<Rc<SharedPolicy>, String> {
+        let mut policy = self.policy.clone().ok_or("no policy set")?;
+        policy.bind_mut().punching()
     }
 
     /// The character's rest geometry where it stands now.
@@ -414,7 +439,7 @@ impl PunchController {
         if !self.is_punching() {
             return;
         }
-        let Phase::Punching(punch) = std::mem::take(&mut self.phase) else { return };
+        let (Phase::Punching(punch) | Phase::Guarding(punch, ..)) = std::mem::take(&mut self.phase) else { return };
         let (summary, record) = punch.interrupt();
         self.last_record = record.unwrap_or_default();
         self.hold();
@@ -438,7 +463,7 @@ impl PunchController {
 
     /// Ends the punch on an error already logged (once for all the controllers a shared policy failed).
     fn stop_quietly(&mut self, error: &str) {
-        if let Phase::Punching(punch) = std::mem::take(&mut self.phase) {
+        if let Phase::Punching(punch) | Phase::Guarding(punch, ..) = std::mem::take(&mut self.phase) {
             // Whoever waits for the end of the punch hears of it.
             self.events.push(Event::Finished(punch.interrupt().0, Ending::Error(error.to_string())));
         }
@@ -478,6 +503,16 @@ impl PunchController {
                 }
             }
             return Ok(None);
+        }
+        if let Phase::Guarding(_, recovery, commands) = &mut self.phase {
+            if let Some(next) = recovery.step(&reading) {
+                *commands = next;
+                return Ok(None);
+            }
+            // In guard: the punch starts with this frame.
+            if let Phase::Guarding(punch, ..) = std::mem::take(&mut self.phase) {
+                self.phase = Phase::Punching(punch);
+            }
         }
         let Phase::Punching(punch) = &mut self.phase else { return Ok(None) };
         let aim = self.aim.as_ref().filter(|aim| aim.is_valid()).ok_or("the target was freed")?;
@@ -537,7 +572,7 @@ impl PunchController {
     fn try_act(&mut self, mean: Option<Vec<f32>>) -> Result<(), String> {
         let commands = match &mut self.phase {
             Phase::Idle => return Ok(()),
-            Phase::Recovering(_, commands) => *commands,
+            Phase::Recovering(_, commands) | Phase::Guarding(_, _, commands) => *commands,
             Phase::Punching(punch) => {
                 let loaded = self.loaded.as_mut().ok_or("no policy")?;
                 // The inspector may change these at any time: they apply from the next decision.

@@ -13,9 +13,9 @@ from typing import Any, ClassVar, Protocol, TypeVar
 from punch_trainer import __version__
 from punch_trainer.errors import PunchError
 from punch_trainer.learn.checkpoint import read_config
-from punch_trainer.sim.godot import GODOT_PROJECT
+from punch_trainer.sim.godot import ADDON_POLICIES
 
-DEMO_POLICY = GODOT_PROJECT / "demo" / "policies" / "straight.onnx"
+DEMO_POLICY = ADDON_POLICIES / "straight.onnx"
 
 
 class _RunArgs(Protocol):

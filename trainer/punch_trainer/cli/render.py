@@ -1,7 +1,7 @@
 """`punch render`: a GIF of a policy's punches, one character per noise sigma side by side, filmed by Godot's
 Movie Maker mode under a virtual X display (Xvfb), so it works on a machine without a screen or GPU.
 
-    punch render --policy godot_project/demo/policies/hook.onnx --sigmas 0,0.3,0.6 --out docs/hook.gif
+    punch render --policy addons/punch_controller/policies/hook.onnx --sigmas 0,0.3,0.6 --out docs/hook.gif
 """
 
 from __future__ import annotations

@@ -18,6 +18,8 @@ from punch_trainer.errors import GodotNotFoundError, GodotRunError
 PROJECT_ROOT = Path(__file__).resolve().parents[3]
 GODOT_WRAPPER = PROJECT_ROOT / "tools" / "godot"
 GODOT_PROJECT = PROJECT_ROOT / "godot_project"
+# The default policies the addon ships (one per style), which the demo plays too.
+ADDON_POLICIES = PROJECT_ROOT / "addons" / "punch_controller" / "policies"
 
 # Lines in Godot's log that mean a run failed even if the process exited 0 (the same checks as
 # godot-rust's own integration-test runner).
