@@ -28,11 +28,11 @@ use crate::target::Target;
 /// Makes a `PunchCharacter` punch a target with a trained policy (an .onnx file made by `punch train`).
 /// Each punch differs when `noise_sigma` > 0: Gaussian noise of that standard deviation is added to the
 /// policy's mean action at every decision (or at the first `noise_decisions` only). All controllers that
-/// play the same policy file share one model and run in one inference call per decision tick.
+/// play the same `PunchPolicy` resource share one model and run in one inference call per decision tick.
 ///
 /// A punch asked for away from the guard pose first returns the character to guard (`guard_first`); after
-/// it, the character returns to its guard pose under physics (`auto_recover`). Two punches are identical (sigma 0, or the same seed) when they start from
-/// the same state of the world: the character at rest in its guard pose (as after `recover()` from rest, or
+/// it, the character returns to its guard pose under physics (`auto_recover`). Two punches are identical
+/// (sigma 0, or the same seed) when they start from the same state of the world: the character at rest in its guard pose (as after `recover()` from rest, or
 /// in a scene that has just started) and the target at rest at the same place relative to it.
 #[derive(GodotClass)]
 #[class(base = Node, init)]
