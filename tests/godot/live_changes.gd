@@ -6,14 +6,16 @@
 ## - "cancel": cancel() on frame 5; "recover": auto_recover off, recover() called after the punch;
 ## - "seeds": sigma 0.3, punches with seed 1, 2, then 1 again: the first decision's noise of each;
 ## - "again" and "again_raw": a second punch asked for as the first ends (guard_first on, and off): the first
-##   frame's joint angles and the hits of each punch (the bag is put back still before the second).
+##   frame's joint angles and the hits of each punch (the bag is put back still before the second); these two
+##   characters are turned (90 and -150 degrees).
 ## Prints `LIVE_CHANGES <json>` and quits.
 extends SceneTree
 
 const STRAIGHT := "res://addons/punch_controller/policies/straight.onnx"
 const HOOK := "res://addons/punch_controller/policies/hook.onnx"
 const CASES := ["ready", "ready_twin", "switch", "cancel", "recover", "seeds", "again", "again_raw"]
-const ANGLE_COLUMNS := 32  # the joint angles' first feature column (punch_core sensing::columns::ANGLES)
+# The joint angles' first feature column, by name from the controller itself.
+var _angle_column: int = Array(PunchController.feature_names()).find("angle_waist_flexion")
 var _controllers := {}
 var _report := {}
 var _frames := 0
@@ -26,6 +28,8 @@ func _initialize() -> void:
 		var name: String = CASES[index]
 		var character: Node3D = load("res://addons/punch_controller/scenes/punch_character.tscn").instantiate()
 		character.position = Vector3(4.0 * index, 0, 0)
+		if name.begins_with("again"):
+			character.rotation.y = deg_to_rad(90.0 if name == "again" else -150.0)  # turned, not at the origin
 		root.add_child(character)
 		var sandbag: Node3D = load("res://addons/punch_controller/scenes/punch_sandbag.tscn").instantiate()
 		sandbag.position = character.transform * PunchController.default_target_offset()
@@ -60,7 +64,7 @@ func _on_finished(name: String, controller: Node, metrics: Dictionary) -> void:
 	if name.begins_with("ready"):
 		_report[name].features = Array(record.features)
 	if name.begins_with("again"):
-		_report[name].first_angles.append(Array(record.features.slice(ANGLE_COLUMNS, ANGLE_COLUMNS + 10)))
+		_report[name].first_angles.append(Array(record.features.slice(_angle_column, _angle_column + 10)))
 		if _report[name].finished.size() == 1:
 			# The bag hangs still again (as in `punch eval`'s "after a punch"): only the arms' pose differs.
 			var bag: RigidBody3D = controller.get("target")

@@ -11,13 +11,14 @@ import onnx
 import pytest
 
 from punch_trainer import __version__
-from punch_trainer.sim.godot import ADDON_POLICIES, PROJECT_ROOT, run_godot
+from punch_trainer.sim.godot import ADDON_POLICIES, GODOT_PROJECT, PROJECT_ROOT, run_godot
 
 sys.path.insert(0, str(PROJECT_ROOT / "tools"))
 import package  # noqa: E402  (tools/package.py, which ./dev package runs)
 
 pytestmark = pytest.mark.godot
 NEW_GAME = PROJECT_ROOT / "tests" / "fixtures" / "new_game"
+POLICIES = "res://addons/punch_controller/policies"
 
 
 def test_one_version_names_the_addon_the_extension_the_trainer_and_the_policies():
@@ -54,14 +55,21 @@ def test_the_zip_holds_the_addon_and_nothing_else(zip_file):
 
 
 def test_a_new_project_from_the_zip_imports_exports_and_punches(zip_file, tmp_path):
+    """A new project (a scene with the addon's hook policy, Godot's default physics settings) and the zip."""
     game = tmp_path / "new_game"
     shutil.copytree(NEW_GAME, game)
+    shutil.copy(GODOT_PROJECT / "export_presets.cfg", game)  # the demo's Linux preset
     zipfile.ZipFile(zip_file).extractall(game)
     # The README's step before a first headless import (Godot issue 111048 crashes it otherwise).
     (game / ".godot").mkdir()
     (game / ".godot" / "extension_list.cfg").write_text("res://addons/punch_controller/punch_controller.gdextension\n")
     imported = run_godot(["--headless", "--path", str(game), "--import"], check=False, timeout_s=180)
     assert imported.returncode == 0, imported.log[-3000:]
+    # The physics settings, set as the editor plugin offers to (the hand-wired punch of that run refuses).
+    applied = run_godot(["--headless", "--path", str(game), "--script", str(PROJECT_ROOT / "tests" / "godot" /
+                         "fresh_project.gd"), "--", "--apply", f"--policy={POLICIES}/straight.onnx"],
+                        check=False, timeout_s=120)
+    assert "FRESH_PROJECT " in applied.log and "Jolt Physics" in (game / "project.godot").read_text(), applied.log
 
     pack = tmp_path / "exported" / "new_game.pck"
     pack.parent.mkdir()

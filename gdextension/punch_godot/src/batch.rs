@@ -76,7 +76,7 @@ impl SharedPolicy {
 
     /// Mean actions for `batch` observations (row-major), one inference call.
     pub fn mean_actions(&self, observations: &[f32], batch: usize) -> Result<Vec<f32>, String> {
-        let outputs = self.policy.borrow_mut().run(observations, batch).map_err(|e| e.to_string())?;
+        let outputs = self.run(observations, batch).map_err(|e| e.to_string())?;
         let mean = outputs.into_iter().next().ok_or("the policy has no output")?;
         if mean.data.iter().any(|v| !v.is_finite()) {
             return Err("the policy returned NaN or infinite actions".into());

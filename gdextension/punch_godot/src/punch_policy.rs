@@ -110,8 +110,12 @@ impl PunchPolicy {
         let result = match &mut self.model {
             Model::Loaded(policy) => policy.run(input.as_slice(), batch.max(0) as usize),
             Model::Punching(shared) => shared.run(input.as_slice(), batch.max(0) as usize),
-            Model::Empty | Model::Refused => {
+            Model::Empty => {
                 godot_error!("PunchPolicy: run() called with no model loaded");
+                return outputs;
+            }
+            Model::Refused => {
+                godot_error!("PunchPolicy: run() called on a model refused as a punching policy");
                 return outputs;
             }
         };
