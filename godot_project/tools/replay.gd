@@ -4,13 +4,14 @@
 ## tools/godot --headless --fixed-fps 120 --path godot_project --script res://tools/replay.gd -- \
 ##     --policy=PATH --sigmas=0.1,0.5 --episodes=100 --out=DIR [--noise-decisions=4] [--characters=64]
 ##     [--characters-per-world=16] [--seed=0] [--bag=distance_m,height_m,side_m] [--bags=FILE.json]
-##     [--start=guard|after_punch]
+##     [--start=guard|after_punch] [--idle-frames=0]
 ##
 ## `--bags` names a JSON list of placements (`distance_m`, `height_m`, `side_m`, optional
 ## `velocity_side_mps` and `velocity_forward_mps`: a bag already swinging); episode e uses entry e modulo the
 ## list's length. `--start=after_punch` starts every recorded punch from the end of an earlier one: each
 ## controller punches once, then again at once from where that left it, with its bag put back as placed
-## (only the second punch is recorded).
+## (only the second punch is recorded). `--idle-frames=N` keeps each batch's characters standing, their
+## controllers idle, for N physics frames after their punches, and records the controllers' work in each.
 ##
 ## Characters run side by side like the training server's slots: each group shares a physics world (a
 ## SubViewport with its own World3D) and two collision layers per character keep them apart. Every batch is
@@ -20,14 +21,15 @@
 ## Output per sigma index s in DIR: features_s.f32 [episodes, frames, F], observations_s.f32
 ## [episodes, decisions, 45], mean_actions_s.f32 and actions_s.f32 [episodes, decisions, 10], all little-endian
 ## float32, and meta.json (with the controllers' inference counts and time, and their work per physics frame,
-## for `punch bench inference`). Progress lines: `REPLAY_PROGRESS done total`.
+## punching and, with `--idle-frames`, idle, for `punch bench inference`). Progress lines:
+## `REPLAY_PROGRESS done total`.
 extends SceneTree
 
 const PunchPair := preload("res://tools/punch_pair.gd")
 
 var _options := {
 	"policy": "", "sigmas": "0", "episodes": "10", "out": "", "noise-decisions": "-1", "characters": "64",
-	"characters-per-world": "16", "seed": "0", "bag": "", "bags": "", "start": "guard",
+	"characters-per-world": "16", "seed": "0", "bag": "", "bags": "", "start": "guard", "idle-frames": "0",
 }
 var _bags: Array = []
 var _sigmas := PackedFloat32Array()
@@ -41,6 +43,8 @@ var _files := {}
 var _meta := {}
 var _inference := {"calls": 0, "rows": 0, "usec": 0.0}
 var _controller_frame_usec := []
+var _idle_frame_usec := []
+var _idle_frames_left := -1
 
 
 func _initialize() -> void:
@@ -82,12 +86,25 @@ func _physics_process(_delta: float) -> bool:
 	if not _controllers.is_empty():
 		if _pending > 0:
 			return false
+		if _idle_frames_left < 0 and int(_options["idle-frames"]) > 0:
+			_controller_frame_usec.append(ClassDB.class_call_static("PunchController", "take_frame_cost_usec"))
+			_idle_frames_left = int(_options["idle-frames"]) + 1
+			_idle_frame_usec.append([])
+		if _idle_frames_left > 0:
+			# Frame by frame: a median is not moved by the rare frame the OS takes the thread away.
+			_idle_frame_usec[-1].append(ClassDB.class_call_static("PunchController", "take_frame_cost_usec"))
+			_idle_frames_left -= 1
+			if _idle_frames_left > 0:
+				return false
+			_idle_frame_usec[-1].pop_front()  # the frame the punches ended in
+		_idle_frames_left = -1
 		_collect_batch()
 	if _sigma_index < _sigmas.size():
 		_start_batch()
 		return false
 	_meta["inference"] = _inference
 	_meta["controller_frame_usec_per_batch"] = _controller_frame_usec
+	_meta["idle_controller_frame_usec_per_batch"] = _idle_frame_usec
 	var meta_file := FileAccess.open(_options.out.path_join("meta.json"), FileAccess.WRITE)
 	meta_file.store_string(JSON.stringify(_meta, "  "))
 	meta_file.close()
@@ -152,7 +169,8 @@ func _collect_batch() -> void:
 	var counts: Dictionary = ClassDB.class_call_static("PunchController", "take_inference_counts")
 	for key in _inference:
 		_inference[key] += counts[key]
-	_controller_frame_usec.append(ClassDB.class_call_static("PunchController", "take_frame_cost_usec"))
+	if int(_options["idle-frames"]) == 0:  # else taken before the idle frames
+		_controller_frame_usec.append(ClassDB.class_call_static("PunchController", "take_frame_cost_usec"))
 	if _episodes_done == 0:
 		for kind in ["features", "observations", "mean_actions", "actions"]:
 			_files[kind] = FileAccess.open(_options.out.path_join("%s_%d.f32" % [kind, _sigma_index]), FileAccess.WRITE)

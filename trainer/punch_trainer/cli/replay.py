@@ -90,14 +90,16 @@ def policy_metadata(path: Path) -> dict[str, str]:
     return {p.key: p.value for p in model.metadata_props}
 
 
-def run_godot_replay(args: ReplayArgs, frames_dir: Path, progress: bool = True) -> dict[str, Any]:
-    """Runs tools/replay.gd; returns its meta.json. Raises ReplayError when Godot fails."""
+def run_godot_replay(args: ReplayArgs, frames_dir: Path, progress: bool = True, idle_frames: int = 0) -> dict[str, Any]:
+    """Runs tools/replay.gd; returns its meta.json. Raises ReplayError when Godot fails. `idle_frames`: frames
+    each batch stands idle after its punches (for `punch bench inference`)."""
     command = [
         "--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), "--script", "res://tools/replay.gd", "--",
         f"--policy={Path(args.policy).resolve()}", f"--sigmas={','.join(map(str, args.sigmas))}",
         f"--episodes={args.episodes}", f"--out={frames_dir.resolve()}", f"--noise-decisions={args.noise_decisions}",
         f"--characters={args.characters}", f"--characters-per-world={args.characters_per_world}", f"--seed={args.seed}",
-        f"--start={args.start}", *([f"--bags={Path(args.bags).resolve()}"] if args.bags else []),
+        f"--start={args.start}", f"--idle-frames={idle_frames}",
+        *([f"--bags={Path(args.bags).resolve()}"] if args.bags else []),
     ]
     log: list[str] = []
     total_punches = len(args.sigmas) * args.episodes
