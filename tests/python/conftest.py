@@ -29,13 +29,29 @@ def godot_processes() -> set[int]:
     return found
 
 
+def ray_processes() -> set[int]:
+    """PIDs of Ray's own processes (GCS, raylets, workers, agents) on this machine."""
+    found = set()
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            command = (entry / "cmdline").read_bytes().replace(b"\0", b" ")
+        except OSError:
+            continue
+        if any(mark in command for mark in (b"ray::", b"/ray/core/src/ray/", b"ray/_private/", b"ray/dashboard/", b"ray/autoscaler/")):
+            found.add(int(entry.name))
+    return found
+
+
 @pytest.fixture(scope="session", autouse=True)
 def no_godot_left_behind():
-    """After the whole suite, no Godot process it started may still run (counted in the process table)."""
-    before = godot_processes()
+    """After the whole suite, no Godot or Ray process it started may still run (counted in the process table)."""
+    before, ray_before = godot_processes(), ray_processes()
     yield
     deadline = time.monotonic() + 10
-    while (left := godot_processes() - before) and time.monotonic() < deadline:
+    while ((left := godot_processes() - before) or ray_processes() - ray_before) and time.monotonic() < deadline:
         time.sleep(0.2)
     assert not left, f"Godot processes left behind by the tests: {sorted(left)}"
+    assert not ray_processes() - ray_before, f"Ray processes left behind by the tests: {sorted(ray_processes() - ray_before)}"
     print(f"\nprocess check: {len(before)} Godot process(es) of this project before the tests, {len(godot_processes())} after")

@@ -264,6 +264,7 @@ def build_parser() -> argparse.ArgumentParser:
     search.add_argument("--characters-per-process", dest="characters_per_process", type=int, default=defaults.characters_per_process)
     search.add_argument("--resume", type=Path, metavar="RUN_DIR",
                         help="continue an interrupted search from its checkpoint, with its own arguments (other options are ignored)")
+    add_ray_option(search)
     search.set_defaults(run=_search)
 
     train = commands.add_parser("train", help="search, pretraining, A2C and ONNX export for a reward")
@@ -288,6 +289,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="volume: rollouts per placement and iteration (default 16)")
     train.add_argument("--resume", type=Path, metavar="RUN_DIR",
                        help="continue an interrupted run from its checkpoints, with its own arguments (other options are ignored)")
+    add_ray_option(train)
     train.set_defaults(run=_train)
 
     pre = commands.add_parser("pretrain", help="pretrain a policy on one or several trajectory datasets (no simulation)")
@@ -308,6 +310,7 @@ def build_parser() -> argparse.ArgumentParser:
     evaluation.add_argument("--search-iterations", dest="search_iterations", type=int, default=20,
                             help="per-placement search for the best return (0: none)")
     evaluation.add_argument("--out", type=Path)
+    add_ray_option(evaluation)
     evaluation.set_defaults(run=_eval)
 
     replay = commands.add_parser("replay", help="replay a policy through PunchController in Godot at several noise sigmas (paper Fig. 10-11)")
@@ -361,6 +364,7 @@ def build_parser() -> argparse.ArgumentParser:
     env.add_argument("--frames", type=int, default=50, help="physics frames per episode")
     env.add_argument("--episodes", type=int, default=6, help="episodes measured per configuration")
     env.add_argument("--no-write", action="store_true", help="print only; leave BENCHMARKS.md alone")
+    add_ray_option(env)
     env.set_defaults(run=_bench_env)
     inference = bench_targets.add_parser("inference", help="PunchController inference and per-frame cost in Godot, 1 to 256 controllers")
     inference.add_argument("--policy", type=Path, default=DEMO_POLICY, help="policy to run (default: the demo's straight punch)")
@@ -378,10 +382,19 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def add_ray_option(command: argparse.ArgumentParser) -> None:
+    command.add_argument("--ray", nargs="?", const="auto", metavar="ADDRESS",
+                         help="run the Godot workers as Ray actors on the cluster at ADDRESS (alone, or 'auto': the one "
+                              "RAY_ADDRESS names or `ray start` began on this machine); docs/cluster.md")
+
+
 def main(argv: list[str] | None = None) -> int:
+    from punch_trainer.sim.cluster import ray_cluster
+
     args = build_parser().parse_args(argv)
     try:
-        return int(args.run(args))
+        with ray_cluster(getattr(args, "ray", None)):
+            return int(args.run(args))
     except PunchError as error:
         if args.debug:
             raise

@@ -18,7 +18,7 @@ from punch_trainer.errors import PunchError
 from punch_trainer.learn.reach import METADATA_KEY, ReachVolume
 from punch_trainer.learn.search import SearchArgs, SearchResult
 from punch_trainer.sim.rewards import Reward, score
-from punch_trainer.sim.server import ServerInfo, TrainingServer
+from punch_trainer.sim.server import ServerInfo, start_servers
 
 
 class DatasetError(PunchError):
@@ -41,7 +41,7 @@ def record_datasets(results: list[SearchResult], reward: Reward, args: SearchArg
     bags = bags or [None] * len(results)  # type: ignore[list-item]
     recorded: list[dict[str, np.ndarray] | None] = [None] * len(results)
     pending = list(range(len(results)))
-    with TrainingServer(slot_count, decision_period=args.decision_period) as server:
+    with start_servers(1, slot_count, args.decision_period)[0] as server:
         info = server.info
         reach = reach or ReachVolume.spot(bags[0] or info.default_bag)
         while pending:

@@ -29,7 +29,7 @@ import numpy as np
 
 from punch_trainer.sim.protocol import reset_message, step_message
 from punch_trainer.sim.rewards import Reward, score
-from punch_trainer.sim.server import ServerInfo, TrainingServer, exchange
+from punch_trainer.sim.server import ServerConnection, ServerInfo, TrainingServer, exchange
 from punch_trainer.sim.server_group import ServerGroup
 
 
@@ -153,7 +153,7 @@ class PunchVectorEnv(gym.vector.VectorEnv, _EpisodeSettings):
         return np.concatenate([r.arrays["observations"] for r in replies]), rewards, terminated, truncated, {"features": features}
 
     @property
-    def servers(self) -> list[TrainingServer]:
+    def servers(self) -> list[ServerConnection]:
         return self.group.servers
 
     def restart(self) -> None:

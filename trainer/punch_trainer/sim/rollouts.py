@@ -12,7 +12,7 @@ import functools
 import numpy as np
 
 from punch_trainer.sim.protocol import Message, rollout_message
-from punch_trainer.sim.server import TrainingServer, exchange
+from punch_trainer.sim.server import ServerConnection, exchange
 from punch_trainer.sim.server_group import ServerGroup, SimulatorRestarts
 
 
@@ -28,7 +28,7 @@ class RolloutPool:
         self._restarts = SimulatorRestarts(self.group.restart, max_restarts)
 
     @property
-    def servers(self) -> list[TrainingServer]:
+    def servers(self) -> list[ServerConnection]:
         return self.group.servers
 
     @property

@@ -11,6 +11,7 @@ import socket
 import subprocess
 import time
 from dataclasses import dataclass
+from typing import Self
 
 import numpy as np
 
@@ -69,7 +70,53 @@ class ServerInfo:
         return len(self.action_names)
 
 
-class TrainingServer:
+class ServerConnection:
+    """What the trainer asks of a training server, wherever it runs: `TrainingServer` (a local process) or
+    `cluster.RayTrainingServer` (a process on a Ray worker node). Subclasses send and receive."""
+
+    info: ServerInfo
+
+    def send(self, message: Message) -> None:
+        raise NotImplementedError
+
+    def receive(self) -> Message:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+    def request(self, message: Message) -> Message:
+        self.send(message)
+        return self.receive()
+
+    def reset(self, frames: int = 50, bags: Bags = None, smoothing_window: int = 1, lead_in: np.ndarray | None = None) -> Message:
+        """A new episode for every slot (after the `lead_in` actions, if any: `reset_message`). The reply holds
+        `observations` [N, O], `features` [N, F] and the `policy_metadata` that a policy trained on such
+        episodes must carry."""
+        return self.request(reset_message(frames, bags=bags, smoothing_window=smoothing_window, lead_in=lead_in))
+
+    def step(self, actions: np.ndarray) -> Message:
+        """One decision of actions [N, A]; the reply holds its `features` [N, period, F] and the next
+        `observations`."""
+        return self.request(step_message(actions))
+
+    def rollout_reply(self, actions: np.ndarray, bags: Bags = None, smoothing_window: int = 1) -> Message:
+        """Open loop: raw actions [N, decisions, A] from the initial state. The reply holds `features`
+        [N, frames, F] and `executed_actions` [N, decisions, A] (after smoothing)."""
+        return self.request(rollout_message(actions, bags=bags, smoothing_window=smoothing_window))
+
+    def rollout(self, actions: np.ndarray, bags: Bags = None, smoothing_window: int = 1) -> np.ndarray:
+        """Open loop; returns only the features [N, frames, F]."""
+        return self.rollout_reply(actions, bags, smoothing_window).arrays["features"]
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class TrainingServer(ServerConnection):
     """One Godot process running N characters. Use as a context manager, or call close()."""
 
     def __init__(self, slot_count: int = 1, *, decision_period: int = 5, slots_per_world: int = 16,
@@ -144,30 +191,6 @@ class TrainingServer:
             raise PunchError("the training server is closed")
         return receive(self._socket)
 
-    def request(self, message: Message) -> Message:
-        self.send(message)
-        return self.receive()
-
-    def reset(self, frames: int = 50, bags: Bags = None, smoothing_window: int = 1, lead_in: np.ndarray | None = None) -> Message:
-        """A new episode for every slot (after the `lead_in` actions, if any: `reset_message`). The reply holds
-        `observations` [N, O], `features` [N, F] and the `policy_metadata` that a policy trained on such
-        episodes must carry."""
-        return self.request(reset_message(frames, bags=bags, smoothing_window=smoothing_window, lead_in=lead_in))
-
-    def step(self, actions: np.ndarray) -> Message:
-        """One decision of actions [N, A]; the reply holds its `features` [N, period, F] and the next
-        `observations`."""
-        return self.request(step_message(actions))
-
-    def rollout_reply(self, actions: np.ndarray, bags: Bags = None, smoothing_window: int = 1) -> Message:
-        """Open loop: raw actions [N, decisions, A] from the initial state. The reply holds `features`
-        [N, frames, F] and `executed_actions` [N, decisions, A] (after smoothing)."""
-        return self.request(rollout_message(actions, bags=bags, smoothing_window=smoothing_window))
-
-    def rollout(self, actions: np.ndarray, bags: Bags = None, smoothing_window: int = 1) -> np.ndarray:
-        """Open loop; returns only the features [N, frames, F]."""
-        return self.rollout_reply(actions, bags, smoothing_window).arrays["features"]
-
     def close(self) -> None:
         """Says goodbye, then ends the process (killed by its PID if it does not exit). Idempotent."""
         if self._socket is not None:
@@ -182,20 +205,18 @@ class TrainingServer:
             process, self._process = self._process, None
             stop_godot(process)
 
-    def __enter__(self) -> TrainingServer:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
     def __del__(self) -> None:
         self.close()
 
 
-def start_servers(processes: int, characters_per_process: int, decision_period: int = 5) -> list[TrainingServer]:
-    """K servers with N characters each; if one fails to start, the others are closed before the error
-    propagates."""
-    servers: list[TrainingServer] = []
+def start_servers(processes: int, characters_per_process: int, decision_period: int = 5) -> list[ServerConnection]:
+    """K servers with N characters each: local processes, or Ray actors on the cluster joined with
+    `cluster.ray_cluster` (`--ray`). If one fails to start, the others are closed before the error propagates."""
+    from punch_trainer.sim import cluster
+
+    if cluster.joined():
+        return cluster.start_ray_servers(processes, characters_per_process, decision_period)
+    servers: list[ServerConnection] = []
     try:
         for _ in range(processes):
             servers.append(TrainingServer(characters_per_process, decision_period=decision_period))
@@ -206,11 +227,11 @@ def start_servers(processes: int, characters_per_process: int, decision_period: 
     return servers
 
 
-def exchange(servers: list[TrainingServer], messages: list[Message]) -> list[Message]:
+def exchange(servers: list[ServerConnection], messages: list[Message]) -> list[Message]:
     """Sends one message to each server, then reads every reply: the processes work in parallel."""
     for server, message in zip(servers, messages, strict=True):
         server.send(message)
     return [server.receive() for server in servers]
 
 
-__all__ = ["ServerError", "ServerInfo", "TrainingServer", "ProtocolVersionError", "exchange", "start_servers"]
+__all__ = ["ServerConnection", "ServerError", "ServerInfo", "TrainingServer", "ProtocolVersionError", "exchange", "start_servers"]

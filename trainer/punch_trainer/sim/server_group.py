@@ -10,7 +10,7 @@ from typing import TypeVar
 
 from punch_trainer.errors import PunchError
 from punch_trainer.sim.protocol import ProtocolError, ServerClosedError, ServerTimeoutError
-from punch_trainer.sim.server import ServerInfo, TrainingServer, start_servers
+from punch_trainer.sim.server import ServerConnection, ServerInfo, start_servers
 
 # Failures that a fresh Godot process fixes (a server's error reply is not one of them: it would repeat).
 SIMULATOR_FAILURES = (ServerClosedError, ServerTimeoutError, ProtocolError, ConnectionError)
@@ -32,8 +32,12 @@ class SimulatorRestarts:
         self.count = 0
 
     def run(self, attempt: Callable[[], T]) -> T:
+        restarting = False
         while True:
             try:
+                if restarting:  # inside the try: a restart can fail the same way (a Ray node going away meanwhile)
+                    self.restart()
+                    restarting = False
                 return attempt()
             except SIMULATOR_FAILURES as error:
                 if self.count >= self.limit:
@@ -41,7 +45,7 @@ class SimulatorRestarts:
                 self.count += 1
                 print(f"punch: a Godot process failed ({type(error).__name__}: {error}); restarting it "
                       f"({self.count}/{self.limit}) and running the work again", file=sys.stderr)
-                self.restart()
+                restarting = True
 
 
 class ServerGroup:
@@ -49,7 +53,7 @@ class ServerGroup:
     pool and the vector env hold."""
 
     def __init__(self, processes: int, characters_per_process: int, decision_period: int = 5):
-        self._start: Callable[[], list[TrainingServer]] = lambda: start_servers(processes, characters_per_process, decision_period)
+        self._start: Callable[[], list[ServerConnection]] = lambda: start_servers(processes, characters_per_process, decision_period)
         self.servers = self._start()
         self.info: ServerInfo = self.servers[0].info  # the handshake: rates, names, spec hash
 

@@ -1,0 +1,180 @@
+"""Rollout workers on a Ray cluster (`--ray [ADDRESS]` on `punch search`, `train`, `eval`, `bench env`).
+
+Each worker is a Ray actor that starts a headless Godot training server on its own node (a local process
+there, as without Ray) and relays the trainer's messages to it. `start_servers` hands out one
+`RayTrainingServer` per worker, in a fixed order: the trainer sends slot p's batch to worker p and reads the
+replies in that order, so which node answers first never changes which batch lands in which slot, and a run
+on Ray is bitwise the same as one with local processes of the same count and size (a slot gives the same
+features in any process of the same size: docs/env.md, Episodes).
+
+A worker that dies, or whose node goes away, surfaces as a `ServerClosedError`: the run's `SimulatorRestarts`
+then replaces every worker (Ray places the new ones on the nodes still there) and runs the batch again, as it
+does for a local Godot process that crashed. Ray is imported only when `--ray` is given (`pip install
+punch-trainer[ray]`); without it the trainer needs no Ray at run time. docs/cluster.md says what a node needs.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator
+from typing import Any
+
+from punch_trainer.errors import GodotRunError, PunchError
+from punch_trainer.sim.protocol import Message, ServerClosedError, ServerTimeoutError
+from punch_trainer.sim.server import ServerConnection, ServerInfo, TrainingServer
+
+WORKER_CPUS = 1.0
+"""Ray CPUs a worker asks for: its Godot process keeps about one core busy"""
+START_TIMEOUT_S = 120.0
+"""how long a worker may take to be placed and to start its Godot process"""
+REPLY_TIMEOUT_S = 120.0
+"""how long a reply may take (a local server's reply timeout)"""
+
+_joined_address: str | None = None
+
+
+class RayUnavailableError(PunchError):
+    """`--ray` was given but Ray is not installed, or no cluster answered."""
+
+
+def _ray() -> Any:
+    try:
+        import ray
+    except ImportError:
+        raise RayUnavailableError("--ray needs Ray: pip install 'punch-trainer[ray]' (./dev setup installs it)") from None
+    return ray
+
+
+def joined() -> bool:
+    """True inside `ray_cluster`: training servers are then Ray workers."""
+    return _joined_address is not None
+
+
+@contextlib.contextmanager
+def ray_cluster(address: str | None) -> Iterator[None]:
+    """Runs the block with its training servers on the Ray cluster at `address` ('auto': the one `RAY_ADDRESS`
+    names, else one already running on this machine); `None` runs them as local processes. The connection is
+    closed when the block ends, however it ends; the cluster itself is left running (it is the user's)."""
+    global _joined_address
+    if address is None:
+        yield
+        return
+    ray = _ray()
+    try:
+        ray.init(address=address, log_to_driver=False, configure_logging=False, include_dashboard=False)
+    except (ConnectionError, RuntimeError, ValueError) as error:
+        raise RayUnavailableError(f"no Ray cluster at {address!r}: {error}") from None
+    _joined_address = address
+    try:
+        yield
+    finally:
+        _joined_address = None
+        ray.shutdown()
+
+
+class _Worker:
+    """A Ray actor (made remote in `_worker_class`): one local training server on the node it was placed on."""
+
+    def __init__(self, slot_count: int, decision_period: int):
+        self.server = TrainingServer(slot_count, decision_period=decision_period, reply_timeout_s=REPLY_TIMEOUT_S)
+
+    def info(self) -> ServerInfo:
+        return self.server.info
+
+    def node(self) -> str:
+        import ray
+
+        return str(ray.get_runtime_context().get_node_id())
+
+    def request(self, message: Message) -> Message:
+        return self.server.request(message)
+
+    def close(self) -> None:
+        self.server.close()
+
+
+_remote_worker: Any = None
+
+
+def _worker_class() -> Any:
+    global _remote_worker
+    if _remote_worker is None:
+        # SPREAD: workers go to different nodes while there are nodes to go to. No Ray restarts: the run's
+        # SimulatorRestarts replaces lost workers itself and reruns the batch.
+        _remote_worker = _ray().remote(num_cpus=WORKER_CPUS, max_restarts=0, scheduling_strategy="SPREAD")(_Worker)
+    return _remote_worker
+
+
+class RayTrainingServer(ServerConnection):
+    """The trainer's side of one Ray worker: a `ServerConnection` whose requests run on the worker's node."""
+
+    def __init__(self, actor: Any, info: ServerInfo, node_id: str):
+        self._actor: Any = actor
+        self._pending: Any = None
+        self.info = info
+        self.node_id = node_id
+        """the Ray node the worker runs on"""
+
+    def send(self, message: Message) -> None:
+        if self._actor is None:
+            raise PunchError("the Ray worker is closed")
+        self._pending = self._actor.request.remote(message)
+
+    def receive(self) -> Message:
+        ray = _ray()
+        reference, self._pending = self._pending, None
+        if reference is None:
+            raise PunchError("receive() without a request sent")
+        try:
+            reply: Message = ray.get(reference, timeout=REPLY_TIMEOUT_S)
+        except ray.exceptions.GetTimeoutError:
+            raise ServerTimeoutError(f"the Ray worker on node {self.node_id[:12]} did not answer within {REPLY_TIMEOUT_S:.0f} s") from None
+        except ray.exceptions.RayTaskError as error:
+            # The worker's own error (its Godot process crashed, or the server refused the request): the
+            # original exception type, so the run treats it as it would treat a local one.
+            raise error.as_instanceof_cause() from None
+        except ray.exceptions.RayError as error:
+            raise ServerClosedError(f"the Ray worker on node {self.node_id[:12]} was lost ({type(error).__name__})") from None
+        return reply
+
+    def close(self) -> None:
+        """Stops the worker's Godot process, then the worker. Idempotent; a worker already lost is let go."""
+        if self._actor is None:
+            return
+        ray = _ray()
+        actor, self._actor = self._actor, None
+        # A worker lost with its node was ended by Ray, and its Godot process died with it (PR_SET_PDEATHSIG).
+        with contextlib.suppress(ray.exceptions.RayError):
+            ray.get(actor.close.remote(), timeout=10.0)
+        ray.kill(actor)
+
+
+def start_ray_servers(processes: int, characters_per_process: int, decision_period: int) -> list[ServerConnection]:
+    """K workers with N characters each, started together; if one cannot start, all are closed before the
+    error propagates (as a `ServerClosedError` when a worker or its node was lost, which a run's restarts
+    retry, else as a `GodotRunError`)."""
+    ray = _ray()
+    worker = _worker_class()
+    actors = [worker.remote(characters_per_process, decision_period) for _ in range(processes)]
+    try:
+        infos = ray.get([actor.info.remote() for actor in actors], timeout=START_TIMEOUT_S)
+        nodes = ray.get([actor.node.remote() for actor in actors], timeout=START_TIMEOUT_S)
+        return [RayTrainingServer(actor, info, node) for actor, info, node in zip(actors, infos, nodes, strict=True)]
+    except ray.exceptions.GetTimeoutError:
+        _kill(actors)
+        raise GodotRunError(f"{processes} Ray workers with {WORKER_CPUS:g} CPU each were not all started within "
+                            f"{START_TIMEOUT_S:.0f} s: does the cluster have that many CPUs free?", "") from None
+    except ray.exceptions.RayActorError as error:
+        _kill(actors)
+        if error.actor_init_failed:  # its Godot did not start: starting again would fail again
+            raise GodotRunError(f"a Ray worker could not start its training server: {error}", str(error)) from None
+        raise ServerClosedError(f"a Ray worker was lost while starting ({type(error).__name__})") from None
+    except ray.exceptions.RayError as error:
+        _kill(actors)
+        raise ServerClosedError(f"a Ray worker was lost while starting ({type(error).__name__})") from None
+
+
+def _kill(actors: list[Any]) -> None:
+    ray = _ray()
+    for actor in actors:
+        ray.kill(actor)
