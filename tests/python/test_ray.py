@@ -9,24 +9,18 @@ import os
 import time
 from pathlib import Path
 
-# Before Ray is imported: Ray then gives every node and the driver the loopback address, never the machine's
-# own, so that nothing of the tests' clusters listens beyond this machine.
-os.environ["RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"] = "0"
+import numpy as np
+import onnx
+import pytest
+from onnx import numpy_helper
 
-import numpy as np  # noqa: E402
-import onnx  # noqa: E402
-import pytest  # noqa: E402
-import ray  # noqa: E402
-from onnx import numpy_helper  # noqa: E402
-from ray.cluster_utils import Cluster  # noqa: E402
-
-from conftest import godot_processes, ray_processes  # noqa: E402
-from punch_trainer.cli.main import main  # noqa: E402
-from punch_trainer.cli.train import TrainArgs, run_train  # noqa: E402
-from punch_trainer.learn.search import SearchArgs, trajectory_search  # noqa: E402
-from punch_trainer.sim.cluster import RayTrainingServer, ray_cluster  # noqa: E402
-from punch_trainer.sim.rewards import load_reward  # noqa: E402
-from punch_trainer.sim.rollouts import RolloutPool  # noqa: E402
+from conftest import godot_processes, ray_processes
+from punch_trainer.cli.main import main
+from punch_trainer.cli.train import TrainArgs, run_train
+from punch_trainer.learn.search import SearchArgs, trajectory_search
+from punch_trainer.sim.cluster import RayTrainingServer, ray_cluster, simulated_cluster
+from punch_trainer.sim.rewards import load_reward
+from punch_trainer.sim.rollouts import RolloutPool
 
 pytestmark = pytest.mark.godot
 
@@ -60,19 +54,12 @@ LOOPBACK = {"0100007F", "00000000000000000000000001000000", "0000000000000000FFF
 
 @pytest.fixture
 def cluster():
-    """A head node that runs no workers and three worker nodes of 2 CPUs each, all on 127.0.0.1; shut down at
-    the end of the test, whatever happened in it, and checked to leave no Ray or Godot process."""
+    """A head node that runs no workers and three worker nodes of 2 CPUs each, all on 127.0.0.1 (`--ray
+    simulated:3`); shut down at the end of the test, whatever happened in it, and checked to leave no Ray or
+    Godot process."""
     ray_before, godot_before = ray_processes(), godot_processes()
-    simulated = Cluster(initialize_head=True, head_node_args={"num_cpus": 0, "node_ip_address": "127.0.0.1", "include_dashboard": False})
-    try:
-        for _ in range(WORKER_NODES):
-            simulated.add_node(num_cpus=2, node_ip_address="127.0.0.1")
-        simulated.wait_for_nodes()
+    with simulated_cluster(WORKER_NODES) as simulated:
         yield simulated
-    finally:
-        if ray.is_initialized():
-            ray.shutdown()
-        simulated.shutdown()
     deadline = time.monotonic() + 20
     while ((ray_processes() - ray_before) or (godot_processes() - godot_before)) and time.monotonic() < deadline:
         time.sleep(0.2)
@@ -131,7 +118,7 @@ def policy_weights(path: Path) -> list[np.ndarray]:
 
 
 def test_punch_train_with_ray_gives_bitwise_the_local_dataset_and_policy(cluster, tmp_path):
-    options = dict(reward="straight", seed=0, search_iterations=4, search_rollouts=16, pretrain_epochs=100, a2c_updates=2,
+    options = dict(reward="straight", seed=0, search_iterations=4, search_rollouts=16, processes=2, pretrain_epochs=100, a2c_updates=2,
                    a2c_characters=4, a2c_time_budget_s=0, reach="spot")
     local = run_train(TrainArgs(out=tmp_path / "local", **options), progress=False)  # type: ignore[arg-type]
     arguments = [f"--{key.replace('_', '-')}={value}" for key, value in options.items()]

@@ -15,9 +15,10 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from punch_trainer.errors import PunchError
 from punch_trainer.sim.godot import PROJECT_ROOT
-from punch_trainer.sim.protocol import reset_message, rollout_message, step_message
-from punch_trainer.sim.server import exchange, start_servers
+from punch_trainer.sim.protocol import Message, reset_message, rollout_message, step_message
+from punch_trainer.sim.server import ServerConnection, TrainingServer, exchange, start_servers
 
 BENCHMARKS_FILE = PROJECT_ROOT / "BENCHMARKS.md"
 
@@ -87,6 +88,90 @@ def bench_env(characters: Sequence[int] = (1, 16, 64), processes: Sequence[int] 
             for server in servers:
                 server.close()
     return results
+
+
+def _batch_seconds(servers: list[ServerConnection], rollout: Message, batches: int) -> float:
+    """Mean wall time of one open-loop batch (every server one rollout message), after one warm-up batch."""
+    exchange(servers, [rollout] * len(servers))
+    start = time.perf_counter()
+    for _ in range(batches):
+        exchange(servers, [rollout] * len(servers))
+    return (time.perf_counter() - start) / batches
+
+
+def bench_ray(processes: Sequence[int] = (1, 2, 3), characters: int = 64, frames: int = 50, batches: int = 6, rounds: int = 4,
+              seed: int = 0) -> list[dict[str, float]]:
+    """Ray's cost against local processes at the same count K: open-loop batches of `characters` per worker,
+    timed on local Godot processes and on Ray workers of the cluster joined with `cluster.ray_cluster`,
+    alternating `rounds` times so that both see the same machine. One row per K (times in ms)."""
+    from punch_trainer.sim.cluster import joined
+
+    if not joined():
+        raise PunchError("bench_ray needs a Ray cluster: punch bench env --ray [ADDRESS|simulated]")
+    rng = np.random.default_rng(seed)
+    rows = []
+    for k in tqdm(processes, desc="bench ray", unit="config"):
+        local: list[ServerConnection] = []
+        on_ray: list[ServerConnection] = []
+        try:
+            local = [TrainingServer(characters) for _ in range(k)]
+            on_ray = start_servers(k, characters)
+            decisions = frames // local[0].info.decision_period
+            rollout = rollout_message(rng.uniform(-1, 1, size=(characters, decisions, local[0].info.action_size)).astype(np.float32))
+            times: dict[str, list[float]] = {"local": [], "ray": []}
+            for _ in range(rounds):
+                times["local"].append(_batch_seconds(local, rollout, batches))
+                times["ray"].append(_batch_seconds(on_ray, rollout, batches))
+            # The trainer's own serial work per worker: submitting a request and taking in a reply that is
+            # already there (waited for, so only the handling is timed).
+            driver_s = 0.0
+            for _ in range(batches):
+                start = time.perf_counter()
+                for server in on_ray:
+                    server.send(rollout)
+                driver_s += time.perf_counter() - start
+                time.sleep(2 * float(np.mean(times["local"])) + 0.05)
+                start = time.perf_counter()
+                for server in on_ray:
+                    server.receive()
+                driver_s += time.perf_counter() - start
+        finally:
+            for server in local + on_ray:
+                server.close()
+        local_ms, ray_ms = 1000 * float(np.mean(times["local"])), 1000 * float(np.mean(times["ray"]))
+        rows.append({"workers": k, "characters": characters, "local_batch_ms": local_ms, "ray_batch_ms": ray_ms,
+                     "overhead_ms": ray_ms - local_ms, "overhead_pct": 100 * (ray_ms - local_ms) / local_ms,
+                     "driver_ms_per_worker": 1000 * driver_s / (batches * k),
+                     "local_character_frames_per_s": k * characters * frames / (local_ms / 1000)})
+    return rows
+
+
+def ray_tables(rows: list[dict[str, float]], frames: int = 50, projected_workers: Sequence[int] = (8, 64, 512)) -> str:
+    """The measured rows, then throughput projected to more workers with the model written above the table."""
+    lines = ["| workers K | characters per worker | local batch (ms) | Ray batch (ms) | Ray overhead (ms per batch) | overhead | "
+             "trainer's handling per worker (ms) | local character-frames/s |", "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['workers']:.0f} | {r['characters']:.0f} | {r['local_batch_ms']:.1f} | {r['ray_batch_ms']:.1f} | "
+                     f"{r['overhead_ms']:.1f} | {r['overhead_pct']:+.1f}% | {r['driver_ms_per_worker']:.2f} | "
+                     f"{r['local_character_frames_per_s']:,.0f} |")
+    # Model: a batch on W workers, each alone on its node's cores, takes one worker's batch time, plus Ray's
+    # fixed round trip, plus the trainer's serial handling of W requests and replies: t(W) = t1 + a + b W.
+    one = next(r for r in rows if r["workers"] == 1)
+    b = float(np.median([r["driver_ms_per_worker"] for r in rows]))
+    a = max(0.0, one["overhead_ms"] - b)
+    characters = one["characters"]
+    lines += ["", f"Projection: t(W) = t1 + a + b·W, with t1 = {one['local_batch_ms']:.1f} ms (one local worker's batch of "
+              f"{characters:.0f} characters x {frames} frames), a = {a:.1f} ms (the measured overhead at K = 1 less b, at least 0) "
+              f"and b = {b:.2f} ms (the trainer's own handling of one worker's request and reply, timed with the reply already "
+              "there: the part that grows with W, as the trainer sends and reads one message per worker); throughput = "
+              "W x characters x frames / t(W). It assumes one worker per node's cores, a network as fast as loopback, and "
+              "leaves out the trainer's per-batch work outside the exchange (the search's update).", "",
+              "| workers W | projected batch (ms) | projected character-frames/s | of W x one worker's rate |", "|---|---|---|---|"]
+    for w in projected_workers:
+        batch_ms = one["local_batch_ms"] + a + b * w
+        rate = w * characters * frames / (batch_ms / 1000)
+        lines.append(f"| {w} | {batch_ms:.1f} | {rate:,.0f} | {rate / (w * one['local_character_frames_per_s']):.0%} |")
+    return "\n".join(lines)
 
 
 def env_table(results: list[EnvThroughput]) -> str:

@@ -40,7 +40,18 @@ def _selfcheck(args: argparse.Namespace) -> int:
 
 
 def _bench_env(args: argparse.Namespace) -> int:
-    from punch_trainer.cli.bench import bench_env, env_table, write_section
+    from punch_trainer.cli.bench import bench_env, bench_ray, env_table, ray_tables, write_section
+
+    if args.ray is not None:
+        rows = bench_ray(processes=args.processes if args.processes != [1, 2] else [1, 2, 3], frames=args.frames)
+        table = ray_tables(rows, frames=args.frames)
+        print(table)
+        if not args.no_write:
+            note = ("Ray's cost against local processes at the same count K (`sim/cluster.py`): open-loop batches of 64 characters "
+                    f"per worker, {args.frames} frames each, timed on K local Godot processes and on K Ray workers, alternating "
+                    "four times in one run so both see the same machine. Goal: at most 10% overhead at 64 characters per worker.")
+            print(f"written to {write_section('Ray workers', f'punch bench env --ray {args.ray}', note + chr(10) + chr(10) + table)}")
+        return 0
 
     results = bench_env(characters=args.characters, processes=args.processes, frames=args.frames, episodes=args.episodes)
     table = env_table(results)
@@ -289,6 +300,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="volume: rollouts per placement and iteration (default 16)")
     train.add_argument("--resume", type=Path, metavar="RUN_DIR",
                        help="continue an interrupted run from its checkpoints, with its own arguments (other options are ignored)")
+    train.add_argument("--processes", type=int,
+                       help="Godot processes (with --ray: Ray workers) of 64 characters for the searches (default 1)")
     add_ray_option(train)
     train.set_defaults(run=_train)
 

@@ -58,6 +58,8 @@ class TrainArgs:
     """search placements along distance, height and side (volume)"""
     volume_search_iterations: int = 60
     volume_search_rollouts: int = 16
+    processes: int = 1
+    """Godot processes of 64 characters for the searches (with --ray, Ray workers: docs/cluster.md)"""
 
     def run_dir(self) -> Path:
         """`out`, or a new runs/train_<reward>__<seed>__<time>."""
@@ -101,9 +103,9 @@ def search_volume(args: TrainArgs, volume: VolumeArgs, reward: Reward, centre: S
     out = args.run_dir() / "volume_search"
     search_args = SearchArgs(reward=args.reward, frames=reward.frames, seed=args.seed, out=out,
                              iterations=volume.search_iterations, rollouts=volume.search_rollouts,
-                             sigma_init=volume.search_sigma_init, characters_per_process=64,
+                             sigma_init=volume.search_sigma_init, processes=args.processes, characters_per_process=64,
                              smoothing_window=args.smoothing_window)
-    with RolloutPool(1, 64) as pool:
+    with RolloutPool(args.processes, 64) as pool:
         reach = ReachVolume.from_json(pool.info.reach_volume)
         placements = reach.grid(volume.grid)
         bests = placement_search(search_args, reward, pool, progress, run_dir=out, placements=placements,
@@ -132,7 +134,8 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False) -> P
 
     search_args = SearchArgs(reward=args.reward, frames=reward.frames, seed=args.seed, out=out / "search",
                              iterations=args.search_iterations, rollouts=args.search_rollouts,
-                             characters_per_process=min(64, args.search_rollouts), smoothing_window=args.smoothing_window)
+                             processes=args.processes, characters_per_process=min(64, args.search_rollouts),
+                             smoothing_window=args.smoothing_window)
     _, search, _ = run_search(search_args, progress, resume=resume)
     dataset_paths = [out / "search" / "dataset.npz"]
     volume = VolumeArgs(grid=parse_grid(args.grid), search_iterations=args.volume_search_iterations,

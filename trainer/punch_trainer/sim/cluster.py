@@ -16,6 +16,8 @@ punch-trainer[ray]`); without it the trainer needs no Ray at run time. docs/clus
 from __future__ import annotations
 
 import contextlib
+import os
+import sys
 from collections.abc import Iterator
 from typing import Any
 
@@ -29,6 +31,11 @@ START_TIMEOUT_S = 120.0
 """how long a worker may take to be placed and to start its Godot process"""
 REPLY_TIMEOUT_S = 120.0
 """how long a reply may take (a local server's reply timeout)"""
+INLINE_REPLY_BYTES = 16 << 20
+"""replies up to this size go straight back to the trainer in the worker's answer, not through Ray's object
+stores (the default limit, 100 kB, sends a 64-character rollout's 0.7 MB through two stores and a transfer)"""
+
+LOOPBACK = "127.0.0.1"
 
 _joined_address: str | None = None
 
@@ -50,14 +57,24 @@ def joined() -> bool:
     return _joined_address is not None
 
 
+SIMULATED = "simulated"
+"""`--ray simulated[:NODES]`: a cluster of NODES (default 3) Ray nodes on this machine, on loopback only"""
+SIMULATED_NODE_CPUS = 2
+
+
 @contextlib.contextmanager
 def ray_cluster(address: str | None) -> Iterator[None]:
     """Runs the block with its training servers on the Ray cluster at `address` ('auto': the one `RAY_ADDRESS`
-    names, else one already running on this machine); `None` runs them as local processes. The connection is
-    closed when the block ends, however it ends; the cluster itself is left running (it is the user's)."""
+    names, else one already running on this machine; 'simulated[:NODES]': one simulated here for the block);
+    `None` runs them as local processes. The connection is closed when the block ends, however it ends; a
+    cluster of the user's is left running, a simulated one is shut down."""
     global _joined_address
     if address is None:
         yield
+        return
+    if address.split(":")[0] == SIMULATED:
+        with simulated_cluster(int(address.split(":")[1]) if ":" in address else 3) as simulated, ray_cluster(simulated.address):
+            yield
         return
     ray = _ray()
     try:
@@ -70,6 +87,28 @@ def ray_cluster(address: str | None) -> Iterator[None]:
     finally:
         _joined_address = None
         ray.shutdown()
+
+
+@contextlib.contextmanager
+def simulated_cluster(nodes: int) -> Iterator[Any]:
+    """A head node that runs no workers and `nodes` worker nodes of `SIMULATED_NODE_CPUS` CPUs each, all on
+    127.0.0.1; yields the `ray.cluster_utils.Cluster` (`.address`, `.remove_node`) and shuts it down when the
+    block ends, however it ends."""
+    if "ray" not in sys.modules:
+        # Read when Ray is imported: every node and the driver then take the loopback address, never the
+        # machine's own, so nothing of the simulated cluster listens beyond this machine.
+        os.environ["RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"] = "0"
+    _ray()
+    from ray.cluster_utils import Cluster
+
+    cluster: Any = Cluster(initialize_head=True, head_node_args={"num_cpus": 0, "node_ip_address": LOOPBACK, "include_dashboard": False})
+    try:
+        for _ in range(nodes):
+            cluster.add_node(num_cpus=SIMULATED_NODE_CPUS, node_ip_address=LOOPBACK)
+        cluster.wait_for_nodes()
+        yield cluster
+    finally:
+        cluster.shutdown()
 
 
 class _Worker:
@@ -101,7 +140,8 @@ def _worker_class() -> Any:
     if _remote_worker is None:
         # SPREAD: workers go to different nodes while there are nodes to go to. No Ray restarts: the run's
         # SimulatorRestarts replaces lost workers itself and reruns the batch.
-        _remote_worker = _ray().remote(num_cpus=WORKER_CPUS, max_restarts=0, scheduling_strategy="SPREAD")(_Worker)
+        _remote_worker = _ray().remote(num_cpus=WORKER_CPUS, max_restarts=0, scheduling_strategy="SPREAD",
+                                       runtime_env={"env_vars": {"RAY_max_direct_call_object_size": str(INLINE_REPLY_BYTES)}})(_Worker)
     return _remote_worker
 
 
