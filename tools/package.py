@@ -29,7 +29,8 @@ def versions() -> dict[str, str]:
     cargo = tomllib.loads((ROOT / "gdextension" / "Cargo.toml").read_text())["workspace"]["package"]["version"]
     trainer = tomllib.loads((ROOT / "trainer" / "pyproject.toml").read_text())["project"]["version"]
     plugin = re.search(r'^version="([^"]+)"', (ADDON / "plugin.cfg").read_text(), re.MULTILINE)
-    changelog = re.search(r"^## (\S+)", (ROOT / "CHANGELOG.md").read_text(), re.MULTILINE)
+    # The newest released version (an "Unreleased" section above it collects what comes next).
+    changelog = re.search(r"^## (\d\S*)", (ROOT / "CHANGELOG.md").read_text(), re.MULTILINE)
     return {"gdextension/Cargo.toml": cargo, "trainer/pyproject.toml": trainer,
             "addons/punch_controller/plugin.cfg": plugin.group(1) if plugin else "(none)",
             "CHANGELOG.md": changelog.group(1) if changelog else "(none)"}

@@ -199,6 +199,12 @@ def start_ray_servers(processes: int, characters_per_process: int, decision_peri
     try:
         infos = ray.get([actor.info.remote() for actor in actors], timeout=START_TIMEOUT_S)
         nodes = ray.get([actor.node.remote() for actor in actors], timeout=START_TIMEOUT_S)
+        others = {(info.spec_hash, info.extension_version) for info in infos} - {(infos[0].spec_hash, infos[0].extension_version)}
+        if others:
+            _kill(actors)
+            raise GodotRunError(f"the cluster's nodes run different builds (observation spec and extension version: "
+                                f"{(infos[0].spec_hash, infos[0].extension_version)} and {sorted(others)}): run the same "
+                                "commit, set up, on every node (docs/cluster.md)")
         return [RayTrainingServer(actor, info, node) for actor, info, node in zip(actors, infos, nodes, strict=True)]
     except ray.exceptions.GetTimeoutError:
         _kill(actors)
