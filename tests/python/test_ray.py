@@ -19,6 +19,7 @@ from punch_trainer.cli.main import main
 from punch_trainer.cli.train import TrainArgs, run_train
 from punch_trainer.learn.search import SearchArgs, trajectory_search
 from punch_trainer.sim.cluster import RayTrainingServer, ray_cluster, simulated_cluster
+from punch_trainer.sim.godot import ADDON_POLICIES
 from punch_trainer.sim.rewards import load_reward
 from punch_trainer.sim.rollouts import RolloutPool
 
@@ -132,3 +133,15 @@ def test_punch_train_with_ray_gives_bitwise_the_local_dataset_and_policy(cluster
         np.testing.assert_array_equal(mine, theirs)
     summaries = [json.loads((run / "summary.json").read_text()) for run in (local, on_ray)]
     assert summaries[0]["exported_return"] == summaries[1]["exported_return"]
+
+
+def test_punch_eval_with_ray_gives_the_local_report(cluster, tmp_path):
+    """The per-placement searches on the workers and the punches through PunchController as Ray tasks (the
+    policy's bytes travel, a node need not hold the file): the same figures as a local evaluation."""
+    options = ["--policy", str(ADDON_POLICIES / "hook.onnx"), "--placements", "6", "--sigmas", "0,0.3", "--noisy-episodes", "1",
+               "--search-iterations", "2"]
+    assert main(["eval", *options, "--out", str(tmp_path / "local")]) == 0
+    assert main(["eval", *options, "--out", str(tmp_path / "ray"), "--ray", cluster.address]) == 0
+    local, on_ray = (json.loads((tmp_path / run / "eval.json").read_text()) for run in ("local", "ray"))
+    assert on_ray["search_best"] == local["search_best"]
+    assert on_ray["evaluations"] == local["evaluations"]

@@ -33,6 +33,7 @@ from punch_trainer.cli.replay import ReplayArgs, ReplayError, analyse_sigma, pol
 from punch_trainer.learn.reach import HELD_OUT_SEED, ReachVolume
 from punch_trainer.learn.search import SearchArgs, placement_search
 from punch_trainer.learn.volume import success
+from punch_trainer.sim import cluster
 from punch_trainer.sim.rewards import Reward, metadata_reward
 from punch_trainer.sim.rollouts import RolloutPool
 
@@ -95,6 +96,24 @@ def run_condition(policy: Path, bags: list[dict[str, float]], sigmas: list[float
         return results
 
 
+def _condition_from_bytes(policy_bytes: bytes, **kwargs: Any) -> list[dict[str, Any]]:
+    """`run_condition` on a Ray worker's node, which may not hold the policy file: its bytes travel instead."""
+    with tempfile.TemporaryDirectory(prefix="punch_eval_policy_") as directory:
+        policy = Path(directory) / "policy.onnx"
+        policy.write_bytes(policy_bytes)
+        return run_condition(policy, **kwargs)
+
+
+def run_conditions(calls: list[dict[str, Any]]) -> list[list[dict[str, Any]]]:
+    """`run_condition(**call)` for every call: one after the other here, or side by side on the Ray cluster's
+    workers under `--ray` (each its own Godot on some node; the results are the same either way)."""
+    if not cluster.joined():
+        return [run_condition(**call) for call in calls]
+    policies = {call["policy"]: Path(call["policy"]).read_bytes() for call in calls}
+    remote_calls = [{"policy_bytes": policies[call["policy"]], **{k: v for k, v in call.items() if k != "policy"}} for call in calls]
+    return cluster.map_on_workers(_condition_from_bytes, remote_calls)
+
+
 def search_bests(policy_actions: np.ndarray, bags: list[dict[str, float]], reward: Reward, smoothing_window: int,
                  iterations: int, seed: int) -> np.ndarray:
     """The best return a short trajectory search finds at each placement, warm-started from `policy_actions`
@@ -117,13 +136,16 @@ def evaluate_policy(policy: Path, args: EvalArgs, still: list[dict[str, float]],
     """Every condition for one policy (`base`: its noise-free punches, already run): rows for the report."""
     reward, metadata = policy_reward(policy)
     noisy = [s for s in args.sigmas if s > 0]
-    conditions = [("every decision", base)]
+    calls: list[tuple[str, dict[str, Any]]] = []
     if noisy:
-        conditions += [("every decision", r) for r in run_condition(policy, still, noisy, reward, episodes_per_bag=args.noisy_episodes)]
-        conditions += [(f"first {FIRST_DECISIONS} decisions", r) for r in run_condition(
-            policy, still, noisy, reward, episodes_per_bag=args.noisy_episodes, noise_decisions=FIRST_DECISIONS, seed=1)]
-    conditions += [("bag swinging", run_condition(policy, moving, [0.0], reward)[0]),
-                   ("after a punch", run_condition(policy, still, [0.0], reward, start="after_punch")[0])]
+        calls += [("every decision", {"bags": still, "sigmas": noisy, "episodes_per_bag": args.noisy_episodes}),
+                  (f"first {FIRST_DECISIONS} decisions", {"bags": still, "sigmas": noisy, "episodes_per_bag": args.noisy_episodes,
+                                                          "noise_decisions": FIRST_DECISIONS, "seed": 1})]
+    calls += [("bag swinging", {"bags": moving, "sigmas": [0.0]}), ("after a punch", {"bags": still, "sigmas": [0.0], "start": "after_punch"})]
+    results = run_conditions([{"policy": policy, "reward": reward, **call} for _, call in calls])
+    conditions = [("every decision", base)]
+    for (name, _), per_sigma in zip(calls, results, strict=True):
+        conditions += [(name, result) for result in per_sigma]
     rows = []
     for name, result in conditions:
         fraction = None
@@ -150,7 +172,8 @@ def run_eval(args: EvalArgs, progress: bool = True) -> tuple[Path, dict[str, Any
         raise ReplayError("--baseline must be trained for the same reward as --policy")
     if progress:
         print(f"punching at {len(still)} held-out placements, sigma 0 ...", flush=True)
-    bases = [run_condition(policy, still, [0.0], reward, keep_actions=True)[0] for policy in policies]
+    bases = [runs[0] for runs in run_conditions([{"policy": policy, "bags": still, "sigmas": [0.0], "reward": reward, "keep_actions": True}
+                                                  for policy in policies])]
     best = None
     if args.search_iterations > 0:
         if progress:

@@ -18,8 +18,8 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
-from collections.abc import Iterator
-from typing import Any
+from collections.abc import Callable, Iterator
+from typing import Any, TypeVar
 
 from punch_trainer.errors import GodotRunError, PunchError
 from punch_trainer.sim.protocol import Message, ServerClosedError, ServerTimeoutError
@@ -36,6 +36,10 @@ INLINE_REPLY_BYTES = 16 << 20
 stores (the default limit, 100 kB, sends a 64-character rollout's 0.7 MB through two stores and a transfer)"""
 
 LOOPBACK = "127.0.0.1"
+TASK_TIMEOUT_S = 3600.0
+"""how long `map_on_workers` waits for all its tasks"""
+
+T = TypeVar("T")
 
 _joined_address: str | None = None
 
@@ -224,3 +228,26 @@ def _kill(actors: list[Any]) -> None:
     ray = _ray()
     for actor in actors:
         ray.kill(actor)
+
+
+def map_on_workers(function: Callable[..., T], calls: list[dict[str, Any]]) -> list[T]:
+    """`[function(**call) for call in calls]`, each call a Ray task of one CPU spread over the cluster's nodes,
+    the results in the order of `calls`. A task whose node goes away is run again elsewhere by Ray (the
+    functions given here are deterministic, so the result is the same); an error raised by `function` is
+    raised here as itself, the other tasks cancelled."""
+    ray = _ray()
+    task = ray.remote(num_cpus=WORKER_CPUS, scheduling_strategy="SPREAD", max_retries=3)(function)
+    references = [task.remote(**call) for call in calls]
+    try:
+        return list(ray.get(references, timeout=TASK_TIMEOUT_S))
+    except BaseException as error:
+        for reference in references:
+            with contextlib.suppress(Exception):
+                ray.cancel(reference, force=True)
+        if isinstance(error, ray.exceptions.GetTimeoutError):
+            raise ServerTimeoutError(f"{len(calls)} Ray tasks did not finish within {TASK_TIMEOUT_S:.0f} s") from None
+        if isinstance(error, ray.exceptions.RayTaskError):
+            raise error.as_instanceof_cause() from None
+        if isinstance(error, ray.exceptions.RayError):
+            raise ServerClosedError(f"a Ray task was lost ({type(error).__name__}): {error}") from None
+        raise
