@@ -1,7 +1,7 @@
 """Search and training on a Ray cluster (`--ray`), on a cluster of several nodes simulated on this machine
 (`ray.cluster_utils.Cluster`), bound to loopback only: the same seed gives bitwise the same search, dataset
-and policy as local processes of the same count and size, a node removed in the middle of a search is
-replaced and the search ends as an uninterrupted one, and every cluster a test starts is shut down by it,
+and policy (and `punch eval` the same report) as local processes of the same count and size, a worker killed
+and a node removed in the middle of a search are replaced and the search ends as an uninterrupted one, and every cluster a test starts is shut down by it,
 leaving no Ray or Godot process behind."""
 
 import json
@@ -89,7 +89,9 @@ def test_a_search_on_ray_is_bitwise_the_local_one_with_workers_on_every_node_and
     assert on_ray.best_slot == local.best_slot
 
 
-def test_a_node_removed_mid_search_is_replaced_and_the_search_ends_as_an_uninterrupted_one(cluster):
+def test_a_worker_killed_and_a_node_removed_mid_search_are_replaced_and_the_search_ends_as_an_uninterrupted_one(cluster):
+    import ray
+
     with RolloutPool(PROCESSES, CHARACTERS) as pool:
         reference = search(pool)
     with ray_cluster(cluster.address), RolloutPool(PROCESSES, CHARACTERS) as pool:
@@ -99,7 +101,9 @@ def test_a_node_removed_mid_search_is_replaced_and_the_search_ends_as_an_uninter
         def run_then_remove_a_node(*args, **kwargs):
             nonlocal batches
             batches += 1
-            if batches == 3:  # in the middle of the search: the node of the first worker goes away
+            if batches == 2:  # a worker dies (its Godot with it)
+                ray.kill(pool.servers[1]._actor)
+            if batches == 5:  # later in the search: the node of the first worker goes away
                 node_id = pool.servers[0].node_id
                 node = next(n for n in cluster.worker_nodes if n.node_id == node_id)
                 cluster.remove_node(node)
@@ -108,7 +112,7 @@ def test_a_node_removed_mid_search_is_replaced_and_the_search_ends_as_an_uninter
 
         pool.run = run_then_remove_a_node
         interrupted = search(pool)
-        assert removed and pool.restarts >= 1
+        assert removed and pool.restarts >= 2
         assert removed[0] not in {server.node_id for server in pool.servers}, "a worker is still on the removed node"
     assert interrupted.best_return == reference.best_return
     np.testing.assert_array_equal(interrupted.best_actions, reference.best_actions)
