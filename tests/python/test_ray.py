@@ -1,8 +1,8 @@
 """Search and training on a Ray cluster (`--ray`), on a cluster of several nodes simulated on this machine
 (`ray.cluster_utils.Cluster`), bound to loopback only: the same seed gives bitwise the same search, dataset
-and policy (and `punch eval` the same report) as local processes of the same count and size, a worker killed
-and a node removed in the middle of a search are replaced and the search ends as an uninterrupted one, and every cluster a test starts is shut down by it,
-leaving no Ray or Godot process behind."""
+and policy (and `punch eval` the same report) as local processes of the same count and size; a worker killed
+and a node removed in the middle of a search are replaced and the search ends as an uninterrupted one; and
+every cluster a test starts is shut down by it, leaving no Ray or Godot process behind."""
 
 import json
 import os
