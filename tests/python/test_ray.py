@@ -149,3 +149,10 @@ def test_punch_eval_with_ray_gives_the_local_report(cluster, tmp_path):
     local, on_ray = (json.loads((tmp_path / run / "eval.json").read_text()) for run in ("local", "ray"))
     assert on_ray["search_best"] == local["search_best"]
     assert on_ray["evaluations"] == local["evaluations"]
+
+
+def test_an_address_where_no_cluster_answers_is_a_clear_error_at_once(tmp_path, capsys):
+    started = time.monotonic()
+    assert main(["search", "--iterations", "1", "--out", str(tmp_path / "run"), "--ray", "127.0.0.1:1"]) == 1
+    assert "no Ray cluster answers at 127.0.0.1:1" in capsys.readouterr().err
+    assert time.monotonic() - started < 30 and not (tmp_path / "run").exists()

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import socket
 import sys
 from collections.abc import Callable, Iterator
 from typing import Any, TypeVar
@@ -81,6 +82,7 @@ def ray_cluster(address: str | None) -> Iterator[None]:
             yield
         return
     ray = _ray()
+    _check_reachable(os.environ.get("RAY_ADDRESS", "") if address == "auto" else address)
     try:
         ray.init(address=address, log_to_driver=False, configure_logging=False, include_dashboard=False)
     except (ConnectionError, RuntimeError, ValueError) as error:
@@ -91,6 +93,18 @@ def ray_cluster(address: str | None) -> Iterator[None]:
     finally:
         _joined_address = None
         ray.shutdown()
+
+
+def _check_reachable(address: str, timeout_s: float = 5.0) -> None:
+    """Fails fast on a HOST:PORT that nothing answers on (Ray itself would keep trying for minutes)."""
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    if not host or not port.isdigit():
+        return  # 'auto' without RAY_ADDRESS, or a form Ray resolves itself
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout_s).close()
+    except OSError as error:
+        raise RayUnavailableError(f"no Ray cluster answers at {address} ({error.strerror or error}); "
+                                  "start one (docs/cluster.md) or run without --ray") from None
 
 
 @contextlib.contextmanager
