@@ -99,7 +99,7 @@ def _batch_seconds(servers: list[ServerConnection], rollout: Message, batches: i
     return (time.perf_counter() - start) / batches
 
 
-def bench_ray(processes: Sequence[int] = (1, 2, 3), characters: int = 64, frames: int = 50, batches: int = 6, rounds: int = 4,
+def bench_ray(processes: Sequence[int] = (1, 2, 3), characters: int = 64, frames: int = 50, batches: int = 6, rounds: int = 8,
               seed: int = 0) -> list[dict[str, float]]:
     """Ray's cost against local processes at the same count K: open-loop batches of `characters` per worker,
     timed on local Godot processes and on Ray workers of the cluster joined with `cluster.ray_cluster`,
@@ -130,7 +130,7 @@ def bench_ray(processes: Sequence[int] = (1, 2, 3), characters: int = 64, frames
                 for server in on_ray:
                     server.send(rollout)
                 driver_s += time.perf_counter() - start
-                time.sleep(2 * float(np.mean(times["local"])) + 0.05)
+                time.sleep(2 * float(np.median(times["local"])) + 0.05)
                 start = time.perf_counter()
                 for server in on_ray:
                     server.receive()
@@ -138,7 +138,8 @@ def bench_ray(processes: Sequence[int] = (1, 2, 3), characters: int = 64, frames
         finally:
             for server in local + on_ray:
                 server.close()
-        local_ms, ray_ms = 1000 * float(np.mean(times["local"])), 1000 * float(np.mean(times["ray"]))
+        # Medians of the rounds: a round that the machine slowed for a moment does not move them.
+        local_ms, ray_ms = 1000 * float(np.median(times["local"])), 1000 * float(np.median(times["ray"]))
         rows.append({"workers": k, "characters": characters, "local_batch_ms": local_ms, "ray_batch_ms": ray_ms,
                      "overhead_ms": ray_ms - local_ms, "overhead_pct": 100 * (ray_ms - local_ms) / local_ms,
                      "driver_ms_per_worker": 1000 * driver_s / (batches * k),

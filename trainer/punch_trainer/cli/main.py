@@ -49,7 +49,7 @@ def _bench_env(args: argparse.Namespace) -> int:
         if not args.no_write:
             note = ("Ray's cost against local processes at the same count K (`sim/cluster.py`): open-loop batches of 64 characters "
                     f"per worker, {args.frames} frames each, timed on K local Godot processes and on K Ray workers, alternating "
-                    "four times in one run so both see the same machine. Goal: at most 10% overhead at 64 characters per worker.")
+                    "eight times in one run so both see the same machine (the medians of the eight). Goal: at most 10% overhead at 64 characters per worker.")
             print(f"written to {write_section('Ray workers', f'punch bench env --ray {args.ray}', note + chr(10) + chr(10) + table)}")
         return 0
 
