@@ -49,7 +49,8 @@ def _bench_env(args: argparse.Namespace) -> int:
         if not args.no_write:
             note = ("Ray's cost against local processes at the same count K (`sim/cluster.py`): open-loop batches of 64 characters "
                     f"per worker, {args.frames} frames each, timed on K local Godot processes and on K Ray workers, alternating "
-                    "eight times in one run so both see the same machine (the medians of the eight). Goal: at most 10% overhead at 64 characters per worker.")
+                    "eight times in one run so both see the same machine (the medians of the eight). Goal: at most 10% overhead "
+                    "at 64 characters per worker.")
             print(f"written to {write_section('Ray workers', f'punch bench env --ray {args.ray}', note + chr(10) + chr(10) + table)}")
         return 0
 
@@ -398,7 +399,8 @@ def build_parser() -> argparse.ArgumentParser:
 def add_ray_option(command: argparse.ArgumentParser) -> None:
     command.add_argument("--ray", nargs="?", const="auto", metavar="ADDRESS",
                          help="run the Godot workers as Ray actors on the cluster at ADDRESS (alone, or 'auto': the one "
-                              "RAY_ADDRESS names or `ray start` began on this machine); docs/cluster.md")
+                              "RAY_ADDRESS names or `ray start` began on this machine; 'simulated[:N]': N nodes simulated on "
+                              "this machine, to try it); docs/cluster.md")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -27,7 +27,8 @@ from punch_trainer.sim.protocol import Message, ServerClosedError, ServerTimeout
 from punch_trainer.sim.server import ServerConnection, ServerInfo, TrainingServer
 
 WORKER_CPUS = 1.0
-"""Ray CPUs a worker asks for: its Godot process keeps about one core busy"""
+"""Ray CPUs a worker (or a task of `map_on_workers`) asks for; its Godot also runs Jolt's job threads
+(docs/cluster.md says how many workers a node takes)"""
 START_TIMEOUT_S = 120.0
 """how long a worker may take to be placed and to start its Godot process"""
 REPLY_TIMEOUT_S = 120.0
@@ -35,10 +36,12 @@ REPLY_TIMEOUT_S = 120.0
 INLINE_REPLY_BYTES = 16 << 20
 """replies up to this size go straight back to the trainer in the worker's answer, not through Ray's object
 stores (the default limit, 100 kB, sends a 64-character rollout's 0.7 MB through two stores and a transfer)"""
-
-LOOPBACK = "127.0.0.1"
 TASK_TIMEOUT_S = 3600.0
 """how long `map_on_workers` waits for all its tasks"""
+SIMULATED = "simulated"
+"""`--ray simulated[:NODES]`: a cluster of NODES (default 3) Ray nodes on this machine, on loopback only"""
+SIMULATED_NODE_CPUS = 2
+LOOPBACK = "127.0.0.1"
 
 T = TypeVar("T")
 
@@ -60,11 +63,6 @@ def _ray() -> Any:
 def joined() -> bool:
     """True inside `ray_cluster`: training servers are then Ray workers."""
     return _joined_address is not None
-
-
-SIMULATED = "simulated"
-"""`--ray simulated[:NODES]`: a cluster of NODES (default 3) Ray nodes on this machine, on loopback only"""
-SIMULATED_NODE_CPUS = 2
 
 
 @contextlib.contextmanager
