@@ -2,6 +2,7 @@
 README's test command (./dev check) sets it up first."""
 
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -14,8 +15,8 @@ def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", "godot: starts a real headless Godot (Jolt) with the built extension")
 
 
-def godot_processes() -> set[int]:
-    """PIDs of the Godot processes running this project (their command line names its Godot project)."""
+def processes_whose_command(matches: Callable[[list[bytes]], bool]) -> set[int]:
+    """PIDs of the processes on this machine whose command line (its arguments) `matches`."""
     found = set()
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit():
@@ -24,24 +25,23 @@ def godot_processes() -> set[int]:
             command = (entry / "cmdline").read_bytes().split(b"\0")
         except OSError:
             continue
-        if any(b"godot" in part for part in command) and any(str(PROJECT_ROOT).encode() in part for part in command):
+        if matches(command):
             found.add(int(entry.name))
     return found
+
+
+def godot_processes() -> set[int]:
+    """PIDs of the Godot processes running this project (their command line names its Godot project)."""
+    return processes_whose_command(lambda command: any(b"godot" in part for part in command)
+                                   and any(str(PROJECT_ROOT).encode() in part for part in command))
+
+
+RAY_MARKS = (b"ray::", b"/ray/core/src/ray/", b"ray/_private/", b"ray/dashboard/", b"ray/autoscaler/")
 
 
 def ray_processes() -> set[int]:
     """PIDs of Ray's own processes (GCS, raylets, workers, agents) on this machine."""
-    found = set()
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            command = (entry / "cmdline").read_bytes().replace(b"\0", b" ")
-        except OSError:
-            continue
-        if any(mark in command for mark in (b"ray::", b"/ray/core/src/ray/", b"ray/_private/", b"ray/dashboard/", b"ray/autoscaler/")):
-            found.add(int(entry.name))
-    return found
+    return processes_whose_command(lambda command: any(mark in part for part in command for mark in RAY_MARKS))
 
 
 @pytest.fixture(scope="session", autouse=True)

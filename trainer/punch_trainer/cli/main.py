@@ -43,7 +43,8 @@ def _bench_env(args: argparse.Namespace) -> int:
     from punch_trainer.cli.bench import bench_env, bench_ray, env_table, ray_tables, write_section
 
     if args.ray is not None:
-        rows = bench_ray(processes=args.processes if args.processes != [1, 2] else [1, 2, 3], frames=args.frames)
+        # K = 1 always: the projection starts from one worker's batch.
+        rows = bench_ray(processes=sorted({1, *args.processes}) if args.processes != [1, 2] else [1, 2, 3], frames=args.frames)
         table = ray_tables(rows, frames=args.frames)
         print(table)
         if not args.no_write:
