@@ -15,7 +15,8 @@ ROOT = Path(__file__).resolve().parents[1]
 ADDON = ROOT / "addons" / "punch_controller"
 # Files beside the addon's own that go into it, so the zip is complete on its own.
 DOCUMENTS = ["LICENSE", "THIRD_PARTY_NOTICES.md", "CHANGELOG.md"]
-LIBRARIES = ["libpunch_controller.linux.debug.x86_64.so", "libpunch_controller.linux.release.x86_64.so"]
+LIBRARIES = ["libpunch_controller.linux.debug.x86_64.so", "libpunch_controller.linux.release.x86_64.so",
+             "punch_controller.windows.debug.x86_64.dll", "punch_controller.windows.release.x86_64.dll", "onnxruntime.dll"]
 # Made by Godot in each project that imports the addon.
 LEFT_OUT_SUFFIXES = (".import",)
 
@@ -48,8 +49,8 @@ def addon_files() -> list[Path]:
     names = {path.name for path in files if path.parent.name == "bin"}
     missing = [name for name in LIBRARIES if name not in names]
     if missing or not any(name.startswith("libonnxruntime.so.") for name in names):
-        raise PackageError(f"addons/punch_controller/bin/ lacks {missing or 'libonnxruntime.so.*'}: build both "
-                           "libraries first (./dev setup, or .venv/bin/scons)")
+        raise PackageError(f"addons/punch_controller/bin/ lacks {missing or 'libonnxruntime.so.*'}: build the "
+                           "libraries first (./dev setup and ./dev setup-windows, or .venv/bin/scons with platform=windows)")
     return files
 
 

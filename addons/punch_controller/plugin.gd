@@ -16,9 +16,9 @@ const PhysicsSettings := preload("res://addons/punch_controller/physics_settings
 func _enter_tree() -> void:
 	if not ClassDB.class_exists("PunchController"):
 		var platform := "%s %s" % [OS.get_name(), Engine.get_architecture_name()]
-		if platform != "Linux x86_64":
-			push_error("Punch Controller: this addon has libraries for Linux x86_64 only, so it does not run on "
-				+ platform + " (see the README, 'Platforms').")
+		if platform not in ["Linux x86_64", "Windows x86_64"]:
+			push_error("Punch Controller: this addon has libraries for Linux x86_64 and Windows x86_64 only, so "
+				+ "it does not run on " + platform + " (see the README, 'Platforms').")
 		else:
 			push_error("Punch Controller: the GDExtension is not loaded. Build it (scons, see the project's "
 				+ "README) so that addons/punch_controller/bin/ has the library, then restart the editor.")

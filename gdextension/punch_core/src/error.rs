@@ -5,9 +5,9 @@ use std::path::PathBuf;
 /// Everything that can go wrong in the core, with enough context to act on.
 #[derive(Debug, thiserror::Error)]
 pub enum CoreError {
-    /// No `libonnxruntime.so*` was found where it was looked for.
-    #[error("ONNX Runtime library not found in {dir} (expected a file named libonnxruntime.so*)")]
-    RuntimeLibraryMissing { dir: PathBuf },
+    /// No ONNX Runtime library (`runtime::LIBRARY_PREFIX`) was found where it was looked for.
+    #[error("ONNX Runtime library not found in {dir} (expected a file named {name}*)")]
+    RuntimeLibraryMissing { dir: PathBuf, name: &'static str },
 
     /// The ONNX Runtime library exists but could not be loaded or initialised.
     #[error("could not load ONNX Runtime from {path}: {reason}")]

@@ -8,8 +8,12 @@ use std::sync::OnceLock;
 
 use crate::error::{CoreError, CoreResult};
 
-/// File name prefix of the ONNX Runtime shared library shipped next to the extension.
+/// File name of the ONNX Runtime library shipped next to the extension: on Linux the wheel's versioned
+/// `libonnxruntime.so.X.Y.Z` (this prefix), on Windows `onnxruntime.dll` (this exact name).
+#[cfg(not(windows))]
 pub const LIBRARY_PREFIX: &str = "libonnxruntime.so";
+#[cfg(windows)]
+pub const LIBRARY_PREFIX: &str = "onnxruntime.dll";
 
 struct Runtime {
     environment: ort::environment::Environment,
@@ -19,19 +23,22 @@ struct Runtime {
 
 static RUNTIME: OnceLock<Runtime> = OnceLock::new();
 
-/// Finds `libonnxruntime.so*` in `dir`. When several versions are present the highest version wins (compared
-/// numerically: 1.31 > 1.9), so a stale copy never shadows the one the build just installed.
+/// Finds the ONNX Runtime library in `dir` (`LIBRARY_PREFIX`). When several versions are present the highest
+/// version wins (compared numerically: 1.31 > 1.9), so a stale copy never shadows the one the build just
+/// installed.
 pub fn find_library_in(dir: &Path) -> CoreResult<PathBuf> {
-    let missing = || CoreError::RuntimeLibraryMissing { dir: dir.to_path_buf() };
+    let missing = || CoreError::RuntimeLibraryMissing { dir: dir.to_path_buf(), name: LIBRARY_PREFIX };
     let entries = std::fs::read_dir(dir).map_err(|_| missing())?;
     let mut candidates: Vec<PathBuf> = entries
         .filter_map(|entry| entry.ok().map(|e| e.path()))
-        .filter(|path| {
-            path.file_name().and_then(|name| name.to_str()).is_some_and(|name| name.starts_with(LIBRARY_PREFIX))
-        })
+        .filter(|path| path.file_name().and_then(|name| name.to_str()).is_some_and(is_runtime_library))
         .collect();
     candidates.sort_by_key(|path| version_key(path));
     candidates.pop().ok_or_else(missing)
+}
+
+fn is_runtime_library(name: &str) -> bool {
+    if cfg!(windows) { name.eq_ignore_ascii_case(LIBRARY_PREFIX) } else { name.starts_with(LIBRARY_PREFIX) }
 }
 
 /// The numeric parts after `.so` in a library name: `libonnxruntime.so.1.31.1` -> [1, 31, 1].
@@ -63,7 +70,7 @@ pub fn init(library_path: &Path) -> CoreResult<()> {
     Ok(())
 }
 
-/// Loads ONNX Runtime from the first `libonnxruntime.so*` found in `dir`.
+/// Loads ONNX Runtime from the library `find_library_in` finds in `dir`.
 pub fn init_from_dir(dir: &Path) -> CoreResult<()> {
     if RUNTIME.get().is_some() {
         return Ok(());

@@ -23,13 +23,14 @@ fn bad_runtime_locations_give_clear_errors() {
         Err(CoreError::RuntimeLibraryMissing { .. })
     ));
     // A file with the right name that is not a shared library.
-    let fake = scratch.join("libonnxruntime.so.1.99.0");
-    std::fs::write(&fake, b"not a library").expect("write fake");
+    let fake_name =
+        if cfg!(windows) { runtime::LIBRARY_PREFIX.to_string() } else { format!("{}.1.99.0", runtime::LIBRARY_PREFIX) };
+    std::fs::write(scratch.join(&fake_name), b"not a library").expect("write fake");
     let error = runtime::init_from_dir(&scratch).expect_err("a text file is not ONNX Runtime");
     assert!(matches!(error, CoreError::RuntimeLoad { .. }), "{error}");
-    assert!(error.to_string().contains("libonnxruntime.so.1.99.0"), "{error}");
+    assert!(error.to_string().contains(&fake_name), "{error}");
     // A real shared library that is not ONNX Runtime.
-    let error = runtime::init(Path::new("/lib/x86_64-linux-gnu/libm.so.6")).expect_err("libm is not ONNX Runtime");
+    let error = runtime::init(&other_system_library()).expect_err("a system library is not ONNX Runtime");
     assert!(error.to_string().contains("OrtGetApiBase"), "{error}");
     assert!(runtime::version().is_none());
 
@@ -39,6 +40,15 @@ fn bad_runtime_locations_give_clear_errors() {
     std::fs::remove_dir_all(&scratch).ok();
 }
 
+/// A shared library every machine of the platform has.
+fn other_system_library() -> std::path::PathBuf {
+    match std::env::var_os("SystemRoot") {
+        Some(windows) if cfg!(windows) => Path::new(&windows).join("System32").join("kernel32.dll"),
+        _ => Path::new("/lib/x86_64-linux-gnu/libm.so.6").to_path_buf(),
+    }
+}
+
+#[cfg(not(windows))] // Windows ships the one unversioned onnxruntime.dll
 #[test]
 fn find_library_prefers_the_highest_version() {
     let scratch = std::env::temp_dir().join(format!("punch_core_find_{}", std::process::id()));

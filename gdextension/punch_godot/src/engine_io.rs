@@ -12,7 +12,7 @@ use godot::classes::{
 use godot::obj::{Gd, Singleton};
 use punch_core::character::{Axis, JOINTS, engine_axis, joint_dofs};
 use punch_core::punch::Touch;
-use punch_core::sensing::{BagContact, BodyState, CharacterGeometry, FrameReading, MAX_BAG_CONTACTS};
+use punch_core::sensing::{BagContact, CharacterGeometry, FrameReading, MAX_BAG_CONTACTS};
 
 use crate::convert::{godot_axis, quat, vec3};
 
@@ -59,17 +59,6 @@ pub fn drive_joints(joint_rids: &[Rid; 5], motor_velocities: &[Vec3; 5]) {
                 value,
             );
         }
-    }
-}
-
-/// A body's state from its physics-server direct state.
-pub fn read_state(state: &Gd<PhysicsDirectBodyState3D>) -> BodyState {
-    let transform = state.get_transform();
-    BodyState {
-        position: vec3(transform.origin),
-        rotation: quat(transform.basis.get_quaternion()),
-        linear_velocity: vec3(state.get_linear_velocity()),
-        angular_velocity: vec3(state.get_angular_velocity()),
     }
 }
 

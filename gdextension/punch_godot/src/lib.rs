@@ -8,8 +8,11 @@ mod punch_character;
 mod punch_controller;
 mod punch_policy;
 mod punch_runtime;
+// Training runs on Linux (the trainer starts headless Linux Godot); the game classes build everywhere.
+#[cfg(unix)]
 mod punch_training_server;
 mod target;
+#[cfg(unix)]
 mod training_world;
 
 use godot::prelude::{ExtensionLibrary, gdextension};

@@ -25,8 +25,8 @@ use punch_core::character::{Axis, Body, JOINTS};
 use punch_core::sensing::{BodyState, CharacterGeometry, FrameReading, MAX_BAG_CONTACTS};
 use punch_core::session::{BagPlacement, World};
 
-use crate::convert::{godot_axis, vector3};
-use crate::engine_io::{add_bag_contacts, character_geometry, drive_joints, joint_axis_settings, read_state};
+use crate::convert::{godot_axis, quat, vec3, vector3};
+use crate::engine_io::{add_bag_contacts, character_geometry, drive_joints, joint_axis_settings};
 
 /// Most slots per arena: a slot uses two of the 32 collision layers, one for its character and one for its bag.
 pub const MAX_SLOTS_PER_WORLD: usize = 16;
@@ -367,5 +367,16 @@ impl World for TrainingWorld {
 
     fn drive(&mut self, slot: usize, motor_velocities: &[Vec3; 5]) {
         drive_joints(&self.slots[slot].joints, motor_velocities);
+    }
+}
+
+/// A body's state from its physics-server direct state.
+fn read_state(state: &Gd<PhysicsDirectBodyState3D>) -> BodyState {
+    let transform = state.get_transform();
+    BodyState {
+        position: vec3(transform.origin),
+        rotation: quat(transform.basis.get_quaternion()),
+        linear_velocity: vec3(state.get_linear_velocity()),
+        angular_velocity: vec3(state.get_angular_velocity()),
     }
 }
