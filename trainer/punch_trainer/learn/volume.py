@@ -4,10 +4,12 @@
    at the default placement, each placement also trying its neighbours' best (`placement_search`).
 2. Every placement's best trajectory goes into one dataset; the actor-critic is pretrained on all of them,
    with observation statistics from the whole distribution of A2C's episodes (`distribution_observations`).
-3. A2C with every episode's conditions drawn from the volume (`EpisodeConditions`): a random placement, the
-   bag already swinging in some, and in some a start from the end of an earlier punch or mid-recovery (a
-   lead-in of real actions before the episode); the policy's own sampling noise (sigma from 0.3) is the
-   training-time action noise it learns to correct.
+3. A2C with every episode's conditions drawn from the volume (`EpisodeConditions`): a random placement and,
+   in some, the bag already swinging; the policy's own sampling noise (sigma from 0.3) is the training-time
+   action noise it learns to correct. Every episode starts from the guard: a punch asked for in another pose
+   (after an earlier punch, mid-recovery) goes to guard first in the game (`PunchController.guard_first`),
+   which measured better than teaching the policy those starts (BENCHMARKS.md, "Target-aware policies").
+   Episodes that start after a lead-in of real actions remain an option (`lead_in_every`).
 
 Success (`success`): a positive return and the right fist touched the bag, as `punch eval` counts it.
 """
@@ -44,8 +46,9 @@ class VolumeArgs:
     """share of lead-in episodes that start at the end of an earlier punch"""
     recovering_share: float = 0.2
     """share of lead-in episodes that start mid-recovery (a punch, then some decisions back toward guard)"""
-    lead_in_every: int = 2
-    """every k-th A2C update starts its episodes after lead-ins (they cost frames; 0: never)"""
+    lead_in_every: int = 0
+    """every k-th A2C update starts its episodes after lead-ins (0: never, the default since guard_first; they
+    cost frames and, at 2, left the policies missing a swinging bag more often)"""
     validation_placements: int = 64
 
 
