@@ -78,6 +78,54 @@ pub fn init_from_dir(dir: &Path) -> CoreResult<()> {
     init(&find_library_in(dir)?)
 }
 
+/// Folder of the binary this code is linked into: the extension's shared library in Godot, the test program in
+/// tests (found with `dladdr` on one of its functions).
+#[cfg(unix)]
+pub fn own_binary_dir() -> Option<PathBuf> {
+    use std::ffi::CStr;
+
+    // SAFETY: Dl_info is plain data; dladdr fills it for an address inside a loaded object.
+    let mut info: libc::Dl_info = unsafe { std::mem::zeroed() };
+    let address = own_binary_dir as *const libc::c_void;
+    // SAFETY: `address` is a function of this library; `info` is a valid out-pointer.
+    if unsafe { libc::dladdr(address, &mut info) } == 0 || info.dli_fname.is_null() {
+        return None;
+    }
+    // SAFETY: dli_fname is a NUL-terminated path owned by the dynamic loader.
+    let path = unsafe { CStr::from_ptr(info.dli_fname) }.to_str().ok()?;
+    Path::new(path).canonicalize().ok()?.parent().map(Path::to_path_buf)
+}
+
+/// Folder of the binary this code is linked into: the extension's DLL in Godot, the test program in tests (the
+/// module that holds one of its functions).
+#[cfg(windows)]
+pub fn own_binary_dir() -> Option<PathBuf> {
+    use std::ffi::c_void;
+    use std::os::windows::ffi::OsStringExt;
+
+    const FROM_ADDRESS: u32 = 0x4; // GET_MODULE_HANDLE_EX_FLAG_FROM_ADDRESS
+    const UNCHANGED_REFCOUNT: u32 = 0x2; // GET_MODULE_HANDLE_EX_FLAG_UNCHANGED_REFCOUNT
+    #[link(name = "kernel32")]
+    unsafe extern "system" {
+        fn GetModuleHandleExW(flags: u32, address: *const c_void, module: *mut *mut c_void) -> i32;
+        fn GetModuleFileNameW(module: *mut c_void, file_name: *mut u16, size: u32) -> u32;
+    }
+    let mut module = std::ptr::null_mut();
+    let address = own_binary_dir as *const c_void;
+    // SAFETY: `address` is a function of this DLL; `module` is a valid out-pointer; no reference is taken.
+    if unsafe { GetModuleHandleExW(FROM_ADDRESS | UNCHANGED_REFCOUNT, address, &mut module) } == 0 {
+        return None;
+    }
+    let mut buffer = vec![0u16; 32_768]; // the longest path Windows allows
+    // SAFETY: `buffer` holds `buffer.len()` u16s; the call writes at most that many.
+    let length = unsafe { GetModuleFileNameW(module, buffer.as_mut_ptr(), buffer.len() as u32) } as usize;
+    if length == 0 || length >= buffer.len() {
+        return None;
+    }
+    let path = PathBuf::from(std::ffi::OsString::from_wide(&buffer[..length]));
+    path.parent().map(Path::to_path_buf)
+}
+
 /// The loaded ONNX Runtime's version string (e.g. "1.31.1"), if it is loaded.
 pub fn version() -> Option<&'static str> {
     RUNTIME.get().map(|r| r.version.as_str())
