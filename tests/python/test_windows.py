@@ -62,7 +62,7 @@ def test_the_extension_dll_loads_and_exports_godots_entry_point(load_library, li
     assert result.returncode == 0 and "SYMBOL gdext_rust_init" in result.stdout, result.stdout + result.stderr[-2000:]
 
 
-def test_onnx_runtime_dll_is_the_wheels_and_a_missing_symbol_is_seen(load_library):
+def test_onnx_runtime_dll_loads_and_a_missing_symbol_is_seen(load_library):
     result = run([str(RUN), load_library, str(BIN / "onnxruntime.dll"), "OrtGetApiBase"])
     assert result.returncode == 0 and "SYMBOL OrtGetApiBase" in result.stdout, result.stdout + result.stderr[-2000:]
     # The check can fail: a symbol the DLL does not export is reported.
