@@ -141,7 +141,7 @@ def printed(run, tag: str):
 def test_every_kind_of_target_is_hit_once_per_punch():
     """A sandbag, a RigidBody3D box on Godot's default layer, a CharacterBody3D enemy, a StaticBody3D post, an
     Area3D hurtbox, a marker on a box and a hurtbox on a bone attachment: the straight punch hits each exactly
-    once (one `hit` per contact episode, however the impulse comes and goes), names what it hit, and gives
+    once (one `hit` per thing and punch, however its contacts come and go), names what it hit, and gives
     bodies the physics does not push the impulse vector. Nothing there, nothing hit; a bystander box counts
     unless `hit_layers` leaves its layer out. Before, only a sandbag-like RigidBody3D reported hits, 2 to 5
     times per punch."""

@@ -56,7 +56,7 @@ impl RuntimeNoise {
 pub struct Touch {
     /// Index into `Body::ALL` of the character's body that touches (only the forearms carry fists).
     pub body: usize,
-    /// The engine's id of what is touched (a body or an area): one hit per contact episode with it.
+    /// The engine's id of what is touched (a body or an area): a punch hits each one at most once.
     pub collider: u64,
     /// The contact point on what is touched.
     pub point: Vec3,
@@ -66,7 +66,7 @@ pub struct Touch {
     pub overlap: bool,
 }
 
-/// A fist started touching something (a new contact episode with it).
+/// A fist struck something for the first time in this punch.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Hit {
     /// What was hit (`Touch::collider`).
@@ -92,7 +92,7 @@ pub struct PunchSummary {
     /// Physics frames played.
     pub frames: usize,
     pub peak_fist_speed_mps: f32,
-    /// Contact episodes of a fist with something it may hit.
+    /// Things a fist struck (each counted once per punch).
     pub hits: i64,
     /// The largest contact impulse of a fist in one frame, N s.
     pub strongest_hit_ns: f32,
@@ -131,6 +131,9 @@ pub struct Punch {
     reading: FrameReading,
     /// What the fists are touching in a contact episode that was counted as a hit.
     in_contact: Vec<u64>,
+    /// Everything this punch has hit: a fist touching it again (an Area3D's edge, a sandbag swinging back
+    /// into the fist) is not another hit.
+    struck: Vec<u64>,
     summary: PunchSummary,
     record: Option<PunchRecord>,
 }
@@ -145,6 +148,7 @@ impl Punch {
             frame: 0,
             reading: FrameReading::default(),
             in_contact: Vec::new(),
+            struck: Vec::new(),
             summary: PunchSummary::default(),
             record: record.then(PunchRecord::default),
         }
@@ -215,9 +219,10 @@ impl Punch {
         Ok(commands)
     }
 
-    /// Hits of this frame: one per contact episode of a fist with something, counted when its impulse first
-    /// exceeds `HIT_IMPULSE_NS` (or at once for an area). An episode lasts while the fist keeps touching it
-    /// (Jolt keeps a contact, at zero impulse, while the fist rests on or rebounds near a surface).
+    /// Hits of this frame: a fist struck something this punch has not hit yet, counted when the contact's
+    /// impulse first exceeds `HIT_IMPULSE_NS` (or at once for an area). A contact episode lasts while the fist
+    /// keeps touching it (Jolt keeps a contact, at zero impulse, while the fist rests on or rebounds near a
+    /// surface); a later episode with the same thing is no new hit, as a game counts one hit per attack.
     fn track_hits(&mut self, features: &[f32; FEATURE_COUNT], reading: &FrameReading, touches: &[Touch]) -> Vec<Hit> {
         let length = |column: usize| feature_vector(features, column).length();
         let speeds = [length(columns::FIST_R_VEL), length(columns::FIST_L_VEL)];
@@ -252,7 +257,8 @@ impl Punch {
             }
             in_contact.push(collider);
             self.summary.strongest_hit_ns = self.summary.strongest_hit_ns.max(impulse.length());
-            if !continuing {
+            if !continuing && !self.struck.contains(&collider) {
+                self.struck.push(collider);
                 self.summary.hits += 1;
                 hits.push(Hit {
                     collider,
@@ -360,7 +366,7 @@ mod tests {
     }
 
     #[test]
-    fn the_fake_punch_hits_once_per_contact_and_reports_it() {
+    fn the_fake_punch_hits_the_bag_once_and_reports_it() {
         let spec = PolicySpec::new(5, 50, 1).expect("valid");
         let (_, _, hits, summary) = play(spec, &mut RuntimeNoise::new(0, 0.0, -1), forward, |_, _| {});
         assert_eq!(hits.len(), 1, "the fist stays on the bag: one hit, not one per frame");
@@ -391,19 +397,21 @@ mod tests {
     }
 
     #[test]
-    fn a_contact_episode_is_one_hit_even_when_its_impulse_comes_and_goes() {
+    fn a_punch_hits_each_thing_once_however_its_contacts_come_and_go() {
         // As Jolt reports a punch on the sandbag: a strong first frame, zero-impulse frames while the fist
-        // stays in contact, a second push, then nothing.
+        // stays in contact, a second push, then nothing; then the fist touches it again (the bag swinging
+        // back, or the fist at an Area3D's edge), harder, and touches a second body.
         let frames: Vec<Vec<Touch>> = [3.0, 0.0, 0.0, 0.14, 0.13, 0.0]
             .iter()
             .map(|&impulse| vec![fist_touch(1, impulse), fist_touch(1, impulse / 2.0)])
-            .chain([vec![], vec![fist_touch(1, 2.0)]])
+            .chain([vec![], vec![fist_touch(1, 6.0)], vec![], vec![fist_touch(2, 2.0)]])
             .collect();
         let (hits, summary) = hits_of(&frames);
-        assert_eq!(hits.len(), 2, "one hit, then a second after the fist left: {hits:?}");
-        assert!((hits[0].impulse_ns() - 4.5).abs() < 1e-5 && hits[0].collider == 1);
+        let colliders: Vec<u64> = hits.iter().map(|h| h.collider).collect();
+        assert_eq!(colliders, [1, 2], "one hit per thing, not per contact episode: {hits:?}");
+        assert!((hits[0].impulse_ns() - 4.5).abs() < 1e-5);
         assert_eq!(summary.hits, 2);
-        assert!((summary.strongest_hit_ns - 4.5).abs() < 1e-5);
+        assert!((summary.strongest_hit_ns - 6.0).abs() < 1e-5, "a later contact still counts as an impact");
         assert!(summary.interrupted && summary.frames == frames.len());
     }
 
