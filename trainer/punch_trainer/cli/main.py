@@ -293,6 +293,8 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--a2c-characters", dest="a2c_characters", type=int)
     train.add_argument("--a2c-time-budget-s", dest="a2c_time_budget_s", type=float,
                        help="stop A2C after this much wall time (default 600 over the volume, 60 at a spot; 0: no limit, which makes runs reproducible)")
+    train.add_argument("--a2c-sigma-floor", dest="a2c_sigma_floor", type=float,
+                       help="the least sigma A2C samples actions with (default 0.2 over the volume, 0 at a spot)")
     train.add_argument("--reach", choices=["volume", "spot"],
                        help="'volume' (default): every target placement of the spec's reach volume (docs/env.md), minutes; "
                             "'spot': the default placement only, seconds (the quickstart; the policy hits only there)")

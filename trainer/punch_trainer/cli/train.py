@@ -49,6 +49,9 @@ class TrainArgs:
     a2c_characters: int = 32
     """characters per A2C process (two processes over the volume)"""
     advantage: str = "gae"
+    a2c_sigma_floor: float | None = None
+    """the least sigma A2C samples actions with (default: 0.2 over the volume, so that the policy keeps
+    meeting noisy decisions and learns to recover from them; 0 at a spot)"""
     a2c_time_budget_s: float | None = None
     """stop A2C after this much wall time (default: 60 s at a spot, 600 s over the volume; 0: no limit,
     which makes a run reproducible)"""
@@ -166,8 +169,10 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False) -> P
         pretrained_return = evaluate_noise_free(model, env, reward)
         updates = args.a2c_updates or (5000 if over_volume else 40)
         budget = args.a2c_time_budget_s if args.a2c_time_budget_s is not None else (600.0 if over_volume else 60.0)
+        sigma_floor = args.a2c_sigma_floor if args.a2c_sigma_floor is not None else (0.2 if over_volume else 0.0)
         a2c_args = A2CArgs(updates=updates, characters=env.num_envs, advantage=args.advantage,
-                           smoothing_window=args.smoothing_window, time_budget_s=budget or None, seed=args.seed)
+                           smoothing_window=args.smoothing_window, sigma_floor=sigma_floor,
+                           time_budget_s=budget or None, seed=args.seed)
         model, a2c_history = train_a2c(model, reward, a2c_args, env, progress, run_dir=out / "a2c",
                                        start_rollouts=search.history[-1]["rollouts"] if search.history else 0,
                                        conditions=conditions, validation=validation)
@@ -197,7 +202,8 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False) -> P
         f"# punch train: {reward.name}", "",
         f"- trajectory search: best return {search.best_return:.4f} ({search_args.iterations} iterations of {search_args.rollouts} rollouts)",
         f"- after pretraining ({args.pretrain_epochs} epochs, final actor MSE {pretrain_history[-1]['actor_mse']:.2e}): noise-free return {pretrained_return:.4f}",
-        f"- after A2C ({len(a2c_history) - 1} updates x {processes * args.a2c_characters} episodes, advantage '{args.advantage}'): "
+        f"- after A2C ({len(a2c_history) - 1} updates x {processes * args.a2c_characters} episodes, advantage '{args.advantage}', "
+        f"sigma at least {a2c_args.sigma_floor}): "
         f"best noise-free return {max(h['eval_return'] for h in a2c_history):.4f}",
         f"- exported policy (onnxruntime, sigma 0) in the simulator: return {exported_return:.4f} = {100 * ratio:.1f}% of the search's best",
         f"- reach: {args.reach}" + (f" ({len(grid_bests)} search placements; on {len(validation or [])} validation placements, "

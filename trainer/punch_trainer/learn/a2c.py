@@ -45,6 +45,9 @@ class A2CArgs:
     advantage: str = "gae"
     """'gae' or 'paper'"""
     smoothing_window: int = 3
+    sigma_floor: float = 0.0
+    """the least sigma actions are sampled with, in collection and in the update: keeps exploring and
+    keeps the policy seeing (and correcting) noisy decisions after its learned sigma has shrunk"""
     time_budget_s: float | None = None
     seed: int = 0
 
@@ -63,7 +66,7 @@ def evaluate_noise_free(model: ActorCritic, env: PunchVectorEnv, reward: Reward)
 
 
 def collect_episodes(model: ActorCritic, env: PunchVectorEnv, reward: Reward,
-                     options: dict[str, Any] | None = None) -> dict[str, torch.Tensor]:
+                     options: dict[str, Any] | None = None, sigma_floor: float = 0.0) -> dict[str, torch.Tensor]:
     """One episode on every character with actions sampled from the policy (reset with `options`: bag
     placements, lead-ins): per decision [T, N, ...] the observations, actions, log-probabilities, values
     and rewards."""
@@ -73,7 +76,7 @@ def collect_episodes(model: ActorCritic, env: PunchVectorEnv, reward: Reward,
     while not done.all():
         obs_t = torch.as_tensor(obs)
         with torch.no_grad():
-            dist = model.distribution(obs_t)
+            dist = model.distribution(obs_t, sigma_floor)
             action = dist.sample()
             logp = dist.log_prob(action).sum(-1)
             value = model.value(obs_t)
@@ -151,7 +154,7 @@ def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVecto
 
         def collect(rng_state: torch.Tensor = rng_state, options: dict[str, Any] | None = options) -> dict[str, torch.Tensor]:
             torch.set_rng_state(rng_state)  # a rerun after a restart samples the same actions
-            return collect_episodes(model, env, reward, options)
+            return collect_episodes(model, env, reward, options, args.sigma_floor)
 
         batch = restarts.run(collect)
         episode_returns = batch["rewards"].sum(0)
@@ -162,7 +165,7 @@ def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVecto
         b_adv, b_returns = flat(advantages), flat(returns)
         b_adv = (b_adv - b_adv.mean()) / (b_adv.std() + 1e-8)
         for _ in range(args.epochs):
-            dist = model.distribution(b_obs)
+            dist = model.distribution(b_obs, args.sigma_floor)
             ratio = torch.exp(dist.log_prob(b_actions).sum(-1) - b_logp)
             policy_loss = -torch.min(ratio * b_adv, torch.clamp(ratio, 1 - args.clip, 1 + args.clip) * b_adv).mean()
             value_loss = ((model.value(b_obs) - b_returns) ** 2).mean()

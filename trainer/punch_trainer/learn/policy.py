@@ -52,9 +52,11 @@ class ActorCritic(nn.Module):
         value: torch.Tensor = self.critic(self.normalize(obs)).squeeze(-1)
         return value
 
-    def distribution(self, obs: torch.Tensor) -> torch.distributions.Normal:
+    def distribution(self, obs: torch.Tensor, sigma_floor: float = 0.0) -> torch.distributions.Normal:
+        """The action distribution; `sigma_floor` keeps its sigma from shrinking below that value (training
+        noise the policy must learn to recover from; the exported sigma head is unchanged)."""
         mean, sigma = self(obs)
-        return torch.distributions.Normal(mean, sigma)
+        return torch.distributions.Normal(mean, sigma.clamp(min=sigma_floor))
 
 
 class Actor(nn.Module):

@@ -5,8 +5,9 @@
 2. Every placement's best trajectory goes into one dataset; the actor-critic is pretrained on all of them,
    with observation statistics from the whole distribution of A2C's episodes (`distribution_observations`).
 3. A2C with every episode's conditions drawn from the volume (`EpisodeConditions`): a random placement and,
-   in some, the bag already swinging; the policy's own sampling noise (sigma from 0.3) is the training-time
-   action noise it learns to correct. Every episode starts from the guard: a punch asked for in another pose
+   in some, the bag already swinging; the policy's own sampling noise (sigma from 0.3, never below A2C's
+   `sigma_floor`, 0.2 by default here) is the training-time action noise it learns to correct: without the
+   floor the learned sigma shrank to 0.03-0.44 and the policies corrected less (BENCHMARKS.md). Every episode starts from the guard: a punch asked for in another pose
    (after an earlier punch, mid-recovery) goes to guard first in the game (`PunchController.guard_first`),
    which measured better than teaching the policy those starts (BENCHMARKS.md, "Target-aware policies").
    Episodes that start after a lead-in of real actions remain an option (`lead_in_every`).
