@@ -6,14 +6,19 @@ import json
 
 import numpy as np
 import pytest
+import torch
 
 from punch_trainer.cli.evaluate import EvalArgs, run_eval
 from punch_trainer.cli.experiments import after_punch_headroom
 from punch_trainer.cli.replay import policy_metadata
 from punch_trainer.cli.search import run_search
 from punch_trainer.cli.train import TrainArgs, run_train
+from punch_trainer.learn.a2c import collect_episodes
+from punch_trainer.learn.policy import SIGMA_MIN, ActorCritic
 from punch_trainer.learn.reach import HELD_OUT_SEED, METADATA_KEY, ReachVolume
 from punch_trainer.learn.search import SearchArgs
+from punch_trainer.sim.env import PunchVectorEnv
+from punch_trainer.sim.rewards import load_reward
 from punch_trainer.sim.server import TrainingServer
 
 pytestmark = pytest.mark.godot
@@ -64,6 +69,24 @@ def test_a_volume_policy_beats_a_single_spot_policy_on_held_out_placements(tmp_p
     for name in ["report.md", "eval.json", "eval_volume.png", "eval_sigma.png"]:
         assert (out / name).is_file(), name
     assert json.loads((out / "eval.json").read_text())["seed"] == HELD_OUT_SEED
+
+
+def test_the_sigma_floor_reaches_the_actions_the_simulator_plays():
+    """A policy whose own sigma has shrunk to its minimum plays its mean; with A2C's sigma floor its episodes
+    in the simulator carry noise of that sigma, which is what it learns to recover from."""
+    reward = load_reward("straight")
+    with PunchVectorEnv(1, 16, frames=reward.frames, smoothing_window=3) as env:
+        model = ActorCritic(env.info.observation_size, env.info.action_size, seed=0)
+        with torch.no_grad():
+            model.log_sigma_head.bias.fill_(-20.0)  # clamped to SIGMA_MIN
+        spread = {}
+        for floor in (0.0, 0.2):
+            batch = collect_episodes(model, env, reward, sigma_floor=floor)
+            with torch.no_grad():
+                mean, _ = model(batch["obs"].reshape(-1, env.info.observation_size))
+            spread[floor] = float((batch["actions"].reshape(mean.shape) - mean).std())
+    assert spread[0.0] == pytest.approx(SIGMA_MIN, rel=0.2), spread
+    assert spread[0.2] == pytest.approx(0.2, rel=0.1), spread
 
 
 def test_the_after_punch_experiment_searches_from_both_starts(tmp_path):
