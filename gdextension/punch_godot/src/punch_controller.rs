@@ -167,8 +167,9 @@ impl PunchController {
     /// Emitted when a fist strikes something (the target, or a body on `hit_layers`), once per thing and
     /// punch (touching it again in the same punch is no new hit): `impulse` (N s) on it in that first
     /// frame, the fist's peak `speed` so far (m/s), where the fist was (`position`, global), what was hit
-    /// (`body`: a CollisionObject3D, or null if it is gone), and `push`, the impulse vector (N s, global axes) for bodies that physics does not push, such as a
-    /// CharacterBody3D: `enemy.velocity += push / enemy_mass_kg` knocks it back.
+    /// (`body`: a CollisionObject3D, or null if it is gone), and `push`, the impulse vector (N s, global
+    /// axes) for bodies that physics does not push, such as a CharacterBody3D:
+    /// `enemy.velocity += push / enemy_mass_kg` knocks it back.
     #[signal]
     fn hit(impulse: f32, speed: f32, position: Vector3, body: Option<Gd<Node3D>>, push: Vector3);
 
