@@ -17,6 +17,7 @@ from punch_trainer.learn.a2c import collect_episodes
 from punch_trainer.learn.policy import SIGMA_MIN, ActorCritic
 from punch_trainer.learn.reach import HELD_OUT_SEED, METADATA_KEY, ReachVolume
 from punch_trainer.learn.search import SearchArgs
+from punch_trainer.learn.volume import EpisodeConditions, VolumeArgs
 from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.rewards import load_reward
 from punch_trainer.sim.server import TrainingServer
@@ -87,6 +88,21 @@ def test_the_sigma_floor_reaches_the_actions_the_simulator_plays():
             spread[floor] = float((batch["actions"].reshape(mean.shape) - mean).std())
     assert spread[0.0] == pytest.approx(SIGMA_MIN, rel=0.2), spread
     assert spread[0.2] == pytest.approx(0.2, rel=0.1), spread
+
+
+def test_a_share_of_episodes_at_the_default_placement():
+    """`default_share`: that share of A2C episodes has the bag still at the default placement, the rest are
+    drawn from the volume as before, and a resumed run draws the same."""
+    reach = ReachVolume((0.6, 0.85), (1.15, 1.55), (-0.25, 0.25), 1.0, True)
+    default = {"distance_m": 0.7, "height_m": 1.35, "side_m": 0.0}
+    punches = np.zeros((1, 10, 10), dtype=np.float32)
+    draw = EpisodeConditions(reach, punches, VolumeArgs(default_share=0.25), seed=5, default_bag=default)
+    bags = [bag for update in range(1, 41) for bag in draw(32, update)["bag"]]
+    at_default = sum(bag == default for bag in bags) / len(bags)
+    assert 0.2 < at_default < 0.3, at_default
+    assert draw(32, 7) == draw(32, 7)
+    without = EpisodeConditions(reach, punches, VolumeArgs(), seed=5, default_bag=default)
+    assert not any(bag == default for bag in without(32, 1)["bag"])
 
 
 def test_the_after_punch_experiment_searches_from_both_starts(tmp_path):

@@ -302,6 +302,8 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--volume-search-iterations", dest="volume_search_iterations", type=int)
     train.add_argument("--volume-search-rollouts", dest="volume_search_rollouts", type=int,
                        help="volume: rollouts per placement and iteration (default 16)")
+    train.add_argument("--default-share", dest="default_share", type=float,
+                       help="volume: share of A2C episodes with the bag at the default placement (default 0)")
     train.add_argument("--resume", type=Path, metavar="RUN_DIR",
                        help="continue an interrupted run from its checkpoints, with its own arguments (other options are ignored)")
     train.add_argument("--processes", type=int,

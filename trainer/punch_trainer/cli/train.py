@@ -61,6 +61,8 @@ class TrainArgs:
     """search placements along distance, height and side (volume)"""
     volume_search_iterations: int = 60
     volume_search_rollouts: int = 16
+    default_share: float = 0.0
+    """share of A2C episodes at the default placement (volume)"""
     processes: int = 1
     """Godot processes of 64 characters for the searches (with --ray, Ray workers: docs/cluster.md)"""
 
@@ -142,7 +144,7 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False) -> P
     _, search, _ = run_search(search_args, progress, resume=resume)
     dataset_paths = [out / "search" / "dataset.npz"]
     volume = VolumeArgs(grid=parse_grid(args.grid), search_iterations=args.volume_search_iterations,
-                        search_rollouts=args.volume_search_rollouts)
+                        search_rollouts=args.volume_search_rollouts, default_share=args.default_share)
     reach, punches, grid_bests = None, search.best_actions[None], [search.best_return]
     if over_volume:
         dataset_paths, reach, grid_bests, punches = search_volume(args, volume, reward, search, progress, resume)
@@ -153,7 +155,8 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False) -> P
     processes = 2 if over_volume else 1
     env = PunchVectorEnv(processes, args.a2c_characters, frames=reward.frames, smoothing_window=args.smoothing_window)
     try:
-        conditions = EpisodeConditions(reach, punches, volume, seed=args.seed + 1) if reach is not None else None
+        conditions = (EpisodeConditions(reach, punches, volume, seed=args.seed + 1, default_bag=env.info.default_bag)
+                      if reach is not None else None)
         validation = reach.sample(np.random.default_rng(args.seed + 2), env.num_envs) if reach is not None else None
         pretrained = load_checkpoint(out / "pretrain", "pretrain") if resume else None
         if pretrained is None:

@@ -7,9 +7,10 @@
 3. A2C with every episode's conditions drawn from the volume (`EpisodeConditions`): a random placement and,
    in some, the bag already swinging; the policy's own sampling noise (sigma from 0.3, never below A2C's
    `sigma_floor`, 0.2 by default here) is the training-time action noise it learns to correct: without the
-   floor the learned sigma shrank to 0.03-0.44 and the policies corrected less (BENCHMARKS.md). Every episode starts from the guard: a punch asked for in another pose
-   (after an earlier punch, mid-recovery) goes to guard first in the game (`PunchController.guard_first`),
-   which measured better than teaching the policy those starts (BENCHMARKS.md, "Target-aware policies").
+   floor the learned sigma shrank to 0.03-0.44 and the policies corrected less (BENCHMARKS.md). Every
+   episode starts from the guard: a punch asked for in another pose (after an earlier punch, mid-recovery)
+   goes to guard first in the game (`PunchController.guard_first`), which measured better than teaching the
+   policy those starts (BENCHMARKS.md, "Target-aware policies").
    Episodes that start after a lead-in of real actions remain an option (`lead_in_every`).
 
 Success (`success`): a positive return and the right fist touched the bag, as `punch eval` counts it.
@@ -43,6 +44,9 @@ class VolumeArgs:
     """the warm-started tables' initial sigma (the default-placement search starts at 1)"""
     moving_share: float = 0.25
     """share of A2C episodes whose bag swings at the start"""
+    default_share: float = 0.0
+    """share of A2C episodes with the bag hanging still at the default placement (where
+    `PunchController.default_target_offset()` and the demo put it)"""
     after_punch_share: float = 0.35
     """share of lead-in episodes that start at the end of an earlier punch"""
     recovering_share: float = 0.2
@@ -56,9 +60,11 @@ class VolumeArgs:
 class EpisodeConditions:
     """Draws the conditions of every A2C episode from the reach volume: `options` for `PunchVectorEnv.reset`."""
 
-    def __init__(self, reach: ReachVolume, punches: np.ndarray, args: VolumeArgs, seed: int):
-        """`punches`: raw action sequences [K, decisions, A] (the search's bests) that lead-ins replay."""
-        self.reach, self.punches, self.args, self.seed = reach, punches, args, seed
+    def __init__(self, reach: ReachVolume, punches: np.ndarray, args: VolumeArgs, seed: int,
+                 default_bag: dict[str, float] | None = None):
+        """`punches`: raw action sequences [K, decisions, A] (the search's bests) that lead-ins replay;
+        `default_bag`: the default placement, for `args.default_share`."""
+        self.reach, self.punches, self.args, self.seed, self.default_bag = reach, punches, args, seed, default_bag
 
     def __call__(self, count: int, update: int) -> dict[str, Any]:
         """The conditions of update `update`'s episodes (drawn from the seed and the update alone, so a resumed
@@ -66,7 +72,11 @@ class EpisodeConditions:
         rng = np.random.default_rng([self.seed, update])
         lead_ins = bool(self.reach.any_start_pose and self.args.lead_in_every and update % self.args.lead_in_every == 0)
         if not lead_ins:
-            return {"bag": self.reach.sample(rng, count, moving=self.args.moving_share)}
+            bags = self.reach.sample(rng, count, moving=self.args.moving_share)
+            if self.default_bag is not None and self.args.default_share > 0:
+                at_default = rng.uniform(size=count) < self.args.default_share
+                bags = [dict(self.default_bag) if spot else bag for bag, spot in zip(bags, at_default, strict=True)]
+            return {"bag": bags}
         return {"bag": self.reach.sample(rng, count), "lead_in": self.lead_ins(rng, count)}
 
     def lead_ins(self, rng: np.random.Generator, count: int) -> np.ndarray:
