@@ -15,7 +15,7 @@ from punch_trainer.cli.search import run_search
 from punch_trainer.cli.train import TrainArgs, run_train
 from punch_trainer.learn.a2c import collect_episodes
 from punch_trainer.learn.policy import SIGMA_MIN, ActorCritic
-from punch_trainer.learn.reach import HELD_OUT_SEED, METADATA_KEY, ReachVolume
+from punch_trainer.learn.reach import HELD_OUT_SEED, METADATA_KEY, ReachVolume, placement
 from punch_trainer.learn.search import SearchArgs
 from punch_trainer.learn.volume import EpisodeConditions, VolumeArgs
 from punch_trainer.sim.env import PunchVectorEnv
@@ -48,8 +48,8 @@ def test_a_volume_policy_beats_a_single_spot_policy_on_held_out_placements(tmp_p
     out, report = run_eval(EvalArgs(policy=volume / "policy.onnx", baseline=spot / "policy.onnx", placements=32,
                                     sigmas=[0.0, 0.3], noisy_episodes=1, search_iterations=3, out=tmp_path / "eval"), progress=False)
     assert report["seed"] == HELD_OUT_SEED and len(report["placements"]) == 32
-    for placement in report["placements"]:
-        assert announced.distance_m[0] <= placement["distance_m"] <= announced.distance_m[1]
+    for drawn in report["placements"]:
+        assert announced.distance_m[0] <= drawn["distance_m"] <= announced.distance_m[1]
     rows = {name: {(r["condition"], r["sigma"]): r for r in e["rows"]}
             for name, e in zip(["volume", "spot"], report["evaluations"], strict=True)}
     for name in rows:
@@ -94,7 +94,7 @@ def test_a_share_of_episodes_at_the_default_placement():
     """`default_share`: that share of A2C episodes has the bag still at the default placement, the rest are
     drawn from the volume as before, and a resumed run draws the same."""
     reach = ReachVolume((0.6, 0.85), (1.15, 1.55), (-0.25, 0.25), 1.0, True)
-    default = {"distance_m": 0.7, "height_m": 1.35, "side_m": 0.0}
+    default = placement(0.7, 1.35, 0.0)  # the shape of every drawn placement, so equality is a real test
     punches = np.zeros((1, 10, 10), dtype=np.float32)
     draw = EpisodeConditions(reach, punches, VolumeArgs(default_share=0.25), seed=5, default_bag=default)
     bags = [bag for update in range(1, 41) for bag in draw(32, update)["bag"]]
@@ -103,6 +103,7 @@ def test_a_share_of_episodes_at_the_default_placement():
     assert draw(32, 7) == draw(32, 7)
     without = EpisodeConditions(reach, punches, VolumeArgs(), seed=5, default_bag=default)
     assert not any(bag == default for bag in without(32, 1)["bag"])
+    assert without(32, 1)["bag"][0].keys() == default.keys()
 
 
 def test_the_after_punch_experiment_searches_from_both_starts(tmp_path):

@@ -61,7 +61,7 @@ class EpisodeConditions:
     """Draws the conditions of every A2C episode from the reach volume: `options` for `PunchVectorEnv.reset`."""
 
     def __init__(self, reach: ReachVolume, punches: np.ndarray, args: VolumeArgs, seed: int,
-                 default_bag: dict[str, float] | None = None):
+                 default_bag: dict[str, float]):
         """`punches`: raw action sequences [K, decisions, A] (the search's bests) that lead-ins replay;
         `default_bag`: the default placement, for `args.default_share`."""
         self.reach, self.punches, self.args, self.seed, self.default_bag = reach, punches, args, seed, default_bag
@@ -71,13 +71,13 @@ class EpisodeConditions:
         run draws what an uninterrupted one would)."""
         rng = np.random.default_rng([self.seed, update])
         lead_ins = bool(self.reach.any_start_pose and self.args.lead_in_every and update % self.args.lead_in_every == 0)
+        bags = self.reach.sample(rng, count, moving=0.0 if lead_ins else self.args.moving_share)
+        if self.args.default_share > 0:
+            at_default = rng.uniform(size=count) < self.args.default_share
+            bags = [dict(self.default_bag) if spot else bag for bag, spot in zip(bags, at_default, strict=True)]
         if not lead_ins:
-            bags = self.reach.sample(rng, count, moving=self.args.moving_share)
-            if self.default_bag is not None and self.args.default_share > 0:
-                at_default = rng.uniform(size=count) < self.args.default_share
-                bags = [dict(self.default_bag) if spot else bag for bag, spot in zip(bags, at_default, strict=True)]
             return {"bag": bags}
-        return {"bag": self.reach.sample(rng, count), "lead_in": self.lead_ins(rng, count)}
+        return {"bag": bags, "lead_in": self.lead_ins(rng, count)}
 
     def lead_ins(self, rng: np.random.Generator, count: int) -> np.ndarray:
         """[count, decisions + 4, A]: zeros (a start from the guard at rest), a whole punch (its end), or a
