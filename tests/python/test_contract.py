@@ -9,9 +9,9 @@ import onnxruntime
 import pytest
 
 from punch_trainer.cli.main import main
-from punch_trainer.cli.replay import ReplayArgs, policy_metadata, replay_frames, run_replay
-from punch_trainer.cli.search import run_search
 from punch_trainer.learn.search import SearchArgs
+from punch_trainer.pipelines.replay import ReplayArgs, policy_metadata, replay_frames, run_replay
+from punch_trainer.pipelines.search import run_search
 from punch_trainer.sim.env import PunchVectorEnv
 
 pytestmark = pytest.mark.godot

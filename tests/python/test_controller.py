@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 import torch
 
-from punch_trainer.cli.replay import policy_metadata
-from punch_trainer.cli.train import TrainArgs, run_train
 from punch_trainer.learn.export import export_onnx
+from punch_trainer.pipelines.replay import policy_metadata
+from punch_trainer.pipelines.train import TrainArgs, run_train
 from punch_trainer.sim.godot import ADDON_POLICIES, GODOT_PROJECT, PROJECT_ROOT, run_godot
 
 pytestmark = pytest.mark.godot
@@ -56,7 +56,7 @@ def test_punch_controllers_play_a_shared_policy_batched_in_a_game_scene(policy):
 
 
 def test_bench_inference_measures_punching_and_idle_controllers():
-    from punch_trainer.cli.bench import bench_inference, inference_table
+    from punch_trainer.pipelines.bench import bench_inference, inference_table
 
     (row,) = bench_inference(ADDON_POLICIES / "straight.onnx", characters=(3,), batches=1)
     # One batched call per decision tick: 10 decisions of 3 controllers.

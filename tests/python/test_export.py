@@ -4,9 +4,9 @@ import onnx
 import pytest
 import torch
 
-from punch_trainer.cli.selfcheck import TinyActor
 from punch_trainer.errors import ExportError
 from punch_trainer.learn.export import export_onnx, verify_export
+from punch_trainer.pipelines.selfcheck import TinyActor
 
 
 def test_export_has_dynamic_batch_names_and_metadata(tmp_path) -> None:

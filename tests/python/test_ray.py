@@ -16,8 +16,8 @@ from onnx import numpy_helper
 
 from conftest import godot_processes, ray_processes
 from punch_trainer.cli.main import main
-from punch_trainer.cli.train import TrainArgs, run_train
 from punch_trainer.learn.search import SearchArgs, trajectory_search
+from punch_trainer.pipelines.train import TrainArgs, run_train
 from punch_trainer.sim.cluster import RayTrainingServer, ray_cluster, simulated_cluster
 from punch_trainer.sim.godot import ADDON_POLICIES
 from punch_trainer.sim.rewards import load_reward
@@ -77,7 +77,7 @@ def search(pool: RolloutPool):
 def test_a_search_on_ray_is_bitwise_the_local_one_with_workers_on_every_node_and_loopback_only(cluster):
     with RolloutPool(PROCESSES, CHARACTERS) as pool:
         local = search(pool)
-    with ray_cluster(cluster.address), RolloutPool(PROCESSES, CHARACTERS) as pool:
+    with ray_cluster(cluster.address) as backend, RolloutPool(PROCESSES, CHARACTERS, backend=backend) as pool:
         assert all(isinstance(server, RayTrainingServer) for server in pool.servers)
         nodes = {server.node_id for server in pool.servers}
         assert len(nodes) == WORKER_NODES, "the workers should be spread over the worker nodes"
@@ -94,7 +94,7 @@ def test_a_worker_killed_and_a_node_removed_mid_search_are_replaced_and_the_sear
 
     with RolloutPool(PROCESSES, CHARACTERS) as pool:
         reference = search(pool)
-    with ray_cluster(cluster.address), RolloutPool(PROCESSES, CHARACTERS) as pool:
+    with ray_cluster(cluster.address) as backend, RolloutPool(PROCESSES, CHARACTERS, backend=backend) as pool:
         batches, run = 0, pool.run
         removed: list[str] = []
 

@@ -5,7 +5,7 @@ import shutil
 import pytest
 from PIL import Image
 
-from punch_trainer.cli.render import RenderArgs, RenderError, render
+from punch_trainer.pipelines.render import RenderArgs, RenderError, render
 from punch_trainer.sim.godot import ADDON_POLICIES, GODOT_PROJECT, run_godot
 
 pytestmark = pytest.mark.godot

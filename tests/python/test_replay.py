@@ -11,14 +11,14 @@ import numpy as np
 import pytest
 import torch
 
-from punch_trainer.cli.replay import ReplayArgs, ReplayError, parse_sigmas, replay_frames, run_replay
-from punch_trainer.cli.search import run_search
 from punch_trainer.errors import GodotRunError
 from punch_trainer.learn.dataset import load_datasets
 from punch_trainer.learn.export import export_policy
 from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.pretrain import PretrainArgs, pretrain
 from punch_trainer.learn.search import SearchArgs
+from punch_trainer.pipelines.replay import ReplayArgs, ReplayError, parse_sigmas, replay_frames, run_replay
+from punch_trainer.pipelines.search import run_search
 from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.rewards import load_reward, score
 

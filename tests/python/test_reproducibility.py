@@ -18,7 +18,7 @@ import pytest
 from onnx import numpy_helper
 
 from conftest import FIXTURES
-from punch_trainer.cli.train import TrainArgs, run_train
+from punch_trainer.pipelines.train import TrainArgs, run_train
 
 pytestmark = pytest.mark.godot
 

@@ -16,11 +16,11 @@ import pytest
 import torch
 
 from conftest import PROJECT_ROOT
-from punch_trainer.cli.search import run_search
 from punch_trainer.learn.a2c import A2CArgs, train_a2c
 from punch_trainer.learn.checkpoint import CHECKPOINT_FILE, CheckpointError, load_checkpoint, read_config
 from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.search import SearchArgs
+from punch_trainer.pipelines.search import run_search
 from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.rewards import load_reward
 

@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from punch_trainer.cli.search import run_search
 from punch_trainer.learn.search import SearchArgs, update_sigma
+from punch_trainer.pipelines.search import run_search
 
 
 def test_sigma_stays_wide_while_nothing_stands_out_and_shrinks_around_a_clear_best():

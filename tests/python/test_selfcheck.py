@@ -4,7 +4,7 @@ made here with torch through ort, matching onnxruntime in Python within 1e-5."""
 import onnxruntime
 import pytest
 
-from punch_trainer.cli.selfcheck import TOLERANCE, run_selfcheck
+from punch_trainer.pipelines.selfcheck import TOLERANCE, run_selfcheck
 
 
 @pytest.mark.godot

@@ -5,7 +5,7 @@ import json
 import onnx
 import pytest
 
-from punch_trainer.cli.train import TrainArgs, run_exported_policy, run_train
+from punch_trainer.pipelines.train import TrainArgs, run_exported_policy, run_train
 from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.rewards import load_reward
 
@@ -35,7 +35,7 @@ def test_small_training_run_exports_a_policy_that_repeats_its_punch(tmp_path):
 
 
 def test_fig6_experiment_runs_every_method_with_honest_axes(tmp_path):
-    from punch_trainer.cli.experiments import METHODS, fig6
+    from punch_trainer.pipelines.experiments import METHODS, fig6
 
     out, rows = fig6("straight", seeds=(0,), search_iterations=2, a2c_updates=2, characters=4, out=tmp_path)
     assert [r["method"] for r in rows] == METHODS
@@ -58,8 +58,8 @@ def test_pretraining_on_several_datasets(tmp_path):
     import sys
     from pathlib import Path
 
-    from punch_trainer.cli.search import run_search
     from punch_trainer.learn.search import SearchArgs
+    from punch_trainer.pipelines.search import run_search
 
     datasets = []
     for seed in (0, 1):

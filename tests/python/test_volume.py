@@ -8,16 +8,16 @@ import numpy as np
 import pytest
 import torch
 
-from punch_trainer.cli.evaluate import EvalArgs, run_eval
-from punch_trainer.cli.experiments import after_punch_headroom
-from punch_trainer.cli.replay import policy_metadata
-from punch_trainer.cli.search import run_search
-from punch_trainer.cli.train import TrainArgs, run_train
 from punch_trainer.learn.a2c import collect_episodes
 from punch_trainer.learn.policy import SIGMA_MIN, ActorCritic
 from punch_trainer.learn.reach import HELD_OUT_SEED, METADATA_KEY, ReachVolume, placement
 from punch_trainer.learn.search import SearchArgs
 from punch_trainer.learn.volume import EpisodeConditions, VolumeArgs
+from punch_trainer.pipelines.evaluate import EvalArgs, run_eval
+from punch_trainer.pipelines.experiments import after_punch_headroom
+from punch_trainer.pipelines.replay import policy_metadata
+from punch_trainer.pipelines.search import run_search
+from punch_trainer.pipelines.train import TrainArgs, run_train
 from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.rewards import load_reward
 from punch_trainer.sim.server import TrainingServer

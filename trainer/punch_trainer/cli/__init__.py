@@ -1,2 +1,3 @@
-"""The `punch` command (`main`) and the pipelines behind its subcommands: search, train, pretrain, replay,
-render, selfcheck, bench and the experiments. The top layer: imports any other, and nothing imports it."""
+"""The `punch` command: its argument parsers, generated from the `*Args` dataclasses (`arguments`), and what
+each subcommand prints (`main`). The top layer: imports any other, and nothing imports it; the work itself is
+in `pipelines`."""

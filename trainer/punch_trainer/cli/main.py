@@ -1,4 +1,6 @@
-"""The `punch` command."""
+"""The `punch` command: parses the options (the training, search, evaluation, replay and render options come
+from their `*Args` dataclasses: `cli/arguments.py`), chooses where training servers run (`--ray`), runs a
+pipeline and prints what it found."""
 
 from __future__ import annotations
 
@@ -11,8 +13,16 @@ from pathlib import Path
 from typing import Any, ClassVar, Protocol, TypeVar
 
 from punch_trainer import __version__
+from punch_trainer.cli.arguments import add_dataclass_arguments, dataclass_from_arguments
 from punch_trainer.errors import PunchError
 from punch_trainer.learn.checkpoint import read_config
+from punch_trainer.learn.pretrain import PretrainArgs
+from punch_trainer.learn.search import SearchArgs
+from punch_trainer.pipelines.evaluate import EvalArgs
+from punch_trainer.pipelines.render import RenderArgs
+from punch_trainer.pipelines.replay import ReplayArgs, parse_sigmas
+from punch_trainer.pipelines.train import TrainArgs, reach_default_notes
+from punch_trainer.sim.cluster import backend_for
 from punch_trainer.sim.godot import ADDON_POLICIES
 
 DEMO_POLICY = ADDON_POLICIES / "straight.onnx"
@@ -31,7 +41,7 @@ RunArgsT = TypeVar("RunArgsT", bound=_RunArgs)
 
 
 def _selfcheck(args: argparse.Namespace) -> int:
-    from punch_trainer.cli.selfcheck import run_selfcheck
+    from punch_trainer.pipelines.selfcheck import run_selfcheck
 
     report = run_selfcheck(batch=args.batch, seed=args.seed)
     print("\n".join(report.lines()))
@@ -40,11 +50,12 @@ def _selfcheck(args: argparse.Namespace) -> int:
 
 
 def _bench_env(args: argparse.Namespace) -> int:
-    from punch_trainer.cli.bench import bench_env, bench_ray, env_table, ray_tables, write_section
+    from punch_trainer.pipelines.bench import bench_env, bench_ray, env_table, ray_tables, write_section
 
     if args.ray is not None:
         # K = 1 always: the projection starts from one worker's batch.
-        rows = bench_ray(processes=sorted({1, *args.processes}) if args.processes != [1, 2] else [1, 2, 3], frames=args.frames)
+        with backend_for(args.ray) as backend:
+            rows = bench_ray(backend, processes=sorted({1, *args.processes}) if args.processes != [1, 2] else [1, 2, 3], frames=args.frames)
         table = ray_tables(rows, frames=args.frames)
         print(table)
         if not args.no_write:
@@ -69,7 +80,7 @@ def _bench_env(args: argparse.Namespace) -> int:
 
 
 def _bench_inference(args: argparse.Namespace) -> int:
-    from punch_trainer.cli.bench import IDLE_FRAMES, bench_inference, inference_table, write_section
+    from punch_trainer.pipelines.bench import IDLE_FRAMES, bench_inference, inference_table, write_section
 
     rows = bench_inference(args.policy, args.characters, args.batches)
     table = inference_table(rows)
@@ -90,12 +101,11 @@ def _bench_inference(args: argparse.Namespace) -> int:
 
 
 def _search(args: argparse.Namespace) -> int:
-    from punch_trainer.cli.search import run_search
-    from punch_trainer.learn.search import SearchArgs
+    from punch_trainer.pipelines.search import run_search
 
     search_args = _run_args(args, SearchArgs)
-    with _resume_hint("search", search_args.out):
-        out, result, report = run_search(search_args, resume=args.resume is not None)
+    with _resume_hint("search", search_args.out), backend_for(args.ray) as backend:
+        out, result, report = run_search(search_args, resume=args.resume is not None, backend=backend)
     print(f"best return {result.best_return:.4f} after {len(result.history)} iterations; "
           f"peak fist speed {report['peak_fist_speed_mps']:.2f} m/s")
     print(f"run directory: {out} (report: {out / 'report.md'})")
@@ -105,7 +115,7 @@ def _search(args: argparse.Namespace) -> int:
 def _bench_search(args: argparse.Namespace) -> int:
     import tempfile
 
-    from punch_trainer.cli.bench import bench_search, search_table, write_section
+    from punch_trainer.pipelines.bench import bench_search, search_table, write_section
     from punch_trainer.sim.godot import PROJECT_ROOT
 
     plot = Path(tempfile.mkdtemp()) / "bench_search.png" if args.no_write else PROJECT_ROOT / "docs" / "bench_search.png"
@@ -128,11 +138,11 @@ def _bench_search(args: argparse.Namespace) -> int:
 
 
 def _train(args: argparse.Namespace) -> int:
-    from punch_trainer.cli.train import TrainArgs, run_train
+    from punch_trainer.pipelines.train import run_train
 
     train_args = _run_args(args, TrainArgs)
-    with _resume_hint("train", train_args.out):
-        out = run_train(train_args, resume=args.resume is not None)
+    with _resume_hint("train", train_args.out), backend_for(args.ray) as backend:
+        out = run_train(train_args, resume=args.resume is not None, backend=backend)
     print((out / "report.md").read_text())
     print(f"report: {out / 'report.md'}")
     return 0
@@ -143,7 +153,7 @@ def _run_args(args: argparse.Namespace, args_type: type[RunArgsT]) -> RunArgsT:
     with the run directory fixed now, so that an interruption can name it."""
     if args.resume is not None:
         return read_config(args.resume, args_type)
-    run_args = args_type(**{k: getattr(args, k) for k in args_type.__dataclass_fields__ if getattr(args, k, None) is not None})
+    run_args = dataclass_from_arguments(args_type, args)
     run_args.out = run_args.run_dir()
     return run_args
 
@@ -161,14 +171,10 @@ def _resume_hint(command: str, out: Path | None) -> Iterator[None]:
 
 
 def _eval(args: argparse.Namespace) -> int:
-    from punch_trainer.cli.evaluate import EvalArgs, run_eval
-    from punch_trainer.cli.replay import parse_sigmas
-    from punch_trainer.learn.reach import HELD_OUT_SEED
+    from punch_trainer.pipelines.evaluate import run_eval
 
-    eval_args = EvalArgs(policy=args.policy, baseline=args.baseline, placements=args.placements,
-                         seed=HELD_OUT_SEED if args.seed is None else args.seed, sigmas=parse_sigmas(args.sigmas),
-                         noisy_episodes=args.noisy_episodes, search_iterations=args.search_iterations, out=args.out)
-    out, _ = run_eval(eval_args)
+    with backend_for(args.ray) as backend:
+        out, _ = run_eval(dataclass_from_arguments(EvalArgs, args), backend=backend)
     print((out / "report.md").read_text())
     print(f"report: {out / 'report.md'}")
     return 0
@@ -177,8 +183,8 @@ def _eval(args: argparse.Namespace) -> int:
 def _fig6(args: argparse.Namespace) -> int:
     import shutil
 
-    from punch_trainer.cli.bench import write_section
-    from punch_trainer.cli.experiments import fig6, fig6_table
+    from punch_trainer.pipelines.bench import write_section
+    from punch_trainer.pipelines.experiments import fig6, fig6_table
     from punch_trainer.sim.godot import PROJECT_ROOT
 
     out, rows = fig6(args.reward, args.seeds, args.search_iterations, args.a2c_updates, args.characters)
@@ -198,7 +204,7 @@ def _fig6(args: argparse.Namespace) -> int:
 
 
 def _after_punch(args: argparse.Namespace) -> int:
-    from punch_trainer.cli.experiments import after_punch_headroom
+    from punch_trainer.pipelines.experiments import after_punch_headroom
 
     rows = after_punch_headroom(args.dataset, args.iterations, args.rollouts, seed=args.seed)
     print("| start | best return found | share of the last batch that hit |\n|---|---|---|")
@@ -211,11 +217,11 @@ def _pretrain(args: argparse.Namespace) -> int:
     from punch_trainer.learn.dataset import load_datasets
     from punch_trainer.learn.export import export_policy
     from punch_trainer.learn.policy import ActorCritic
-    from punch_trainer.learn.pretrain import PretrainArgs, pretrain
+    from punch_trainer.learn.pretrain import pretrain
 
     data = load_datasets(args.datasets)
     model = ActorCritic(data["observations"].shape[1], data["actions"].shape[1], seed=args.seed)
-    history = pretrain(model, data, PretrainArgs(epochs=args.epochs, seed=args.seed))
+    history = pretrain(model, data, dataclass_from_arguments(PretrainArgs, args))
     # A policy names its reward when every dataset had the same one (punch replay scores with it).
     rewards = data["reward_names"]
     summary = {"pretrained_on": [str(path) for path in args.datasets], "decisions": len(data["actions"]),
@@ -228,23 +234,18 @@ def _pretrain(args: argparse.Namespace) -> int:
 
 
 def _replay(args: argparse.Namespace) -> int:
-    from punch_trainer.cli.replay import ReplayArgs, parse_sigmas, run_replay
+    from punch_trainer.pipelines.replay import run_replay
 
-    out, rows = run_replay(ReplayArgs(policy=args.policy, sigmas=parse_sigmas(args.sigmas), episodes=args.episodes,
-                                      noise_decisions=args.noise_decisions, reward=args.reward, characters=args.characters,
-                                      characters_per_world=args.characters_per_world, seed=args.seed, out=args.out,
-                                      keep_frames=args.keep_frames))
+    out, rows = run_replay(dataclass_from_arguments(ReplayArgs, args))
     print((out / "report.md").read_text())
     print(f"report: {out / 'report.md'}")
     return 0
 
 
 def _render(args: argparse.Namespace) -> int:
-    from punch_trainer.cli.render import RenderArgs, render
-    from punch_trainer.cli.replay import parse_sigmas
+    from punch_trainer.pipelines.render import render
 
-    out = render(RenderArgs(policy=args.policy, out=args.out, sigmas=parse_sigmas(args.sigmas), noise_decisions=args.noise_decisions,
-                            seconds=args.seconds, width=args.width, height=args.height, seed=args.seed, bags=args.bags))
+    out = render(dataclass_from_arguments(RenderArgs, args))
     print(f"wrote {out}")
     return 0
 
@@ -261,101 +262,38 @@ def build_parser() -> argparse.ArgumentParser:
     selfcheck.set_defaults(run=_selfcheck)
 
     search = commands.add_parser("search", help="trajectory search (TTR) for a reward; writes a run directory")
-    from punch_trainer.learn.search import SearchArgs
-
-    defaults = SearchArgs()
-    search.add_argument("--reward", default=defaults.reward, help="preset (straight, straight100, hook, swing) or FILE.py:FUNCTION")
-    search.add_argument("--frames", type=int, help="episode length in physics frames (default: the reward's)")
-    search.add_argument("--seed", type=int, default=defaults.seed)
-    search.add_argument("--out", type=Path, help="run directory (default runs/<reward>__<seed>__<time>)")
-    search.add_argument("--iterations", type=int, default=defaults.iterations)
-    search.add_argument("--rollouts", type=int, default=defaults.rollouts, help="sampled trajectories per iteration")
-    search.add_argument("--smoothing-window", dest="smoothing_window", type=int, default=defaults.smoothing_window)
-    search.add_argument("--plateau-iterations", dest="plateau_iterations", type=int, default=defaults.plateau_iterations)
-    search.add_argument("--time-budget-s", dest="time_budget_s", type=float)
-    search.add_argument("--processes", type=int, default=defaults.processes)
-    search.add_argument("--characters-per-process", dest="characters_per_process", type=int, default=defaults.characters_per_process)
+    add_dataclass_arguments(search, SearchArgs, exclude=["decision_period"])
     search.add_argument("--resume", type=Path, metavar="RUN_DIR",
                         help="continue an interrupted search from its checkpoint, with its own arguments (other options are ignored)")
     add_ray_option(search)
     search.set_defaults(run=_search)
 
     train = commands.add_parser("train", help="search, pretraining, A2C and ONNX export for a reward")
-    train.add_argument("--reward", default="straight", help="preset or FILE.py:FUNCTION")
-    train.add_argument("--frames", type=int)
-    train.add_argument("--seed", type=int)
-    train.add_argument("--out", type=Path)
-    train.add_argument("--search-iterations", dest="search_iterations", type=int)
-    train.add_argument("--a2c-updates", dest="a2c_updates", type=int)
-    train.add_argument("--advantage", choices=["gae", "paper"])
-    train.add_argument("--search-rollouts", dest="search_rollouts", type=int)
-    train.add_argument("--pretrain-epochs", dest="pretrain_epochs", type=int)
-    train.add_argument("--a2c-characters", dest="a2c_characters", type=int)
-    train.add_argument("--a2c-time-budget-s", dest="a2c_time_budget_s", type=float,
-                       help="stop A2C after this much wall time (default 600 over the volume, 60 at a spot; 0: no limit, which makes runs reproducible)")
-    train.add_argument("--a2c-sigma-floor", dest="a2c_sigma_floor", type=float,
-                       help="the least sigma A2C samples actions with (default 0.2 over the volume, 0 at a spot)")
-    train.add_argument("--reach", choices=["volume", "spot"],
-                       help="'volume' (default): every target placement of the spec's reach volume (docs/env.md), minutes; "
-                            "'spot': the default placement only, seconds (the quickstart; the policy hits only there)")
-    train.add_argument("--grid", help="volume: search placements along distance,height,side (default 3,3,3)")
-    train.add_argument("--volume-search-iterations", dest="volume_search_iterations", type=int)
-    train.add_argument("--volume-search-rollouts", dest="volume_search_rollouts", type=int,
-                       help="volume: rollouts per placement and iteration (default 16)")
-    train.add_argument("--default-share", dest="default_share", type=float,
-                       help="volume: share of A2C episodes with the bag at the default placement (default 0)")
+    add_dataclass_arguments(train, TrainArgs, default_notes=reach_default_notes())
     train.add_argument("--resume", type=Path, metavar="RUN_DIR",
                        help="continue an interrupted run from its checkpoints, with its own arguments (other options are ignored)")
-    train.add_argument("--processes", type=int,
-                       help="Godot processes (with --ray: Ray workers) of 64 characters for the searches (default 1)")
     add_ray_option(train)
     train.set_defaults(run=_train)
 
     pre = commands.add_parser("pretrain", help="pretrain a policy on one or several trajectory datasets (no simulation)")
     pre.add_argument("datasets", type=Path, nargs="+", help="dataset.npz files written by punch search")
-    pre.add_argument("--out", type=Path, default=Path("pretrained.onnx"))
-    pre.add_argument("--epochs", type=int, default=1500)
-    pre.add_argument("--seed", type=int, default=0)
+    pre.add_argument("--out", type=Path, default=Path("pretrained.onnx"), help="the policy file to write (default: pretrained.onnx)")
+    add_dataclass_arguments(pre, PretrainArgs)
     pre.set_defaults(run=_pretrain)
 
     evaluation = commands.add_parser("eval", help="success and quality of a policy on held-out target placements, with noise, "
                                                   "through PunchController in Godot")
-    evaluation.add_argument("--policy", type=Path, required=True, help="an exported policy.onnx")
-    evaluation.add_argument("--baseline", type=Path, help="a second policy to evaluate on the same placements")
-    evaluation.add_argument("--placements", type=int, default=64)
-    evaluation.add_argument("--seed", type=int, help="seed of the placements (default: one no training stage uses)")
-    evaluation.add_argument("--sigmas", default="0,0.1,0.3,0.5", help="noise sigmas (a,b,c or start:stop:step)")
-    evaluation.add_argument("--noisy-episodes", dest="noisy_episodes", type=int, default=2, help="punches per placement at each sigma > 0")
-    evaluation.add_argument("--search-iterations", dest="search_iterations", type=int, default=20,
-                            help="per-placement search for the best return (0: none)")
-    evaluation.add_argument("--out", type=Path)
+    add_dataclass_arguments(evaluation, EvalArgs, value_parsers={"sigmas": parse_sigmas})
     add_ray_option(evaluation)
     evaluation.set_defaults(run=_eval)
 
     replay = commands.add_parser("replay", help="replay a policy through PunchController in Godot at several noise sigmas (paper Fig. 10-11)")
-    replay.add_argument("--policy", type=Path, required=True, help="an exported policy.onnx")
-    replay.add_argument("--sigmas", default="0.1:0.9:0.1", help="start:stop:step (inclusive) or a,b,c")
-    replay.add_argument("--episodes", type=int, default=1000, help="punches per sigma")
-    replay.add_argument("--noise-decisions", dest="noise_decisions", type=int, default=-1,
-                        help="noise on the first k decisions only (-1: all)")
-    replay.add_argument("--reward", help="reward to score with (default: the policy's, from its metadata)")
-    replay.add_argument("--characters", type=int, default=64, help="characters punching at once")
-    replay.add_argument("--characters-per-world", dest="characters_per_world", type=int, default=16)
-    replay.add_argument("--seed", type=int, default=0)
-    replay.add_argument("--out", type=Path, help="output directory (default: next to the policy)")
-    replay.add_argument("--keep-frames", dest="keep_frames", action="store_true", help="keep Godot's raw per-frame files")
+    # bags and start are punch eval's conditions, not options of a replay
+    add_dataclass_arguments(replay, ReplayArgs, exclude=["bags", "start", "timeout_s"], value_parsers={"sigmas": parse_sigmas})
     replay.set_defaults(run=_replay)
 
     render = commands.add_parser("render", help="a GIF of a policy's punches at one or several sigmas (Godot Movie Maker under Xvfb)")
-    render.add_argument("--policy", type=Path, default=DEMO_POLICY, help="an exported policy.onnx")
-    render.add_argument("--out", type=Path, default=Path("punch.gif"), help="the GIF to write")
-    render.add_argument("--sigmas", default="0", help="one character per sigma, side by side: a,b,c or start:stop:step")
-    render.add_argument("--noise-decisions", dest="noise_decisions", type=int, default=-1)
-    render.add_argument("--seconds", type=float, default=3.0)
-    render.add_argument("--width", type=int, default=640)
-    render.add_argument("--height", type=int, default=360)
-    render.add_argument("--seed", type=int, default=0)
-    render.add_argument("--bags", default="", help="each character's bag, distance,height,side;... in metres (cycled)")
+    add_dataclass_arguments(render, RenderArgs, value_parsers={"sigmas": parse_sigmas})
     render.set_defaults(run=_render)
 
     experiment = commands.add_parser("experiment", help="experiments of the paper")
@@ -409,12 +347,9 @@ def add_ray_option(command: argparse.ArgumentParser) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from punch_trainer.sim.cluster import ray_cluster
-
     args = build_parser().parse_args(argv)
     try:
-        with ray_cluster(getattr(args, "ray", None)):
-            return int(args.run(args))
+        return int(args.run(args))
     except PunchError as error:
         if args.debug:
             raise

@@ -17,31 +17,32 @@ import numpy as np
 from punch_trainer.errors import PunchError
 from punch_trainer.learn.reach import METADATA_KEY, ReachVolume
 from punch_trainer.learn.search import SearchArgs, SearchResult
+from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.rewards import Reward, score
-from punch_trainer.sim.server import ServerInfo, start_servers
+from punch_trainer.sim.server import ServerInfo
 
 
 class DatasetError(PunchError):
     """A dataset file is missing, unreadable, from another spec, or lacks the policy contract."""
 
 
-def record_dataset(result: SearchResult, reward: Reward, args: SearchArgs) -> dict[str, np.ndarray]:
+def record_dataset(result: SearchResult, reward: Reward, args: SearchArgs, *, backend: Backend = LOCAL) -> dict[str, np.ndarray]:
     """The dataset of a search at the default placement (`record_datasets`), for a single-spot policy."""
-    return record_datasets([result], reward, args)[0]
+    return record_datasets([result], reward, args, backend=backend)[0]
 
 
 def record_datasets(results: list[SearchResult], reward: Reward, args: SearchArgs, bags: list[dict[str, float]] | None = None,
-                    reach: ReachVolume | None = None) -> list[dict[str, np.ndarray]]:
+                    reach: ReachVolume | None = None, *, backend: Backend = LOCAL) -> list[dict[str, np.ndarray]]:
     """Steps through best trajectories one decision at a time, each in the slot it was found in, of a server
     of the same size as the search's (so that each is bitwise the same trajectory: docs/env.md, Episodes),
-    with its bag placement (`bags`, default: the spec's), and stores what each decision saw and did. The
+    with its bag placement (`bags`, default: the spec's), on `backend`, and stores what each decision saw and did. The
     recording must reproduce the search's features exactly. `reach` (default: the one placement) goes into
     each dataset's policy contract, so every policy trained on them states what it covers."""
     slot_count = args.characters_per_process
     bags = bags or [None] * len(results)  # type: ignore[list-item]
     recorded: list[dict[str, np.ndarray] | None] = [None] * len(results)
     pending = list(range(len(results)))
-    with start_servers(1, slot_count, args.decision_period)[0] as server:
+    with backend.start_servers(1, slot_count, args.decision_period)[0] as server:
         info = server.info
         reach = reach or ReachVolume.spot(bags[0] or info.default_bag)
         while pending:

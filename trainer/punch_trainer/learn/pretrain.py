@@ -16,13 +16,16 @@ from punch_trainer.learn.policy import ActorCritic
 
 @dataclass
 class PretrainArgs:
-    epochs: int = 2000
+    epochs: int = 1500
+    """passes over the datasets"""
     learning_rate: float = 3e-3
+    """Adam's learning rate"""
     initial_sigma: float = 0.1
     """sigma the actor starts A2C with (a bias on its sigma head)"""
     gamma: float = 1.0
     """discount of the returns-to-go the critic learns (episodes are short and fixed)"""
     seed: int = 0
+    """seed of the network's initial weights and the batches"""
 
 
 def pretrain(model: ActorCritic, data: dict[str, np.ndarray], args: PretrainArgs, progress: bool = True,

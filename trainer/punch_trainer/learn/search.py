@@ -52,7 +52,9 @@ class SearchArgs:
     rollouts: int = 64
     """sampled trajectories per iteration (n_t)"""
     sigma_init: float = 1.0
+    """every table entry's sigma at the start"""
     sigma_min: float = 0.02
+    """the least sigma an entry narrows to"""
     clip_epsilon: float | None = None
     """largest relative change of sigma per iteration (PPO-style clip); default: the reward's (0.2, swing 0.1)"""
     smoothing_window: int = 3
@@ -62,8 +64,11 @@ class SearchArgs:
     time_budget_s: float | None = None
     """stop after this much wall time"""
     processes: int = 1
+    """Godot processes (with --ray: Ray workers, docs/cluster.md)"""
     characters_per_process: int = 64
+    """characters simulated at once in each process"""
     decision_period: int = 5
+    """physics frames per decision (the training server's)"""
 
     def run_dir(self) -> Path:
         """`out`, or a new runs/<reward>__<seed>__<time>."""

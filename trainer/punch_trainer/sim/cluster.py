@@ -1,8 +1,9 @@
 """Rollout workers on a Ray cluster (`--ray [ADDRESS]` on `punch search`, `train`, `eval`, `bench env`).
 
-Each worker is a Ray actor that starts a headless Godot training server on its own node (a local process
-there, as without Ray) and relays the trainer's messages to it. `start_servers` hands out one
-`RayTrainingServer` per worker, in a fixed order: the trainer sends slot p's batch to worker p and reads the
+`ray_cluster` joins a cluster and yields a `RayBackend`, which the command passes down to whatever starts
+training servers. Each worker is a Ray actor that starts a headless Godot training server on its own node (a
+local process there, as without Ray) and relays the trainer's messages to it. `RayBackend.start_servers`
+hands out one `RayTrainingServer` per worker, in a fixed order: the trainer sends slot p's batch to worker p and reads the
 replies in that order, so which node answers first never changes which batch lands in which slot, and a run
 on Ray is bitwise the same as one with local processes of the same count and size (a slot gives the same
 features in any process of the same size: docs/env.md, Episodes).
@@ -23,11 +24,12 @@ from collections.abc import Callable, Iterator
 from typing import Any, TypeVar
 
 from punch_trainer.errors import GodotRunError, PunchError
+from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.protocol import Message, ServerClosedError, ServerTimeoutError
 from punch_trainer.sim.server import ServerConnection, ServerInfo, TrainingServer
 
 WORKER_CPUS = 1.0
-"""Ray CPUs a worker (or a task of `map_on_workers`) asks for; its Godot also runs Jolt's job threads
+"""Ray CPUs a worker (or a task of `RayBackend.map`) asks for; its Godot also runs Jolt's job threads
 (docs/cluster.md says how many workers a node takes)"""
 START_TIMEOUT_S = 120.0
 """how long a worker may take to be placed and to start its Godot process"""
@@ -37,15 +39,13 @@ INLINE_REPLY_BYTES = 16 << 20
 """replies up to this size go straight back to the trainer in the worker's answer, not through Ray's object
 stores (the default limit, 100 kB, sends a 64-character rollout's 0.7 MB through two stores and a transfer)"""
 TASK_TIMEOUT_S = 3600.0
-"""how long `map_on_workers` waits for all its tasks"""
+"""how long `RayBackend.map` waits for all its tasks"""
 SIMULATED = "simulated"
 """`--ray simulated[:NODES]`: a cluster of NODES (default 3) Ray nodes on this machine, on loopback only"""
 SIMULATED_NODE_CPUS = 2
 LOOPBACK = "127.0.0.1"
 
 T = TypeVar("T")
-
-_joined_address: str | None = None
 
 
 class RayUnavailableError(PunchError):
@@ -60,24 +60,26 @@ def _ray() -> Any:
     return ray
 
 
-def joined() -> bool:
-    """True inside `ray_cluster`: training servers are then Ray workers."""
-    return _joined_address is not None
+@contextlib.contextmanager
+def backend_for(ray_address: str | None) -> Iterator[Backend]:
+    """The backend of a command's `--ray` option: `LOCAL` without it (Ray is then never imported), else the
+    cluster joined for the block (`ray_cluster`)."""
+    if ray_address is None:
+        yield LOCAL
+        return
+    with ray_cluster(ray_address) as backend:
+        yield backend
 
 
 @contextlib.contextmanager
-def ray_cluster(address: str | None) -> Iterator[None]:
-    """Runs the block with its training servers on the Ray cluster at `address` ('auto': the one `RAY_ADDRESS`
-    names, else one already running on this machine; 'simulated[:NODES]': one simulated here for the block);
-    `None` runs them as local processes. The connection is closed when the block ends, however it ends; a
-    cluster of the user's is left running, a simulated one is shut down."""
-    global _joined_address
-    if address is None:
-        yield
-        return
+def ray_cluster(address: str) -> Iterator[RayBackend]:
+    """Joins the Ray cluster at `address` ('auto': the one `RAY_ADDRESS` names, else one already running on
+    this machine; 'simulated[:NODES]': one simulated here for the block) and yields the backend that puts
+    training servers and work on it. The connection is closed when the block ends, however it ends, and the
+    backend refuses work from then on; a cluster of the user's is left running, a simulated one is shut down."""
     if address.split(":")[0] == SIMULATED:
-        with simulated_cluster(int(address.split(":")[1]) if ":" in address else 3) as simulated, ray_cluster(simulated.address):
-            yield
+        with simulated_cluster(int(address.split(":")[1]) if ":" in address else 3) as simulated, ray_cluster(simulated.address) as backend:
+            yield backend
         return
     ray = _ray()
     _check_reachable(os.environ.get("RAY_ADDRESS", "") if address == "auto" else address)
@@ -85,11 +87,11 @@ def ray_cluster(address: str | None) -> Iterator[None]:
         ray.init(address=address, log_to_driver=False, configure_logging=False, include_dashboard=False)
     except (ConnectionError, RuntimeError, ValueError) as error:
         raise RayUnavailableError(f"no Ray cluster at {address!r}: {error}") from None
-    _joined_address = address
+    backend = RayBackend(address)
     try:
-        yield
+        yield backend
     finally:
-        _joined_address = None
+        backend.joined = False
         ray.shutdown()
 
 
@@ -128,7 +130,7 @@ def simulated_cluster(nodes: int) -> Iterator[Any]:
 
 
 class _Worker:
-    """A Ray actor (made remote in `_worker_class`): one local training server on the node it was placed on."""
+    """A Ray actor (made remote by `RayBackend`): one local training server on the node it was placed on."""
 
     def __init__(self, slot_count: int, decision_period: int):
         self.server = TrainingServer(slot_count, decision_period=decision_period, reply_timeout_s=REPLY_TIMEOUT_S)
@@ -146,19 +148,6 @@ class _Worker:
 
     def close(self) -> None:
         self.server.close()
-
-
-_remote_worker: Any = None
-
-
-def _worker_class() -> Any:
-    global _remote_worker
-    if _remote_worker is None:
-        # SPREAD: workers go to different nodes while there are nodes to go to. No Ray restarts: the run's
-        # SimulatorRestarts replaces lost workers itself and reruns the batch.
-        _remote_worker = _ray().remote(num_cpus=WORKER_CPUS, max_restarts=0, scheduling_strategy="SPREAD",
-                                       runtime_env={"env_vars": {"RAY_max_direct_call_object_size": str(INLINE_REPLY_BYTES)}})(_Worker)
-    return _remote_worker
 
 
 class RayTrainingServer(ServerConnection):
@@ -205,61 +194,81 @@ class RayTrainingServer(ServerConnection):
         ray.kill(actor)
 
 
-def start_ray_servers(processes: int, characters_per_process: int, decision_period: int) -> list[ServerConnection]:
-    """K workers with N characters each, started together; if one cannot start, all are closed before the
-    error propagates (as a `ServerClosedError` when a worker or its node was lost, which a run's restarts
-    retry, else as a `GodotRunError`)."""
-    ray = _ray()
-    worker = _worker_class()
-    actors = [worker.remote(characters_per_process, decision_period) for _ in range(processes)]
-    try:
-        infos = ray.get([actor.info.remote() for actor in actors], timeout=START_TIMEOUT_S)
-        nodes = ray.get([actor.node.remote() for actor in actors], timeout=START_TIMEOUT_S)
-        others = {(info.spec_hash, info.extension_version) for info in infos} - {(infos[0].spec_hash, infos[0].extension_version)}
-        if others:
+class RayBackend:
+    """Training servers as Ray workers, and `map` as Ray tasks, on the cluster joined by `ray_cluster` (made
+    only there, and usable only inside its block)."""
+
+    def __init__(self, address: str):
+        self.address = address
+        self.joined = True
+        """False once `ray_cluster`'s block has ended"""
+        # SPREAD: workers go to different nodes while there are nodes to go to. No Ray restarts: the run's
+        # SimulatorRestarts replaces lost workers itself and reruns the batch.
+        self._worker: Any = _ray().remote(num_cpus=WORKER_CPUS, max_restarts=0, scheduling_strategy="SPREAD",
+                                          runtime_env={"env_vars": {"RAY_max_direct_call_object_size": str(INLINE_REPLY_BYTES)}})(_Worker)
+
+    @property
+    def shares_files(self) -> bool:
+        return False
+
+    def _ray(self) -> Any:
+        if not self.joined:
+            raise RayUnavailableError(f"the Ray cluster at {self.address!r} was left: this backend can start nothing more")
+        return _ray()
+
+    def start_servers(self, processes: int, characters_per_process: int, decision_period: int = 5) -> list[ServerConnection]:
+        """K workers with N characters each, started together; if one cannot start, all are closed before the
+        error propagates (as a `ServerClosedError` when a worker or its node was lost, which a run's restarts
+        retry, else as a `GodotRunError`)."""
+        ray = self._ray()
+        actors = [self._worker.remote(characters_per_process, decision_period) for _ in range(processes)]
+        try:
+            infos = ray.get([actor.info.remote() for actor in actors], timeout=START_TIMEOUT_S)
+            nodes = ray.get([actor.node.remote() for actor in actors], timeout=START_TIMEOUT_S)
+            others = {(info.spec_hash, info.extension_version) for info in infos} - {(infos[0].spec_hash, infos[0].extension_version)}
+            if others:
+                _kill(actors)
+                raise GodotRunError(f"the cluster's nodes run different builds (observation spec and extension version: "
+                                    f"{(infos[0].spec_hash, infos[0].extension_version)} and {sorted(others)}): run the same "
+                                    "commit, set up, on every node (docs/cluster.md)")
+            return [RayTrainingServer(actor, info, node) for actor, info, node in zip(actors, infos, nodes, strict=True)]
+        except ray.exceptions.GetTimeoutError:
             _kill(actors)
-            raise GodotRunError(f"the cluster's nodes run different builds (observation spec and extension version: "
-                                f"{(infos[0].spec_hash, infos[0].extension_version)} and {sorted(others)}): run the same "
-                                "commit, set up, on every node (docs/cluster.md)")
-        return [RayTrainingServer(actor, info, node) for actor, info, node in zip(actors, infos, nodes, strict=True)]
-    except ray.exceptions.GetTimeoutError:
-        _kill(actors)
-        raise GodotRunError(f"{processes} Ray workers with {WORKER_CPUS:g} CPU each were not all started within "
-                            f"{START_TIMEOUT_S:.0f} s: does the cluster have that many CPUs free?", "") from None
-    except ray.exceptions.RayActorError as error:
-        _kill(actors)
-        if error.actor_init_failed:  # its Godot did not start: starting again would fail again
-            raise GodotRunError(f"a Ray worker could not start its training server: {error}", str(error)) from None
-        raise ServerClosedError(f"a Ray worker was lost while starting ({type(error).__name__})") from None
-    except ray.exceptions.RayError as error:
-        _kill(actors)
-        raise ServerClosedError(f"a Ray worker was lost while starting ({type(error).__name__})") from None
+            raise GodotRunError(f"{processes} Ray workers with {WORKER_CPUS:g} CPU each were not all started within "
+                                f"{START_TIMEOUT_S:.0f} s: does the cluster have that many CPUs free?", "") from None
+        except ray.exceptions.RayActorError as error:
+            _kill(actors)
+            if error.actor_init_failed:  # its Godot did not start: starting again would fail again
+                raise GodotRunError(f"a Ray worker could not start its training server: {error}", str(error)) from None
+            raise ServerClosedError(f"a Ray worker was lost while starting ({type(error).__name__})") from None
+        except ray.exceptions.RayError as error:
+            _kill(actors)
+            raise ServerClosedError(f"a Ray worker was lost while starting ({type(error).__name__})") from None
+
+    def map(self, function: Callable[..., T], calls: list[dict[str, Any]]) -> list[T]:
+        """Each call a Ray task of one CPU spread over the cluster's nodes, the results in the order of `calls`.
+        A task whose node goes away is run again elsewhere by Ray (the functions given here are deterministic,
+        so the result is the same); an error raised by `function` is raised here as itself, the other tasks
+        cancelled."""
+        ray = self._ray()
+        task = ray.remote(num_cpus=WORKER_CPUS, scheduling_strategy="SPREAD", max_retries=3)(function)
+        references = [task.remote(**call) for call in calls]
+        try:
+            return list(ray.get(references, timeout=TASK_TIMEOUT_S))
+        except BaseException as error:
+            for reference in references:
+                with contextlib.suppress(Exception):
+                    ray.cancel(reference, force=True)
+            if isinstance(error, ray.exceptions.GetTimeoutError):
+                raise ServerTimeoutError(f"{len(calls)} Ray tasks did not finish within {TASK_TIMEOUT_S:.0f} s") from None
+            if isinstance(error, ray.exceptions.RayTaskError):
+                raise error.as_instanceof_cause() from None
+            if isinstance(error, ray.exceptions.RayError):
+                raise ServerClosedError(f"a Ray task was lost ({type(error).__name__}): {error}") from None
+            raise
 
 
 def _kill(actors: list[Any]) -> None:
     ray = _ray()
     for actor in actors:
         ray.kill(actor)
-
-
-def map_on_workers(function: Callable[..., T], calls: list[dict[str, Any]]) -> list[T]:
-    """`[function(**call) for call in calls]`, each call a Ray task of one CPU spread over the cluster's nodes,
-    the results in the order of `calls`. A task whose node goes away is run again elsewhere by Ray (the
-    functions given here are deterministic, so the result is the same); an error raised by `function` is
-    raised here as itself, the other tasks cancelled."""
-    ray = _ray()
-    task = ray.remote(num_cpus=WORKER_CPUS, scheduling_strategy="SPREAD", max_retries=3)(function)
-    references = [task.remote(**call) for call in calls]
-    try:
-        return list(ray.get(references, timeout=TASK_TIMEOUT_S))
-    except BaseException as error:
-        for reference in references:
-            with contextlib.suppress(Exception):
-                ray.cancel(reference, force=True)
-        if isinstance(error, ray.exceptions.GetTimeoutError):
-            raise ServerTimeoutError(f"{len(calls)} Ray tasks did not finish within {TASK_TIMEOUT_S:.0f} s") from None
-        if isinstance(error, ray.exceptions.RayTaskError):
-            raise error.as_instanceof_cause() from None
-        if isinstance(error, ray.exceptions.RayError):
-            raise ServerClosedError(f"a Ray task was lost ({type(error).__name__}): {error}") from None
-        raise

@@ -27,6 +27,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.protocol import reset_message, step_message
 from punch_trainer.sim.rewards import Reward, score
 from punch_trainer.sim.server import ServerConnection, ServerInfo, TrainingServer, exchange
@@ -107,14 +108,15 @@ class PunchVectorEnv(gym.vector.VectorEnv, _EpisodeSettings):
     """K Godot processes x N characters each, stepped in lockstep (requests go to every process before any
     reply is read, so processes simulate in parallel). Episodes of all characters start and end together;
     after the last decision the next `step` resets every character (Gymnasium's next-step autoreset) and
-    returns the new first observations with zero reward."""
+    returns the new first observations with zero reward. The processes are started on `backend` (local
+    processes or Ray workers)."""
 
     metadata = {"autoreset_mode": gym.vector.AutoresetMode.NEXT_STEP}
 
     def __init__(self, processes: int = 1, characters_per_process: int = 16, *, frames: int = 50,
                  decision_period: int = 5, smoothing_window: int = 1, reward: Reward | None = None,
-                 bag_jitter_m: float = 0.0):
-        self.group = ServerGroup(processes, characters_per_process, decision_period)
+                 bag_jitter_m: float = 0.0, backend: Backend = LOCAL):
+        self.group = ServerGroup(processes, characters_per_process, decision_period, backend=backend)
         info = self.group.info
         self._adopt(info, frames, smoothing_window, reward, bag_jitter_m)
         self.characters_per_process = characters_per_process

@@ -11,17 +11,19 @@ import functools
 
 import numpy as np
 
+from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.protocol import Message, rollout_message
 from punch_trainer.sim.server import ServerConnection, exchange
 from punch_trainer.sim.server_group import ServerGroup, SimulatorRestarts
 
 
 class RolloutPool:
-    """Runs any number of open-loop action sequences, `slots` at a time in parallel processes."""
+    """Runs any number of open-loop action sequences, `slots` at a time in parallel processes (started on
+    `backend`: local processes or Ray workers)."""
 
     def __init__(self, processes: int = 1, characters_per_process: int = 32, *, decision_period: int = 5,
-                 max_restarts: int = 3):
-        self.group = ServerGroup(processes, characters_per_process, decision_period)
+                 max_restarts: int = 3, backend: Backend = LOCAL):
+        self.group = ServerGroup(processes, characters_per_process, decision_period, backend=backend)
         self.info = self.group.info
         self.characters_per_process = characters_per_process
         self.slots = processes * characters_per_process

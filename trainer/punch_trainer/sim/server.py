@@ -209,24 +209,6 @@ class TrainingServer(ServerConnection):
         self.close()
 
 
-def start_servers(processes: int, characters_per_process: int, decision_period: int = 5) -> list[ServerConnection]:
-    """K servers with N characters each: local processes, or Ray actors on the cluster joined with
-    `cluster.ray_cluster` (`--ray`). If one fails to start, the others are closed before the error propagates."""
-    from punch_trainer.sim import cluster
-
-    if cluster.joined():
-        return cluster.start_ray_servers(processes, characters_per_process, decision_period)
-    servers: list[ServerConnection] = []
-    try:
-        for _ in range(processes):
-            servers.append(TrainingServer(characters_per_process, decision_period=decision_period))
-    except BaseException:
-        for server in servers:
-            server.close()
-        raise
-    return servers
-
-
 def exchange(servers: list[ServerConnection], messages: list[Message]) -> list[Message]:
     """Sends one message to each server, then reads every reply: the processes work in parallel."""
     for server, message in zip(servers, messages, strict=True):
@@ -234,4 +216,4 @@ def exchange(servers: list[ServerConnection], messages: list[Message]) -> list[M
     return [server.receive() for server in servers]
 
 
-__all__ = ["ServerConnection", "ServerError", "ServerInfo", "TrainingServer", "ProtocolVersionError", "exchange", "start_servers"]
+__all__ = ["ServerConnection", "ServerError", "ServerInfo", "TrainingServer", "ProtocolVersionError", "exchange"]

@@ -9,8 +9,9 @@ from collections.abc import Callable
 from typing import TypeVar
 
 from punch_trainer.errors import PunchError
+from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.protocol import ProtocolError, ServerClosedError, ServerTimeoutError
-from punch_trainer.sim.server import ServerConnection, ServerInfo, start_servers
+from punch_trainer.sim.server import ServerConnection, ServerInfo
 
 # Failures that a fresh Godot process fixes (a server's error reply is not one of them: it would repeat).
 SIMULATOR_FAILURES = (ServerClosedError, ServerTimeoutError, ProtocolError, ConnectionError)
@@ -49,11 +50,11 @@ class SimulatorRestarts:
 
 
 class ServerGroup:
-    """K training servers with N characters each, started, restarted and closed together: what the rollout
-    pool and the vector env hold."""
+    """K training servers with N characters each, started, restarted and closed together on `backend`: what
+    the rollout pool and the vector env hold."""
 
-    def __init__(self, processes: int, characters_per_process: int, decision_period: int = 5):
-        self._start: Callable[[], list[ServerConnection]] = lambda: start_servers(processes, characters_per_process, decision_period)
+    def __init__(self, processes: int, characters_per_process: int, decision_period: int = 5, *, backend: Backend = LOCAL):
+        self._start: Callable[[], list[ServerConnection]] = lambda: backend.start_servers(processes, characters_per_process, decision_period)
         self.servers = self._start()
         self.info: ServerInfo = self.servers[0].info  # the handshake: rates, names, spec hash
 

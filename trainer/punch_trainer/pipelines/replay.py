@@ -43,7 +43,7 @@ class ReplayArgs:
     policy: Path
     """the exported policy (runs/NAME/policy.onnx)"""
     sigmas: list[float] = field(default_factory=lambda: [round(0.1 * i, 1) for i in range(1, 10)])
-    """runtime noise sigmas to replay"""
+    """runtime noise sigmas to replay (start:stop:step, inclusive, or a,b,c)"""
     episodes: int = 1000
     """punches per sigma"""
     noise_decisions: int = -1
@@ -65,6 +65,7 @@ class ReplayArgs:
     start: str = "guard"
     """'guard', or 'after_punch': every recorded punch starts where an earlier one ended"""
     timeout_s: float = 3600.0
+    """how long Godot may take for the whole replay"""
 
 
 def parse_sigmas(text: str) -> list[float]:

@@ -17,7 +17,7 @@ from pathlib import Path
 from PIL import Image
 
 from punch_trainer.errors import GodotRunError, PunchError
-from punch_trainer.sim.godot import GODOT_PROJECT, run_godot, tail
+from punch_trainer.sim.godot import ADDON_POLICIES, GODOT_PROJECT, run_godot, tail
 
 FPS = 30
 # The GIF keeps every second frame (15 fps) and 64 colours: a few hundred kB for a few seconds.
@@ -31,14 +31,22 @@ class RenderError(PunchError):
 
 @dataclass
 class RenderArgs:
-    policy: Path
-    out: Path
+    policy: Path = ADDON_POLICIES / "straight.onnx"
+    """an exported policy.onnx (default: the demo's straight punch)"""
+    out: Path = Path("punch.gif")
+    """the GIF to write"""
     sigmas: list[float] = field(default_factory=lambda: [0.0])
+    """one character per sigma, side by side: a,b,c or start:stop:step"""
     noise_decisions: int = -1
+    """noise on the first k decisions only (-1: all)"""
     seconds: float = 3.0
+    """length of the GIF"""
     width: int = 640
+    """width of the GIF in pixels"""
     height: int = 360
+    """height of the GIF in pixels"""
     seed: int = 0
+    """noise seed"""
     bags: str = ""
     """each character's bag placement, `distance,height,side;...` in metres, cycled (default: the spec's)"""
 

@@ -14,11 +14,11 @@ import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 import onnxruntime
 
-from punch_trainer.cli.search import run_search
 from punch_trainer.learn.a2c import A2CArgs, evaluate_noise_free, train_a2c
 from punch_trainer.learn.checkpoint import CONFIG_FILE, CheckpointError, default_run_dir, load_checkpoint, save_checkpoint, write_config
 from punch_trainer.learn.dataset import load_datasets, record_datasets
@@ -28,43 +28,82 @@ from punch_trainer.learn.pretrain import PretrainArgs, pretrain
 from punch_trainer.learn.reach import ReachVolume
 from punch_trainer.learn.search import SearchArgs, SearchResult, placement_search
 from punch_trainer.learn.volume import EpisodeConditions, VolumeArgs, distribution_observations, validate
+from punch_trainer.pipelines.search import run_search
 from punch_trainer.report.motion import motion_report
+from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.rewards import Reward, load_reward, score
 from punch_trainer.sim.rollouts import RolloutPool
 
 
+@dataclass(frozen=True)
+class ReachDefaults:
+    """The settings whose default depends on `--reach` (a TrainArgs field of None takes the one here)."""
+
+    a2c_updates: int
+    a2c_time_budget_s: float
+    a2c_sigma_floor: float
+    a2c_processes: int
+    """Godot processes of `a2c_characters` each for A2C"""
+    pretrain_initial_sigma: float
+
+
+REACH_DEFAULTS = {
+    # Over the volume: updates enough that the time budget decides; sigma at least 0.2, so that the policy keeps
+    # meeting noisy decisions and learns to recover from them (BENCHMARKS.md).
+    "volume": ReachDefaults(a2c_updates=5000, a2c_time_budget_s=600.0, a2c_sigma_floor=0.2, a2c_processes=2, pretrain_initial_sigma=0.3),
+    "spot": ReachDefaults(a2c_updates=40, a2c_time_budget_s=60.0, a2c_sigma_floor=0.0, a2c_processes=1, pretrain_initial_sigma=0.1),
+}
+
+
+def reach_default_notes() -> dict[str, str]:
+    """What a TrainArgs field of None stands for, for `--help`."""
+    volume, spot = REACH_DEFAULTS["volume"], REACH_DEFAULTS["spot"]
+    return {name: f"{getattr(volume, name):g} over the volume, {getattr(spot, name):g} at a spot"
+            for name in ("a2c_updates", "a2c_time_budget_s", "a2c_sigma_floor")}
+
+
 @dataclass
 class TrainArgs:
-    reward: str = "straight"
+    reward: str = SearchArgs.reward
+    """a preset (straight, straight100, hook, swing) or FILE.py:FUNCTION"""
     frames: int | None = None
+    """episode length in physics frames (default: the reward's)"""
     seed: int = 0
+    """seed of every stage (A2C's episode conditions draw from seed + 1, its validation placements from seed + 2)"""
     out: Path | None = None
+    """run directory (default runs/train_<reward>__<seed>__<time>)"""
     search_iterations: int = 100
-    search_rollouts: int = 64
-    smoothing_window: int = 3
-    pretrain_epochs: int = 1500
+    """most iterations of the search at the default placement"""
+    search_rollouts: int = SearchArgs.rollouts
+    """sampled trajectories per iteration of the search at the default placement"""
+    smoothing_window: int = SearchArgs.smoothing_window
+    """Eq. 1 window n of the search, the datasets and A2C (1: no smoothing)"""
+    pretrain_epochs: int = PretrainArgs.epochs
+    """supervised pretraining epochs on the datasets"""
     a2c_updates: int | None = None
-    """A2C updates (default: 40 at a spot; over the volume 5000, so that the time budget decides)"""
-    a2c_characters: int = 32
-    """characters per A2C process (two processes over the volume)"""
-    advantage: str = "gae"
+    """A2C updates, each one episode on every character"""
+    a2c_characters: int = A2CArgs.characters
+    """characters per A2C process"""
+    advantage: Literal["gae", "paper"] = "gae"
+    """A2C's advantage estimate: 'gae', or 'paper' (the paper's formula as printed)"""
     a2c_sigma_floor: float | None = None
-    """the least sigma A2C samples actions with (default: 0.2 over the volume, so that the policy keeps
-    meeting noisy decisions and learns to recover from them; 0 at a spot)"""
+    """the least sigma A2C samples actions with"""
     a2c_time_budget_s: float | None = None
-    """stop A2C after this much wall time (default: 60 s at a spot, 600 s over the volume; 0: no limit,
-    which makes a run reproducible)"""
-    reach: str = "volume"
-    """'volume': the spec's reach volume; 'spot': the default placement only (the quickstart)"""
-    grid: str = "3,3,3"
-    """search placements along distance, height and side (volume)"""
-    volume_search_iterations: int = 60
-    volume_search_rollouts: int = 16
-    default_share: float = 0.0
-    """share of A2C episodes at the default placement (volume)"""
-    processes: int = 1
-    """Godot processes of 64 characters for the searches (with --ray, Ray workers: docs/cluster.md)"""
+    """stop A2C after this much wall time (0: no limit, which makes a run reproducible)"""
+    reach: Literal["volume", "spot"] = "volume"
+    """'volume': every target placement of the spec's reach volume (docs/env.md), minutes; 'spot': the default
+    placement only, seconds (the quickstart; the policy hits only there)"""
+    grid: str = ",".join(map(str, VolumeArgs.grid))
+    """volume: search placements along distance,height,side"""
+    volume_search_iterations: int = VolumeArgs.search_iterations
+    """volume: most iterations of the search over the grid"""
+    volume_search_rollouts: int = VolumeArgs.search_rollouts
+    """volume: rollouts per placement and iteration"""
+    default_share: float = VolumeArgs.default_share
+    """volume: share of A2C episodes with the bag at the default placement"""
+    processes: int = SearchArgs.processes
+    """Godot processes (with --ray: Ray workers, docs/cluster.md) of 64 characters for the searches"""
 
     def run_dir(self) -> Path:
         """`out`, or a new runs/train_<reward>__<seed>__<time>."""
@@ -101,7 +140,7 @@ def parse_grid(text: str) -> tuple[int, int, int]:
 
 
 def search_volume(args: TrainArgs, volume: VolumeArgs, reward: Reward, centre: SearchResult, progress: bool,
-                  resume: bool) -> tuple[list[Path], ReachVolume, list[float], np.ndarray]:
+                  resume: bool, backend: Backend) -> tuple[list[Path], ReachVolume, list[float], np.ndarray]:
     """The search over the reach volume's grid, warm-started from the default placement's best (`centre`),
     and one dataset per placement in volume_search/datasets/. Returns the dataset paths, the reach, each
     placement's best return and best actions [P, decisions, A]."""
@@ -110,7 +149,7 @@ def search_volume(args: TrainArgs, volume: VolumeArgs, reward: Reward, centre: S
                              iterations=volume.search_iterations, rollouts=volume.search_rollouts,
                              sigma_init=volume.search_sigma_init, processes=args.processes, characters_per_process=64,
                              smoothing_window=args.smoothing_window)
-    with RolloutPool(args.processes, 64) as pool:
+    with RolloutPool(args.processes, 64, backend=backend) as pool:
         reach = ReachVolume.from_json(pool.info.reach_volume)
         placements = reach.grid(volume.grid)
         bests = placement_search(search_args, reward, pool, progress, run_dir=out, placements=placements,
@@ -118,18 +157,20 @@ def search_volume(args: TrainArgs, volume: VolumeArgs, reward: Reward, centre: S
     paths = [out / "datasets" / f"placement_{index:03d}.npz" for index in range(len(bests))]
     if not (resume and all(path.exists() for path in paths)):
         paths[0].parent.mkdir(parents=True, exist_ok=True)
-        for path, dataset in zip(paths, record_datasets(bests, reward, search_args, placements, reach), strict=True):
+        for path, dataset in zip(paths, record_datasets(bests, reward, search_args, placements, reach, backend=backend), strict=True):
             np.savez_compressed(path, **dataset)  # type: ignore[arg-type]  # numpy's stub types **kwargs as its bool option
     return paths, reach, [b.best_return for b in bests], np.stack([b.best_actions for b in bests])
 
 
-def run_train(args: TrainArgs, progress: bool = True, resume: bool = False) -> Path:
-    """The whole `punch train` command. Every stage checkpoints in its own folder of the run directory
-    (search/, volume_search/, pretrain/, a2c/); `resume` continues the run in `args.out` from them."""
+def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, backend: Backend = LOCAL) -> Path:
+    """The whole `punch train` command, with every training server on `backend`. Every stage checkpoints in
+    its own folder of the run directory (search/, volume_search/, pretrain/, a2c/); `resume` continues the run
+    in `args.out` from them."""
     started = time.perf_counter()
-    if args.reach not in ("volume", "spot"):
+    if args.reach not in REACH_DEFAULTS:
         raise ValueError(f"--reach is 'volume' or 'spot', not '{args.reach}'")
     over_volume = args.reach == "volume"
+    defaults = REACH_DEFAULTS[args.reach]
     reward = load_reward(args.reward, args.frames)
     out = args.run_dir()
     if not resume and (out / CONFIG_FILE).exists():
@@ -141,19 +182,19 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False) -> P
                              iterations=args.search_iterations, rollouts=args.search_rollouts,
                              processes=args.processes, characters_per_process=min(64, args.search_rollouts),
                              smoothing_window=args.smoothing_window)
-    _, search, _ = run_search(search_args, progress, resume=resume)
+    _, search, _ = run_search(search_args, progress, resume=resume, backend=backend)
     dataset_paths = [out / "search" / "dataset.npz"]
     volume = VolumeArgs(grid=parse_grid(args.grid), search_iterations=args.volume_search_iterations,
                         search_rollouts=args.volume_search_rollouts, default_share=args.default_share)
     reach, punches, grid_bests = None, search.best_actions[None], [search.best_return]
     if over_volume:
-        dataset_paths, reach, grid_bests, punches = search_volume(args, volume, reward, search, progress, resume)
+        dataset_paths, reach, grid_bests, punches = search_volume(args, volume, reward, search, progress, resume, backend)
     timings["search_s"] = time.perf_counter() - started
 
     data = load_datasets(dataset_paths)
     model = ActorCritic(data["observations"].shape[1], data["actions"].shape[1], seed=args.seed)
-    processes = 2 if over_volume else 1
-    env = PunchVectorEnv(processes, args.a2c_characters, frames=reward.frames, smoothing_window=args.smoothing_window)
+    processes = defaults.a2c_processes
+    env = PunchVectorEnv(processes, args.a2c_characters, frames=reward.frames, smoothing_window=args.smoothing_window, backend=backend)
     try:
         conditions = (EpisodeConditions(reach, punches, volume, seed=args.seed + 1, default_bag=env.info.default_bag)
                       if reach is not None else None)
@@ -161,7 +202,7 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False) -> P
         pretrained = load_checkpoint(out / "pretrain", "pretrain") if resume else None
         if pretrained is None:
             statistics = distribution_observations(env, conditions, punches) if conditions is not None else None
-            pretrain_args = PretrainArgs(epochs=args.pretrain_epochs, seed=args.seed, initial_sigma=0.3 if over_volume else 0.1)
+            pretrain_args = PretrainArgs(epochs=args.pretrain_epochs, seed=args.seed, initial_sigma=defaults.pretrain_initial_sigma)
             pretrain_history = pretrain(model, data, pretrain_args, progress, statistics)
             save_checkpoint(out / "pretrain", "pretrain", {"model": model.state_dict(), "history": pretrain_history})
         else:
@@ -170,9 +211,9 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False) -> P
         timings["pretrain_s"] = time.perf_counter() - started - timings["search_s"]
 
         pretrained_return = evaluate_noise_free(model, env, reward)
-        updates = args.a2c_updates or (5000 if over_volume else 40)
-        budget = args.a2c_time_budget_s if args.a2c_time_budget_s is not None else (600.0 if over_volume else 60.0)
-        sigma_floor = args.a2c_sigma_floor if args.a2c_sigma_floor is not None else (0.2 if over_volume else 0.0)
+        updates = args.a2c_updates or defaults.a2c_updates
+        budget = args.a2c_time_budget_s if args.a2c_time_budget_s is not None else defaults.a2c_time_budget_s
+        sigma_floor = args.a2c_sigma_floor if args.a2c_sigma_floor is not None else defaults.a2c_sigma_floor
         a2c_args = A2CArgs(updates=updates, characters=env.num_envs, advantage=args.advantage,
                            smoothing_window=args.smoothing_window, sigma_floor=sigma_floor,
                            time_budget_s=budget or None, seed=args.seed)

@@ -29,11 +29,11 @@ from typing import Any
 
 import numpy as np
 
-from punch_trainer.cli.replay import ReplayArgs, ReplayError, analyse_sigma, policy_metadata, run_godot_replay
 from punch_trainer.learn.reach import HELD_OUT_SEED, ReachVolume
 from punch_trainer.learn.search import SearchArgs, placement_search
 from punch_trainer.learn.volume import success
-from punch_trainer.sim import cluster
+from punch_trainer.pipelines.replay import ReplayArgs, ReplayError, analyse_sigma, policy_metadata, run_godot_replay
+from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.rewards import Reward, metadata_reward
 from punch_trainer.sim.rollouts import RolloutPool
 
@@ -52,6 +52,7 @@ class EvalArgs:
     seed: int = HELD_OUT_SEED
     """seed of the placements (the default is one no training stage uses)"""
     sigmas: list[float] = field(default_factory=lambda: [0.0, 0.1, 0.3, 0.5])
+    """noise sigmas (a,b,c or start:stop:step)"""
     noisy_episodes: int = 2
     """punches per placement at each sigma > 0 (sigma 0: one)"""
     search_iterations: int = 20
@@ -104,23 +105,23 @@ def _condition_from_bytes(policy_bytes: bytes, **kwargs: Any) -> list[dict[str, 
         return run_condition(policy, **kwargs)
 
 
-def run_conditions(calls: list[dict[str, Any]]) -> list[list[dict[str, Any]]]:
-    """`run_condition(**call)` for every call: one after the other here, or side by side on the Ray cluster's
-    workers under `--ray` (each its own Godot on some node; the results are the same either way)."""
-    if not cluster.joined():
-        return [run_condition(**call) for call in calls]
+def run_conditions(calls: list[dict[str, Any]], backend: Backend) -> list[list[dict[str, Any]]]:
+    """`run_condition(**call)` for every call on `backend`: one after the other here, or side by side on a Ray
+    cluster's workers (each its own Godot on some node; the results are the same either way)."""
+    if backend.shares_files:
+        return backend.map(run_condition, calls)
     policies = {call["policy"]: Path(call["policy"]).read_bytes() for call in calls}
     remote_calls = [{"policy_bytes": policies[call["policy"]], **{k: v for k, v in call.items() if k != "policy"}} for call in calls]
-    return cluster.map_on_workers(_condition_from_bytes, remote_calls)
+    return backend.map(_condition_from_bytes, remote_calls)
 
 
 def search_bests(policy_actions: np.ndarray, bags: list[dict[str, float]], reward: Reward, smoothing_window: int,
-                 iterations: int, seed: int) -> np.ndarray:
+                 iterations: int, seed: int, backend: Backend) -> np.ndarray:
     """The best return a short trajectory search finds at each placement, warm-started from `policy_actions`
     [P, decisions, A] (the policy's own noise-free actions there)."""
     args = SearchArgs(reward=reward.name, frames=reward.frames, seed=seed, iterations=iterations, rollouts=16,
                       sigma_init=0.3, smoothing_window=smoothing_window, plateau_iterations=0)
-    with RolloutPool(1, 64) as pool:
+    with RolloutPool(1, 64, backend=backend) as pool:
         results = placement_search(args, reward, pool, progress=False, placements=bags, init_mu=policy_actions, neighbours=0)
     return np.array([r.best_return for r in results])
 
@@ -132,7 +133,7 @@ def policy_reward(policy: Path) -> tuple[Reward, dict[str, str]]:
 
 
 def evaluate_policy(policy: Path, args: EvalArgs, still: list[dict[str, float]], moving: list[dict[str, float]],
-                    base: dict[str, Any], best: np.ndarray | None) -> dict[str, Any]:
+                    base: dict[str, Any], best: np.ndarray | None, backend: Backend) -> dict[str, Any]:
     """Every condition for one policy (`base`: its noise-free punches, already run): rows for the report."""
     reward, metadata = policy_reward(policy)
     noisy = [s for s in args.sigmas if s > 0]
@@ -142,7 +143,7 @@ def evaluate_policy(policy: Path, args: EvalArgs, still: list[dict[str, float]],
                   (f"first {FIRST_DECISIONS} decisions", {"bags": still, "sigmas": noisy, "episodes_per_bag": args.noisy_episodes,
                                                           "noise_decisions": FIRST_DECISIONS, "seed": 1})]
     calls += [("bag swinging", {"bags": moving, "sigmas": [0.0]}), ("after a punch", {"bags": still, "sigmas": [0.0], "start": "after_punch"})]
-    results = run_conditions([{"policy": policy, "reward": reward, **call} for _, call in calls])
+    results = run_conditions([{"policy": policy, "reward": reward, **call} for _, call in calls], backend)
     conditions = [("every decision", base)]
     for (name, _), per_sigma in zip(calls, results, strict=True):
         conditions += [(name, result) for result in per_sigma]
@@ -159,9 +160,10 @@ def evaluate_policy(policy: Path, args: EvalArgs, still: list[dict[str, float]],
             "success_at_sigma0": base["success"].tolist()}
 
 
-def run_eval(args: EvalArgs, progress: bool = True) -> tuple[Path, dict[str, Any]]:
+def run_eval(args: EvalArgs, progress: bool = True, *, backend: Backend = LOCAL) -> tuple[Path, dict[str, Any]]:
+    """The whole `punch eval` command, every punch and search on `backend`: writes eval.json and report.md."""
     started = time.perf_counter()
-    with RolloutPool(1, 1) as pool:
+    with RolloutPool(1, 1, backend=backend) as pool:
         reach = ReachVolume.from_json(pool.info.reach_volume)
     still, moving = held_out_placements(reach, args.placements, args.seed)
     out = Path(args.out or Path(args.policy).parent / f"eval_{int(time.time())}")
@@ -173,19 +175,19 @@ def run_eval(args: EvalArgs, progress: bool = True) -> tuple[Path, dict[str, Any
     if progress:
         print(f"punching at {len(still)} held-out placements, sigma 0 ...", flush=True)
     bases = [runs[0] for runs in run_conditions([{"policy": policy, "bags": still, "sigmas": [0.0], "reward": reward, "keep_actions": True}
-                                                  for policy in policies])]
+                                                  for policy in policies], backend)]
     best = None
     if args.search_iterations > 0:
         if progress:
             print("searching the best punch at every placement ...", flush=True)
         best = search_bests(bases[0]["actions"], still, reward, int(metadata.get("punch_smoothing_window", 1)),
-                            args.search_iterations, args.seed)
+                            args.search_iterations, args.seed, backend)
         best = np.max([best, *[base["returns"] for base in bases]], axis=0)  # a policy may beat the short search
     evaluations = []
     for policy, base in zip(policies, bases, strict=True):
         if progress:
             print(f"evaluating {policy} ...", flush=True)
-        evaluations.append(evaluate_policy(policy, args, still, moving, base, best))
+        evaluations.append(evaluate_policy(policy, args, still, moving, base, best, backend))
     report = {"seed": args.seed, "placements": still, "moving_placements": moving, "reach": json.loads(reach.to_json()),
               "search_best": best.tolist() if best is not None else None, "evaluations": evaluations,
               "wall_s": round(time.perf_counter() - started, 1)}

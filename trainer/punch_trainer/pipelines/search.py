@@ -10,13 +10,16 @@ from punch_trainer.learn.dataset import record_dataset
 from punch_trainer.learn.search import SearchArgs, SearchResult, trajectory_search
 from punch_trainer.report.motion import motion_report
 from punch_trainer.report.search_report import write_search_run
+from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.rewards import load_reward
 from punch_trainer.sim.rollouts import RolloutPool
 
 
-def run_search(args: SearchArgs, progress: bool = True, resume: bool = False) -> tuple[Path, SearchResult, dict[str, Any]]:
-    """The whole `punch search` command: search, dataset, run directory. `resume` continues the run in
-    `args.out` from its checkpoint (the CLI reads its arguments back with `checkpoint.read_config`)."""
+def run_search(args: SearchArgs, progress: bool = True, resume: bool = False, *,
+               backend: Backend = LOCAL) -> tuple[Path, SearchResult, dict[str, Any]]:
+    """The whole `punch search` command: search, dataset, run directory, with the training servers on
+    `backend`. `resume` continues the run in `args.out` from its checkpoint (the CLI reads its arguments back
+    with `checkpoint.read_config`)."""
     reward = load_reward(args.reward, args.frames)
     if reward.frames % args.decision_period:
         raise ValueError(f"frames ({reward.frames}) must be a multiple of the decision period ({args.decision_period})")
@@ -24,10 +27,10 @@ def run_search(args: SearchArgs, progress: bool = True, resume: bool = False) ->
     if not resume and (out / CHECKPOINT_FILE).exists():
         raise CheckpointError(f"{out} already holds a search; continue it with `punch search --resume {out}` or choose another --out")
     write_config(out, args, frames=reward.frames)  # first, so that an interrupted run can be resumed
-    with RolloutPool(args.processes, args.characters_per_process, decision_period=args.decision_period) as pool:
+    with RolloutPool(args.processes, args.characters_per_process, decision_period=args.decision_period, backend=backend) as pool:
         result = trajectory_search(args, reward, pool, progress, run_dir=out)
         info = pool.info
-    dataset = record_dataset(result, reward, args)
+    dataset = record_dataset(result, reward, args, backend=backend)
     report = motion_report(dataset)
     write_search_run(out, args, reward, result, dataset, report, info)
     return out, result, report

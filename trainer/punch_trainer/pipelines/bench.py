@@ -16,9 +16,11 @@ import numpy as np
 from tqdm import tqdm
 
 from punch_trainer.errors import PunchError
+from punch_trainer.sim.backend import LOCAL, Backend
+from punch_trainer.sim.cluster import RayBackend
 from punch_trainer.sim.godot import PROJECT_ROOT
 from punch_trainer.sim.protocol import Message, reset_message, rollout_message, step_message
-from punch_trainer.sim.server import ServerConnection, TrainingServer, exchange, start_servers
+from punch_trainer.sim.server import ServerConnection, exchange
 
 BENCHMARKS_FILE = PROJECT_ROOT / "BENCHMARKS.md"
 
@@ -47,14 +49,14 @@ def machine_description() -> str:
 
 
 def bench_env(characters: Sequence[int] = (1, 16, 64), processes: Sequence[int] = (1, 2), frames: int = 50, episodes: int = 6,
-              seed: int = 0) -> list[EnvThroughput]:
-    """Character-physics-frames per second through the real socket, open and closed loop. Each measurement
-    runs `episodes` full episodes (reset included) after one warm-up episode."""
+              seed: int = 0, *, backend: Backend = LOCAL) -> list[EnvThroughput]:
+    """Character-physics-frames per second through the real socket, open and closed loop, on servers started
+    on `backend`. Each measurement runs `episodes` full episodes (reset included) after one warm-up episode."""
     rng = np.random.default_rng(seed)
     results = []
     configurations = [(k, n) for k in processes for n in characters]
     for k, n in tqdm(configurations, desc="bench env", unit="config"):
-        servers = start_servers(k, n)
+        servers = backend.start_servers(k, n)
         try:
             decisions = frames // servers[0].info.decision_period
             actions = rng.uniform(-1, 1, size=(n, decisions, servers[0].info.action_size)).astype(np.float32)
@@ -99,14 +101,12 @@ def _batch_seconds(servers: list[ServerConnection], rollout: Message, batches: i
     return (time.perf_counter() - start) / batches
 
 
-def bench_ray(processes: Sequence[int] = (1, 2, 3), characters: int = 64, frames: int = 50, batches: int = 6, rounds: int = 8,
-              seed: int = 0) -> list[dict[str, float]]:
+def bench_ray(backend: Backend, processes: Sequence[int] = (1, 2, 3), characters: int = 64, frames: int = 50, batches: int = 6,
+              rounds: int = 8, seed: int = 0) -> list[dict[str, float]]:
     """Ray's cost against local processes at the same count K: open-loop batches of `characters` per worker,
-    timed on local Godot processes and on Ray workers of the cluster joined with `cluster.ray_cluster`,
+    timed on local Godot processes and on Ray workers of `backend` (a cluster joined with `cluster.ray_cluster`),
     alternating `rounds` times so that both see the same machine. One row per K (times in ms)."""
-    from punch_trainer.sim.cluster import joined
-
-    if not joined():
+    if not isinstance(backend, RayBackend):
         raise PunchError("bench_ray needs a Ray cluster: punch bench env --ray [ADDRESS|simulated]")
     rng = np.random.default_rng(seed)
     rows = []
@@ -114,8 +114,8 @@ def bench_ray(processes: Sequence[int] = (1, 2, 3), characters: int = 64, frames
         local: list[ServerConnection] = []
         on_ray: list[ServerConnection] = []
         try:
-            local = [TrainingServer(characters) for _ in range(k)]
-            on_ray = start_servers(k, characters)
+            local = LOCAL.start_servers(k, characters)
+            on_ray = backend.start_servers(k, characters)
             decisions = frames // local[0].info.decision_period
             rollout = rollout_message(rng.uniform(-1, 1, size=(characters, decisions, local[0].info.action_size)).astype(np.float32))
             times: dict[str, list[float]] = {"local": [], "ray": []}
@@ -275,7 +275,7 @@ def bench_inference(policy: Path, characters: Sequence[int] = (1, 4, 16, 64, 100
     decision tick), and the controllers' whole work per physics frame (sensing, inference, driving)."""
     import tempfile
 
-    from punch_trainer.cli.replay import ReplayArgs, run_godot_replay
+    from punch_trainer.pipelines.replay import ReplayArgs, run_godot_replay
 
     rows = []
     for count in tqdm(characters, desc="bench inference", unit="config"):
