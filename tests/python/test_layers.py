@@ -1,35 +1,116 @@
-"""The trainer's layers: each subpackage imports only those below it (sim <- learn <- report <- cli), and
-every Godot process is started in one place (sim/godot.py)."""
+"""The trainer's layers: each subpackage imports only itself and those below it (sim <- learn <- report <-
+pipelines <- cli; `errors.py` and the package itself are shared), every import counted, at the top of a
+module or inside a function; and no modules import one another in a circle. That every Godot process is
+started in one place (sim/godot.py) is checked by test_godot_launcher.py."""
 
 import ast
+from pathlib import Path
 
 from conftest import PROJECT_ROOT
 
 PACKAGE = PROJECT_ROOT / "trainer" / "punch_trainer"
-LAYERS = ["sim", "learn", "report", "cli"]
+LAYERS = ["sim", "learn", "report", "pipelines", "cli"]
 
 
-def imported_modules(path):
+def module_name(path: Path, package: Path) -> str:
+    parts = [package.name, *path.relative_to(package).with_suffix("").parts]
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def imported_modules(path: Path, package: Path) -> list[str]:
+    """Every module of the package that `path` imports, relative imports resolved; `from X import Y` counts
+    X.Y where Y is a module of the package (a subpackage's module), else X."""
+    own = module_name(path, package)
+    here = own if path.name == "__init__.py" else own.rpartition(".")[0]
+    found = []
     for node in ast.walk(ast.parse(path.read_text())):
-        if isinstance(node, ast.ImportFrom) and node.module:
-            yield node.module
-        elif isinstance(node, ast.Import):
-            yield from (alias.name for alias in node.names)
+        if isinstance(node, ast.Import):
+            found += [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = here.split(".")[:len(here.split(".")) - node.level + 1]
+                base = ".".join([*anchor, *([base] if base else [])])
+            for alias in node.names:
+                candidate = f"{base}.{alias.name}"
+                is_module = (package.parent / candidate.replace(".", "/")).with_suffix(".py").exists() or \
+                    (package.parent / candidate.replace(".", "/") / "__init__.py").exists()
+                found.append(candidate if is_module else base)
+    return [name for name in found if name == package.name or name.startswith(package.name + ".")]
+
+
+def layer_violations(package: Path, layers: list[str]) -> list[str]:
+    """'<module> imports <module>' for every import of a layer above the importer's own, of a module outside
+    every layer, and for every module that is itself outside every layer and not shared."""
+    shared = {package.name, f"{package.name}.errors"}
+    violations = []
+    for path in sorted(package.rglob("*.py")):
+        own = module_name(path, package)
+        parts = own.split(".")
+        in_layer = len(parts) > 1 and parts[1] in layers
+        if not in_layer and own not in shared:
+            violations.append(f"{own} belongs to no layer")
+            continue
+        rank = layers.index(parts[1]) if in_layer else -1  # shared modules import no layer
+        for imported in imported_modules(path, package):
+            if imported in shared:
+                continue
+            target = imported.split(".")
+            if len(target) < 2 or target[1] not in layers or layers.index(target[1]) > rank:
+                violations.append(f"{own} imports {imported}")
+    return violations
+
+
+def import_cycles(package: Path) -> list[list[str]]:
+    """Every circle of imports among the package's modules (each found once, from its smallest member)."""
+    graph = {module_name(path, package): set(imported_modules(path, package)) for path in package.rglob("*.py")}
+    # A package's __init__ runs before its modules: importing a.b imports a too. Only module-to-module
+    # edges matter here, so the package nodes are left out.
+    packages = {module_name(path, package) for path in package.rglob("__init__.py")}
+    graph = {name: {target for target in targets if target in graph and target not in packages and target != name}
+             for name, targets in graph.items() if name not in packages}
+    cycles: list[list[str]] = []
+
+    def walk(start: str, node: str, trail: list[str]) -> None:
+        for target in sorted(graph[node]):
+            if target == start:
+                cycles.append(trail)
+            elif target > start and target not in trail:
+                walk(start, target, [*trail, target])
+
+    for start in sorted(graph):
+        walk(start, start, [start])
+    return cycles
 
 
 def test_no_layer_imports_a_layer_above_it():
-    upward = []
-    for rank, layer in enumerate(LAYERS):
-        for path in sorted((PACKAGE / layer).glob("*.py")):
-            for module in imported_modules(path):
-                parts = module.split(".")
-                if parts[0] == "punch_trainer" and len(parts) > 1 and parts[1] in LAYERS[rank + 1:]:
-                    upward.append(f"{path.relative_to(PACKAGE)} imports {module}")
-    assert upward == []
-    assert sorted(p.name for p in PACKAGE.glob("*.py")) == ["__init__.py", "errors.py"], "every module belongs to a layer"
+    assert layer_violations(PACKAGE, LAYERS) == []
+    assert {path.parent.name for path in PACKAGE.glob("*/__init__.py")} == set(LAYERS), "every subpackage is a layer"
 
 
-def test_godot_is_started_in_one_place():
-    starters = [path.relative_to(PACKAGE) for path in PACKAGE.rglob("*.py")
-                if "subprocess.Popen(godot_command()" in path.read_text() or "godot_command() +" in path.read_text()]
-    assert [str(p) for p in starters] == ["sim/godot.py"]
+def test_no_modules_import_one_another_in_a_circle():
+    assert import_cycles(PACKAGE) == []
+
+
+def write_package(root: Path, modules: dict[str, str]) -> Path:
+    for name, text in modules.items():
+        path = root / (name.replace(".", "/") + ".py")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+    return root / "pkg"
+
+
+def test_the_checks_find_an_upward_import_a_stray_module_and_a_circle(tmp_path):
+    """The checks above, on a small package that breaks each rule once, in each form an import can take."""
+    package = write_package(tmp_path, {
+        "pkg.__init__": "", "pkg.errors": "", "pkg.stray": "",
+        "pkg.low.__init__": "", "pkg.high.__init__": "",
+        "pkg.low.a": "from pkg.low import b\nfrom pkg.errors import Error\n",
+        "pkg.low.b": "def f():\n    import pkg.high.c\n",  # inside a function, and upward
+        "pkg.low.d": "from ..high import c\n",  # relative, upward
+        "pkg.high.c": "from pkg.low.a import x\nfrom . import e\n",
+        "pkg.high.e": "from pkg.high.c import y\n",  # c <-> e
+    })
+    assert layer_violations(package, ["low", "high"]) == [
+        "pkg.low.b imports pkg.high.c", "pkg.low.d imports pkg.high.c", "pkg.stray belongs to no layer"]
+    assert import_cycles(package) == [["pkg.high.c", "pkg.high.e"], ["pkg.high.c", "pkg.low.a", "pkg.low.b"]]
