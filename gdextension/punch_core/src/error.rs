@@ -29,6 +29,10 @@ pub enum CoreError {
     #[error("bad policy input: {0}")]
     BadInput(String),
 
+    /// The model is a policy but not one a punching character can play (its interface or policy contract).
+    #[error("incompatible policy: {0}")]
+    IncompatiblePolicy(String),
+
     /// ONNX Runtime failed while running the model.
     #[error("inference failed: {0}")]
     Inference(String),

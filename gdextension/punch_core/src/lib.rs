@@ -14,14 +14,19 @@
 
 pub mod access;
 pub mod character;
+// The training server runs on Linux (the trainer starts headless Linux Godot).
+#[cfg(unix)]
+pub mod connections;
 pub mod controller;
 pub mod error;
 #[cfg(test)]
 mod fake_world;
+pub mod lifecycle;
 pub mod model_check;
 pub mod noise;
 pub mod observation;
 pub mod policy;
+pub mod policy_gate;
 pub mod protocol;
 pub mod punch;
 pub mod runtime;

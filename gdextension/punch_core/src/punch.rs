@@ -154,6 +154,11 @@ impl Punch {
         }
     }
 
+    /// The rest geometry of the character it drives.
+    pub fn geometry(&self) -> &CharacterGeometry {
+        self.controller.geometry()
+    }
+
     /// Physics frames played so far.
     pub fn frame(&self) -> u32 {
         self.frame
