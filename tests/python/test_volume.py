@@ -32,7 +32,7 @@ def test_the_spec_announces_the_reach_volume():
         reach = ReachVolume.from_json(server.info.reach_volume)
     assert reach == ReachVolume((0.6, 0.85), (1.15, 1.55), (-0.25, 0.25), 1.0, True)
     grid = reach.grid((2, 3, 3))
-    assert len(grid) == 18 and grid[0]["height_m"] == pytest.approx(1.35) and grid[0]["side_m"] == 0.0
+    assert len(grid) == 18 and grid[0].height_m == pytest.approx(1.35) and grid[0].side_m == 0.0
 
 
 def test_a_volume_policy_beats_a_single_spot_policy_on_held_out_placements(tmp_path):
@@ -94,16 +94,16 @@ def test_a_share_of_episodes_at_the_default_placement():
     """`default_share`: that share of A2C episodes has the bag still at the default placement, the rest are
     drawn from the volume as before, and a resumed run draws the same."""
     reach = ReachVolume((0.6, 0.85), (1.15, 1.55), (-0.25, 0.25), 1.0, True)
-    default = placement(0.7, 1.35, 0.0)  # the shape of every drawn placement, so equality is a real test
+    default = placement(0.7, 1.35, 0.0)  # a BagPlacement, as every drawn one, so equality is a real test
     punches = np.zeros((1, 10, 10), dtype=np.float32)
     draw = EpisodeConditions(reach, punches, VolumeArgs(default_share=0.25), seed=5, default_bag=default)
-    bags = [bag for update in range(1, 41) for bag in draw(32, update)["bag"]]
+    bags = [bag for update in range(1, 41) for bag in draw(32, update).bags]
     at_default = sum(bag == default for bag in bags) / len(bags)
     assert 0.2 < at_default < 0.3, at_default
     assert draw(32, 7) == draw(32, 7)
     without = EpisodeConditions(reach, punches, VolumeArgs(), seed=5, default_bag=default)
-    assert not any(bag == default for bag in without(32, 1)["bag"])
-    assert without(32, 1)["bag"][0].keys() == default.keys()
+    assert not any(bag == default for bag in without(32, 1).bags)
+    assert type(without(32, 1).bags[0]) is type(default)
 
 
 def test_the_after_punch_experiment_searches_from_both_starts(tmp_path):

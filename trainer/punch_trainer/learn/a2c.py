@@ -25,6 +25,7 @@ from punch_trainer.learn.checkpoint import load_checkpoint, save_checkpoint
 from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.volume import validate
 from punch_trainer.sim.env import PunchVectorEnv
+from punch_trainer.sim.placement import BagPlacement, EpisodeStart
 from punch_trainer.sim.rewards import Reward, score
 from punch_trainer.sim.server_group import SimulatorRestarts
 
@@ -66,7 +67,7 @@ def evaluate_noise_free(model: ActorCritic, env: PunchVectorEnv, reward: Reward)
 
 
 def collect_episodes(model: ActorCritic, env: PunchVectorEnv, reward: Reward,
-                     options: dict[str, Any] | None = None, sigma_floor: float = 0.0) -> dict[str, torch.Tensor]:
+                     options: EpisodeStart | None = None, sigma_floor: float = 0.0) -> dict[str, torch.Tensor]:
     """One episode on every character with actions sampled from the policy (reset with `options`: bag
     placements, lead-ins): per decision [T, N, ...] the observations, actions, log-probabilities, values
     and rewards."""
@@ -106,8 +107,8 @@ def advantages_and_returns(rewards: torch.Tensor, values: torch.Tensor, best_epi
 
 def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVectorEnv, progress: bool = True,
               start_rollouts: int = 0, run_dir: Path | None = None, max_restarts: int = 3,
-              conditions: Callable[[int, int], dict[str, Any]] | None = None,
-              validation: list[dict[str, float]] | None = None) -> tuple[ActorCritic, list[dict[str, Any]]]:
+              conditions: Callable[[int, int], EpisodeStart] | None = None,
+              validation: list[BagPlacement] | None = None) -> tuple[ActorCritic, list[dict[str, Any]]]:
     """Trains in place and returns the parameters with the best noise-free return, with the history.
 
     `conditions(count, update)` gives each update's reset options (training over the reach volume: random
@@ -152,7 +153,7 @@ def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVecto
         rng_state = torch.get_rng_state()
         options = conditions(env.num_envs, update) if conditions is not None else None
 
-        def collect(rng_state: torch.Tensor = rng_state, options: dict[str, Any] | None = options) -> dict[str, torch.Tensor]:
+        def collect(rng_state: torch.Tensor = rng_state, options: EpisodeStart | None = options) -> dict[str, torch.Tensor]:
             torch.set_rng_state(rng_state)  # a rerun after a restart samples the same actions
             return collect_episodes(model, env, reward, options, args.sigma_floor)
 

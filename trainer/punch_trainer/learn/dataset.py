@@ -18,6 +18,7 @@ from punch_trainer.errors import PunchError
 from punch_trainer.learn.reach import METADATA_KEY, ReachVolume
 from punch_trainer.learn.search import SearchArgs, SearchResult
 from punch_trainer.sim.backend import LOCAL, Backend
+from punch_trainer.sim.placement import BagPlacement
 from punch_trainer.sim.rewards import Reward, score
 from punch_trainer.sim.server import ServerInfo
 
@@ -31,7 +32,7 @@ def record_dataset(result: SearchResult, reward: Reward, args: SearchArgs, *, ba
     return record_datasets([result], reward, args, backend=backend)[0]
 
 
-def record_datasets(results: list[SearchResult], reward: Reward, args: SearchArgs, bags: list[dict[str, float]] | None = None,
+def record_datasets(results: list[SearchResult], reward: Reward, args: SearchArgs, bags: list[BagPlacement] | None = None,
                     reach: ReachVolume | None = None, *, backend: Backend = LOCAL) -> list[dict[str, np.ndarray]]:
     """Steps through best trajectories one decision at a time, each in the slot it was found in, of a server
     of the same size as the search's (so that each is bitwise the same trajectory: docs/env.md, Episodes),
@@ -39,21 +40,21 @@ def record_datasets(results: list[SearchResult], reward: Reward, args: SearchArg
     recording must reproduce the search's features exactly. `reach` (default: the one placement) goes into
     each dataset's policy contract, so every policy trained on them states what it covers."""
     slot_count = args.characters_per_process
-    bags = bags or [None] * len(results)  # type: ignore[list-item]
+    placed: list[BagPlacement | None] = list(bags) if bags else [None] * len(results)
     recorded: list[dict[str, np.ndarray] | None] = [None] * len(results)
     pending = list(range(len(results)))
     with backend.start_servers(1, slot_count, args.decision_period)[0] as server:
         info = server.info
-        reach = reach or ReachVolume.spot(bags[0] or info.default_bag)
+        reach = reach or ReachVolume.spot(placed[0] or info.default_bag)
         while pending:
             # One pass plays every pending trajectory whose slot is still free in it.
             by_slot: dict[int, int] = {}
             for index in pending:
                 by_slot.setdefault(results[index].best_slot, index)
             pending = [index for index in pending if index not in by_slot.values()]
-            slot_bags = [dict(info.default_bag) for _ in range(slot_count)]
+            slot_bags = [info.default_bag] * slot_count
             for slot, index in by_slot.items():
-                slot_bags[slot] = dict(info.default_bag, **(bags[index] or {}))
+                slot_bags[slot] = placed[index] or info.default_bag
             reply = server.reset(reward.frames, bags=slot_bags, smoothing_window=args.smoothing_window)
             contract = dict(reply.fields["policy_metadata"], **{METADATA_KEY: reach.to_json()})
             observations = [[reply.arrays["observations"][slot]] for slot in range(slot_count)]
@@ -75,7 +76,7 @@ def record_datasets(results: list[SearchResult], reward: Reward, args: SearchArg
 
 
 def _dataset(result: SearchResult, reward: Reward, args: SearchArgs, info: ServerInfo, contract: dict[str, str],
-             bag: dict[str, float], observations: list[np.ndarray], executed: list[np.ndarray],
+             bag: BagPlacement, observations: list[np.ndarray], executed: list[np.ndarray],
              frames: list[np.ndarray]) -> dict[str, np.ndarray]:
     features = np.concatenate(frames)
     decisions = len(result.best_actions)
@@ -93,7 +94,7 @@ def _dataset(result: SearchResult, reward: Reward, args: SearchArgs, info: Serve
         "observation_names": np.array(info.observation_names),
         "spec_hash": np.array(info.spec_hash),
         "policy_metadata": np.array(json.dumps(contract, sort_keys=True)),
-        "bag": np.array(json.dumps(bag, sort_keys=True)),
+        "bag": np.array(json.dumps(bag.to_wire(), sort_keys=True)),
         "reward": np.array(reward.name),
         "frames": np.array(reward.frames),
         "decision_period": np.array(args.decision_period),

@@ -15,6 +15,8 @@ from typing import Any
 
 import numpy as np
 
+from punch_trainer.sim.placement import BagPlacement
+
 METADATA_KEY = "punch_reach_volume"
 HELD_OUT_SEED = 2_147_483_647
 """the seed of `punch eval`'s placements (training seeds are small integers and their +1, +2)"""
@@ -43,12 +45,12 @@ class ReachVolume:
                    bool(data["any_start_pose"]))
 
     @classmethod
-    def spot(cls, bag: dict[str, float]) -> ReachVolume:
+    def spot(cls, bag: BagPlacement) -> ReachVolume:
         """A single placement, at rest, from the guard (the quickstart's reach)."""
-        def at(key: str) -> tuple[float, float]:
-            return round(float(bag[key]), 4), round(float(bag[key]), 4)
+        def at(value_m: float) -> tuple[float, float]:
+            return round(float(value_m), 4), round(float(value_m), 4)
 
-        return cls(at("distance_m"), at("height_m"), at("side_m"), 0.0, False)
+        return cls(at(bag.distance_m), at(bag.height_m), at(bag.side_m), 0.0, False)
 
     def to_json(self) -> str:
         return json.dumps({key: list(value) if isinstance(value, tuple) else value for key, value in asdict(self).items()},
@@ -58,7 +60,7 @@ class ReachVolume:
     def is_spot(self) -> bool:
         return all(low == high for low, high in (self.distance_m, self.height_m, self.side_m))
 
-    def grid(self, counts: tuple[int, int, int] = (3, 3, 3)) -> list[dict[str, float]]:
+    def grid(self, counts: tuple[int, int, int] = (3, 3, 3)) -> list[BagPlacement]:
         """Placements at rest on a grid over the box: `counts` points along distance, height and side
         (ends included), the centre first (where a search warm-starts from)."""
         axes = [np.linspace(low, high, count) if count > 1 else np.array([(low + high) / 2])
@@ -72,7 +74,7 @@ class ReachVolume:
         """Each axis's extent (1 where the box is flat), to measure distances between placements."""
         return np.array([max(high - low, 1e-6) for low, high in (self.distance_m, self.height_m, self.side_m)])
 
-    def sample(self, rng: np.random.Generator, count: int, *, moving: float = 0.0) -> list[dict[str, float]]:
+    def sample(self, rng: np.random.Generator, count: int, *, moving: float = 0.0) -> list[BagPlacement]:
         """`count` placements drawn uniformly from the box; a share `moving` of them with the bag swinging at
         a speed drawn uniformly up to the volume's largest, in a random horizontal direction."""
         low = np.array([self.distance_m[0], self.height_m[0], self.side_m[0]])
@@ -85,17 +87,11 @@ class ReachVolume:
 
 
 def placement(distance_m: float, height_m: float, side_m: float, *, velocity_side_mps: float = 0.0,
-              velocity_forward_mps: float = 0.0) -> dict[str, float]:
-    """A bag placement as the protocol writes it (docs/protocol.md, `reset`)."""
-    return {"distance_m": float(distance_m), "height_m": float(height_m), "side_m": float(side_m),
-            "velocity_side_mps": float(velocity_side_mps), "velocity_forward_mps": float(velocity_forward_mps)}
+              velocity_forward_mps: float = 0.0) -> BagPlacement:
+    """A bag placement of plain floats (numpy's scalars become Python's, as the protocol writes them)."""
+    return BagPlacement(float(distance_m), float(height_m), float(side_m), float(velocity_side_mps), float(velocity_forward_mps))
 
 
-def position(bag: dict[str, float]) -> np.ndarray:
-    """(distance, height, side) of a placement."""
-    return np.array([bag["distance_m"], bag["height_m"], bag["side_m"]])
-
-
-def nearest(points: list[dict[str, float]], bag: dict[str, float], scale: np.ndarray) -> int:
+def nearest(points: list[BagPlacement], bag: BagPlacement, scale: np.ndarray) -> int:
     """Index of the placement in `points` nearest to `bag` (distances measured in units of `scale`)."""
-    return int(np.argmin([np.linalg.norm((position(p) - position(bag)) / scale) for p in points]))
+    return int(np.argmin([np.linalg.norm((p.position_m() - bag.position_m()) / scale) for p in points]))

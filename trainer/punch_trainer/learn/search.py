@@ -32,7 +32,7 @@ import numpy as np
 from tqdm import tqdm
 
 from punch_trainer.learn.checkpoint import CheckpointError, default_run_dir, load_checkpoint, save_checkpoint
-from punch_trainer.learn.reach import position
+from punch_trainer.sim.placement import BagPlacement
 from punch_trainer.sim.rewards import Reward, Terms, score_terms
 from punch_trainer.sim.rollouts import RolloutPool
 
@@ -116,7 +116,7 @@ def trajectory_search(args: SearchArgs, reward: Reward, pool: RolloutPool, progr
 
 
 def placement_search(args: SearchArgs, reward: Reward, pool: RolloutPool, progress: bool = True,
-                     run_dir: Path | None = None, placements: list[dict[str, float]] | None = None,
+                     run_dir: Path | None = None, placements: list[BagPlacement] | None = None,
                      init_mu: np.ndarray | None = None, neighbours: int = 4) -> list[SearchResult]:
     """Runs TTR at several bag placements at once (one table per placement, all rollouts in the same
     batches); None: the default placement only. Each placement's search may start from `init_mu` (a best
@@ -133,8 +133,8 @@ def placement_search(args: SearchArgs, reward: Reward, pool: RolloutPool, progre
     decisions = reward.frames // args.decision_period
     action_size = pool.info.action_size
     count = 1 if placements is None else len(placements)
-    scale = np.ptp([position(p) for p in placements], axis=0) + 1e-6 if placements else np.ones(3)
-    near = [np.argsort([np.linalg.norm((position(q) - position(p)) / scale) for q in placements])[1:neighbours + 1]
+    scale = np.ptp([p.position_m() for p in placements], axis=0) + 1e-6 if placements else np.ones(3)
+    near = [np.argsort([np.linalg.norm((q.position_m() - p.position_m()) / scale) for q in placements])[1:neighbours + 1]
             for p in placements] if placements else [np.array([], dtype=int)]
 
     def returns_of(actions: np.ndarray, per_placement: int) -> tuple[np.ndarray, Terms, np.ndarray, np.ndarray]:

@@ -19,7 +19,6 @@ Success (`success`): a positive return and the right fist touched the bag, as `p
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import torch
@@ -27,6 +26,7 @@ import torch
 from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.reach import ReachVolume
 from punch_trainer.sim.env import PunchVectorEnv
+from punch_trainer.sim.placement import BagPlacement, EpisodeStart
 from punch_trainer.sim.rewards import Reward, first_right_contact, score
 
 DISTRIBUTION_DRAWS = 10**9
@@ -61,12 +61,12 @@ class EpisodeConditions:
     """Draws the conditions of every A2C episode from the reach volume: `options` for `PunchVectorEnv.reset`."""
 
     def __init__(self, reach: ReachVolume, punches: np.ndarray, args: VolumeArgs, seed: int,
-                 default_bag: dict[str, float]):
+                 default_bag: BagPlacement):
         """`punches`: raw action sequences [K, decisions, A] (the search's bests) that lead-ins replay;
         `default_bag`: the default placement, for `args.default_share`."""
         self.reach, self.punches, self.args, self.seed, self.default_bag = reach, punches, args, seed, default_bag
 
-    def __call__(self, count: int, update: int) -> dict[str, Any]:
+    def __call__(self, count: int, update: int) -> EpisodeStart:
         """The conditions of update `update`'s episodes (drawn from the seed and the update alone, so a resumed
         run draws what an uninterrupted one would)."""
         rng = np.random.default_rng([self.seed, update])
@@ -74,10 +74,10 @@ class EpisodeConditions:
         bags = self.reach.sample(rng, count, moving=0.0 if lead_ins else self.args.moving_share)
         if self.args.default_share > 0:
             at_default = rng.uniform(size=count) < self.args.default_share
-            bags = [dict(self.default_bag) if spot else bag for bag, spot in zip(bags, at_default, strict=True)]
+            bags = [self.default_bag if spot else bag for bag, spot in zip(bags, at_default, strict=True)]
         if not lead_ins:
-            return {"bag": bags}
-        return {"bag": bags, "lead_in": self.lead_ins(rng, count)}
+            return EpisodeStart(bags)
+        return EpisodeStart(bags, self.lead_ins(rng, count))
 
     def lead_ins(self, rng: np.random.Generator, count: int) -> np.ndarray:
         """[count, decisions + 4, A]: zeros (a start from the guard at rest), a whole punch (its end), or a
@@ -103,7 +103,7 @@ def success(returns: np.ndarray, features: np.ndarray, names: list[str]) -> np.n
 
 
 def run_policy(model: ActorCritic, env: PunchVectorEnv, reward: Reward,
-               options: dict[str, Any] | None = None) -> tuple[np.ndarray, np.ndarray]:
+               options: EpisodeStart | None = None) -> tuple[np.ndarray, np.ndarray]:
     """One episode on every character with the policy's mean actions: returns [N] and features [N, frames, F]."""
     obs, _ = env.reset(options=options)
     returns, frames = np.zeros(env.num_envs), []
@@ -117,9 +117,9 @@ def run_policy(model: ActorCritic, env: PunchVectorEnv, reward: Reward,
             return returns, np.concatenate(frames, axis=1)
 
 
-def validate(model: ActorCritic, env: PunchVectorEnv, reward: Reward, placements: list[dict[str, float]]) -> dict[str, float]:
+def validate(model: ActorCritic, env: PunchVectorEnv, reward: Reward, placements: list[BagPlacement]) -> dict[str, float]:
     """Noise-free mean return and success rate over fixed validation placements (one per character)."""
-    returns, features = run_policy(model, env, reward, {"bag": placements})
+    returns, features = run_policy(model, env, reward, EpisodeStart(placements))
     return {"return": float(returns.mean()), "success": float(success(returns, features, env.feature_names).mean())}
 
 

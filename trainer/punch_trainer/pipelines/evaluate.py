@@ -20,6 +20,7 @@ single-spot one, say) on the same placements for comparison.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import tempfile
 import time
@@ -34,6 +35,7 @@ from punch_trainer.learn.search import SearchArgs, placement_search
 from punch_trainer.learn.volume import success
 from punch_trainer.pipelines.replay import ReplayArgs, ReplayError, analyse_sigma, policy_metadata, run_godot_replay
 from punch_trainer.sim.backend import LOCAL, Backend
+from punch_trainer.sim.placement import BagPlacement
 from punch_trainer.sim.rewards import Reward, metadata_reward
 from punch_trainer.sim.rollouts import RolloutPool
 
@@ -61,24 +63,24 @@ class EvalArgs:
     """output directory (default: next to the policy, eval_<time>)"""
 
 
-def held_out_placements(reach: ReachVolume, count: int, seed: int) -> tuple[list[dict[str, float]], list[dict[str, float]]]:
+def held_out_placements(reach: ReachVolume, count: int, seed: int) -> tuple[list[BagPlacement], list[BagPlacement]]:
     """`count` placements at rest, and the same places with the bag swinging, from `seed`."""
     rng = np.random.default_rng(seed)
     still = reach.sample(rng, count)
     moving = reach.sample(rng, count, moving=1.0)
-    for bag, place in zip(moving, still, strict=True):
-        bag.update(distance_m=place["distance_m"], height_m=place["height_m"], side_m=place["side_m"])
+    moving = [dataclasses.replace(bag, distance_m=place.distance_m, height_m=place.height_m, side_m=place.side_m)
+              for bag, place in zip(moving, still, strict=True)]
     return still, moving
 
 
-def run_condition(policy: Path, bags: list[dict[str, float]], sigmas: list[float], reward: Reward, *, episodes_per_bag: int = 1,
+def run_condition(policy: Path, bags: list[BagPlacement], sigmas: list[float], reward: Reward, *, episodes_per_bag: int = 1,
                   noise_decisions: int = -1, start: str = "guard", keep_actions: bool = False, seed: int = 0) -> list[dict[str, Any]]:
     """Punches through PunchController in Godot at every placement of `bags` (`episodes_per_bag` each) for each
     sigma; per sigma: returns, success, the placement of every episode, the analysis of `punch replay`."""
     with tempfile.TemporaryDirectory(prefix="punch_eval_") as directory:
         frames_dir = Path(directory)
         bags_file = frames_dir / "bags.json"
-        bags_file.write_text(json.dumps(bags))
+        bags_file.write_text(json.dumps([bag.to_wire() for bag in bags]))
         episodes = len(bags) * episodes_per_bag
         args = ReplayArgs(policy=policy, sigmas=sigmas, episodes=episodes, noise_decisions=noise_decisions, seed=seed,
                           bags=bags_file, start=start, characters=min(64, episodes))
@@ -115,7 +117,7 @@ def run_conditions(calls: list[dict[str, Any]], backend: Backend) -> list[list[d
     return backend.map(_condition_from_bytes, remote_calls)
 
 
-def search_bests(policy_actions: np.ndarray, bags: list[dict[str, float]], reward: Reward, smoothing_window: int,
+def search_bests(policy_actions: np.ndarray, bags: list[BagPlacement], reward: Reward, smoothing_window: int,
                  iterations: int, seed: int, backend: Backend) -> np.ndarray:
     """The best return a short trajectory search finds at each placement, warm-started from `policy_actions`
     [P, decisions, A] (the policy's own noise-free actions there)."""
@@ -132,7 +134,7 @@ def policy_reward(policy: Path) -> tuple[Reward, dict[str, str]]:
     return metadata_reward(metadata, str(policy)), metadata
 
 
-def evaluate_policy(policy: Path, args: EvalArgs, still: list[dict[str, float]], moving: list[dict[str, float]],
+def evaluate_policy(policy: Path, args: EvalArgs, still: list[BagPlacement], moving: list[BagPlacement],
                     base: dict[str, Any], best: np.ndarray | None, backend: Backend) -> dict[str, Any]:
     """Every condition for one policy (`base`: its noise-free punches, already run): rows for the report."""
     reward, metadata = policy_reward(policy)
@@ -188,14 +190,14 @@ def run_eval(args: EvalArgs, progress: bool = True, *, backend: Backend = LOCAL)
         if progress:
             print(f"evaluating {policy} ...", flush=True)
         evaluations.append(evaluate_policy(policy, args, still, moving, base, best, backend))
-    report = {"seed": args.seed, "placements": still, "moving_placements": moving, "reach": json.loads(reach.to_json()),
+    report = {"seed": args.seed, "placements": [bag.to_wire() for bag in still], "moving_placements": [bag.to_wire() for bag in moving], "reach": json.loads(reach.to_json()),
               "search_best": best.tolist() if best is not None else None, "evaluations": evaluations,
               "wall_s": round(time.perf_counter() - started, 1)}
     (out / "eval.json").write_text(json.dumps(report, indent=2) + "\n")
 
     from punch_trainer.report.plots import plot_eval
 
-    plots = plot_eval(out, still, evaluations)
+    plots = plot_eval(out, report["placements"], evaluations)
     lines = [f"# punch eval: {args.policy}", "",
              f"{len(still)} held-out placements drawn from the reach volume with seed {args.seed} (a seed no training "
              f"stage uses); {args.noisy_episodes} punches per placement at each sigma > 0; every punch through "

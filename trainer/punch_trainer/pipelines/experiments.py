@@ -30,6 +30,7 @@ from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.pretrain import PretrainArgs, pretrain
 from punch_trainer.learn.search import SearchArgs, trajectory_search
 from punch_trainer.sim.env import PunchEnv, PunchVectorEnv
+from punch_trainer.sim.placement import BagPlacement, EpisodeStart
 from punch_trainer.sim.rewards import Reward, load_reward
 from punch_trainer.sim.rollouts import RolloutPool
 
@@ -188,7 +189,7 @@ def after_punch_headroom(dataset_path: Path, iterations: int = 40, rollouts: int
 
     with np.load(dataset_path) as data:
         earlier = data["executed_actions"].astype(np.float32)
-        bag = json.loads(str(data["bag"]))
+        bag = BagPlacement.from_wire(json.loads(str(data["bag"])))
         reward = load_reward(str(data["reward"]), int(data["frames"]))
         frames, period, window = int(data["frames"]), int(data["decision_period"]), int(data["smoothing_window"])
     decisions, action_size = earlier.shape
@@ -200,10 +201,7 @@ def after_punch_headroom(dataset_path: Path, iterations: int = 40, rollouts: int
             for _ in tqdm(range(iterations), desc=f"from {start}", leave=False):
                 actions = np.clip(mean + sigma * rng.standard_normal((rollouts, decisions, action_size)), -1, 1).astype(np.float32)
                 actions[0] = np.clip(mean, -1, 1)  # the current mean is always tried
-                options: dict[str, Any] = {"bag": [bag] * rollouts}
-                if lead_in is not None:
-                    options["lead_in"] = lead_in
-                env.reset(options=options)
+                env.reset(options=EpisodeStart([bag] * rollouts, lead_in))
                 returns, features = np.zeros(rollouts), []
                 for decision in range(decisions):
                     _, rewards, _, _, info = env.step(actions[:, decision])

@@ -28,6 +28,7 @@ import gymnasium as gym
 import numpy as np
 
 from punch_trainer.sim.backend import LOCAL, Backend
+from punch_trainer.sim.placement import BagPlacement, EpisodeStart
 from punch_trainer.sim.protocol import reset_message, step_message
 from punch_trainer.sim.rewards import Reward, score
 from punch_trainer.sim.server import ServerConnection, ServerInfo, TrainingServer, exchange
@@ -40,20 +41,30 @@ def _spaces(info: ServerInfo) -> tuple[gym.spaces.Box, gym.spaces.Box]:
             gym.spaces.Box(-1.0, 1.0, (info.action_size,), np.float32))
 
 
-def _bag_options(options: dict[str, Any] | None, default: dict[str, float], rng: np.random.Generator, count: int,
-                 jitter_m: float) -> list[dict[str, float]]:
-    """Bag placement for `count` slots: options["bag"] (one dict or a list) or the spec's default (from the
-    handshake), plus uniform jitter of +-jitter_m on each position coordinate drawn from the env's seeded
-    generator."""
-    bags = (options or {}).get("bag", default)
-    bags = [dict(default, **bag) for bag in (bags if isinstance(bags, list) else [bags] * count)]
-    if len(bags) != count:
-        raise ValueError(f"options['bag'] lists {len(bags)} placements for {count} characters")
+Options = EpisodeStart | dict[str, Any] | None
+"""a reset's options: an `EpisodeStart`, or Gymnasium's dict of the same (`bag`: one placement or one per
+character, each a `BagPlacement` or a dict of some of its values over the default; `lead_in`)"""
+
+
+def _episode_start(options: Options, default: BagPlacement, rng: np.random.Generator, count: int,
+                   jitter_m: float) -> EpisodeStart:
+    """The options as an `EpisodeStart` for `count` characters (the spec's default placement, from the
+    handshake, where they name none), plus uniform jitter of +-jitter_m on each position coordinate drawn
+    from the env's seeded generator."""
+    if not isinstance(options, EpisodeStart):
+        given = (options or {}).get("bag", default)
+        listed = given if isinstance(given, list) else [given] * count
+        bags = [bag if isinstance(bag, BagPlacement) else default.over(bag) for bag in listed]
+        options = EpisodeStart(bags, (options or {}).get("lead_in"))
+    if len(options.bags) != count:
+        raise ValueError(f"the reset's options list {len(options.bags)} placements for {count} characters")
     if jitter_m > 0:
-        for bag in bags:
-            for key in ("distance_m", "height_m", "side_m"):
-                bag[key] = float(bag[key] + rng.uniform(-jitter_m, jitter_m))
-    return bags
+        jittered = []
+        for bag in options.bags:
+            distance_m, height_m, side_m = (float(value + rng.uniform(-jitter_m, jitter_m)) for value in bag.position_m())
+            jittered.append(BagPlacement(distance_m, height_m, side_m, bag.velocity_side_mps, bag.velocity_forward_mps))
+        options = EpisodeStart(jittered, options.lead_in)
+    return options
 
 
 class _EpisodeSettings:
@@ -83,13 +94,13 @@ class PunchEnv(gym.Env, _EpisodeSettings):
         self._adopt(info, frames, smoothing_window, reward, bag_jitter_m)
         self.observation_space, self.action_space = _spaces(info)
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+    def reset(self, *, seed: int | None = None, options: Options = None) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
-        bags = _bag_options(options, self.info.default_bag, self.np_random, 1, self.bag_jitter_m)
-        lead_in = (options or {}).get("lead_in")
-        reply = self.server.reset(self.frames, bags=bags, smoothing_window=self.smoothing_window,
+        start = _episode_start(options, self.info.default_bag, self.np_random, 1, self.bag_jitter_m)
+        lead_in = start.lead_in
+        reply = self.server.reset(self.frames, bags=start.bags, smoothing_window=self.smoothing_window,
                                   lead_in=None if lead_in is None else np.asarray(lead_in, dtype=np.float32).reshape(1, -1, self.info.action_size))
-        return reply.arrays["observations"][0].copy(), {"features": reply.arrays["features"][0].copy(), "bag": bags[0]}
+        return reply.arrays["observations"][0].copy(), {"features": reply.arrays["features"][0].copy(), "bag": start.bags[0]}
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         action = np.asarray(action, dtype=np.float32).reshape(1, -1)
@@ -126,11 +137,11 @@ class PunchVectorEnv(gym.vector.VectorEnv, _EpisodeSettings):
         self.action_space = gym.vector.utils.batch_space(self.single_action_space, self.num_envs)
         self._needs_reset = True
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+    def reset(self, *, seed: int | None = None, options: Options = None) -> tuple[np.ndarray, dict[str, Any]]:
         if seed is not None:
             self._np_random, self._np_random_seed = gym.utils.seeding.np_random(seed)
-        bags = _bag_options(options, self.info.default_bag, self.np_random, self.num_envs, self.bag_jitter_m)
-        lead_in = (options or {}).get("lead_in")  # [num_envs, decisions, A]: reset_message
+        start = _episode_start(options, self.info.default_bag, self.np_random, self.num_envs, self.bag_jitter_m)
+        bags, lead_in = start.bags, start.lead_in  # lead_in [num_envs, decisions, A]: reset_message
         n = self.characters_per_process
         replies = exchange(self.servers, [reset_message(self.frames, bags=bags[p * n:(p + 1) * n], smoothing_window=self.smoothing_window,
                                                         lead_in=None if lead_in is None else lead_in[p * n:(p + 1) * n])

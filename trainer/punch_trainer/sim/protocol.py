@@ -6,12 +6,14 @@ from __future__ import annotations
 import json
 import socket
 import struct
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from punch_trainer.errors import PunchError
+from punch_trainer.sim.placement import BagPlacement
 
 PROTOCOL_VERSION = 4
 MAX_HEADER_BYTES = 64 * 1024
@@ -81,7 +83,16 @@ class Message:
 
 
 # The requests, built in one place each (fields and arrays: docs/protocol.md, Messages).
-Bags = list[dict[str, float]] | dict[str, float] | None
+Placement = BagPlacement | Mapping[str, float]
+"""a placement, or a JSON object of some of its values (the server takes the rest from its default)"""
+Bags = Sequence[Placement] | Placement | None
+
+
+def _wire_bags(bags: Sequence[Placement] | Placement) -> object:
+    def wire(bag: Placement) -> dict[str, float]:
+        return bag.to_wire() if isinstance(bag, BagPlacement) else dict(bag)
+
+    return wire(bags) if isinstance(bags, BagPlacement | Mapping) else [wire(bag) for bag in bags]
 
 
 def hello_message(secret: str) -> Message:
@@ -94,7 +105,7 @@ def reset_message(frames: int, *, bags: Bags = None, smoothing_window: int = 1, 
     that it starts from wherever they leave each character: the end of an earlier punch, mid-recovery."""
     fields: dict[str, object] = {"frames": frames, "smoothing_window": smoothing_window}
     if bags is not None:
-        fields["bags"] = bags
+        fields["bags"] = _wire_bags(bags)
     arrays = {"lead_in": np.asarray(lead_in, dtype=np.float32)} if lead_in is not None else {}
     return Message("reset", fields, arrays)
 
@@ -108,7 +119,7 @@ def rollout_message(actions: np.ndarray, *, bags: Bags = None, smoothing_window:
     """Open-loop raw actions [N, decisions, A] for every slot, from a fresh reset."""
     fields: dict[str, object] = {"smoothing_window": smoothing_window}
     if bags is not None:
-        fields["bags"] = bags
+        fields["bags"] = _wire_bags(bags)
     return Message("rollout", fields, {"actions": np.asarray(actions, dtype=np.float32)})
 
 
