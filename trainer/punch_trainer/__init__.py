@@ -5,7 +5,8 @@ Layers (each imports only those below it; ARCHITECTURE.md has the picture):
   the Gymnasium envs.
 - `learn`: trajectory search, datasets, the actor-critic, pretraining, A2C, checkpoints and ONNX export.
 - `report`: what a run did, for people: motion analysis, plots, the motion-capture comparison, Markdown.
-- `cli`: the `punch` command and the pipelines behind it (search, train, replay, render, bench, ...).
+- `pipelines`: the long-running work behind each command (search, train, evaluate, replay, render, bench, ...).
+- `cli`: the `punch` command: options generated from the `*Args` dataclasses, the backend (`--ray`), output.
 """
 
 import gymnasium
