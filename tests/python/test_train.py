@@ -1,6 +1,8 @@
 """The whole pipeline on a small budget: search, pretraining, A2C, export with metadata, replay."""
 
+import csv
 import json
+import math
 
 import onnx
 import pytest
@@ -9,15 +11,24 @@ from punch_trainer.pipelines.train import TrainArgs, run_exported_policy, run_tr
 from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.rewards import load_reward
 
-pytestmark = pytest.mark.godot
+pytestmark = [pytest.mark.godot, pytest.mark.expensive]
 
 
 def test_small_training_run_exports_a_policy_that_repeats_its_punch(tmp_path):
     args = TrainArgs(reward="straight", out=tmp_path / "run", search_iterations=4, search_rollouts=16,
                      pretrain_epochs=300, a2c_updates=2, a2c_characters=4, a2c_time_budget_s=0, reach="spot")
     out = run_train(args, progress=False)
-    for name in ["policy.onnx", "report.md", "summary.json", "a2c_metrics.csv", "search/dataset.npz"]:
+    for name in ["policy.onnx", "report.md", "summary.json", "a2c_metrics.csv", "a2c_diagnostics.png", "search/dataset.npz"]:
         assert (out / name).is_file(), name
+    # A2C's diagnostics, per update: losses, entropy, sigma and the reward's term (the straight preset has one).
+    with open(out / "a2c_metrics.csv") as handle:
+        updates = list(csv.DictReader(handle))[1:]
+    assert len(updates) == 2
+    for update in updates:
+        for column in ["policy_loss", "value_loss", "entropy", "sigma_mean", "reward/forward"]:
+            assert math.isfinite(float(update[column])), (column, update)
+        assert float(update["reward/forward"]) == pytest.approx(float(update["mean_return"]), rel=1e-5)
+    assert "a2c_diagnostics.png" in (out / "report.md").read_text()
     model = onnx.load(str(out / "policy.onnx"))
     metadata = {p.key: p.value for p in model.metadata_props}
     for key in ["punch_spec_hash", "punch_action_spec", "punch_decision_period", "punch_smoothing_window",

@@ -6,7 +6,11 @@ Advantage estimates (`advantage`):
   comparison in BENCHMARKS.md.
 - "paper": the paper's formula as printed: the best episode return so far minus this episode's return,
   the same for every step of the episode.
-"""
+
+Every update's row of the history carries, besides the returns, what says why a run learns or does not:
+`policy_loss`, `value_loss`, `entropy` (of the action distribution, summed over the actions) and `sigma_mean`
+(the policy's sigma on the batch's observations, the floor included), each the mean over the update's epochs;
+and per reward term `reward/<term>`, the term's part of the mean episode return of the update's episodes."""
 
 from __future__ import annotations
 
@@ -26,7 +30,7 @@ from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.volume import validate
 from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.placement import BagPlacement, EpisodeStart
-from punch_trainer.sim.rewards import Reward, score
+from punch_trainer.sim.rewards import Reward, score, score_terms
 from punch_trainer.sim.server_group import SimulatorRestarts
 
 
@@ -70,9 +74,10 @@ def collect_episodes(model: ActorCritic, env: PunchVectorEnv, reward: Reward,
                      options: EpisodeStart | None = None, sigma_floor: float = 0.0) -> dict[str, torch.Tensor]:
     """One episode on every character with actions sampled from the policy (reset with `options`: bag
     placements, lead-ins): per decision [T, N, ...] the observations, actions, log-probabilities, values
-    and rewards."""
+    and rewards, and each reward term's part of the rewards as `reward/<term>`."""
     obs, _ = env.reset(options=options)
     batch: dict[str, list[torch.Tensor]] = {"obs": [], "actions": [], "logp": [], "values": [], "rewards": []}
+    term_rewards: dict[str, list[torch.Tensor]] = {}
     done = np.zeros(env.num_envs, dtype=bool)
     while not done.all():
         obs_t = torch.as_tensor(obs)
@@ -82,11 +87,14 @@ def collect_episodes(model: ActorCritic, env: PunchVectorEnv, reward: Reward,
             logp = dist.log_prob(action).sum(-1)
             value = model.value(obs_t)
         obs, _, terminated, truncated, info = env.step(action.clamp(-1, 1).numpy())
-        step_rewards = torch.as_tensor(score(reward, info["features"], env.feature_names), dtype=torch.float32)
+        step_returns, step_terms = score_terms(reward, info["features"], env.feature_names)
+        step_rewards = torch.as_tensor(step_returns, dtype=torch.float32)
         for key, item in zip(batch, (obs_t, action, logp, value, step_rewards)):
             batch[key].append(item)
+        for term, per_frame in step_terms.items():
+            term_rewards.setdefault(f"reward/{term}", []).append(torch.as_tensor(per_frame.sum(axis=-1)))
         done = terminated | truncated
-    return {key: torch.stack(items) for key, items in batch.items()}
+    return {key: torch.stack(items) for key, items in (batch | term_rewards).items()}
 
 
 def advantages_and_returns(rewards: torch.Tensor, values: torch.Tensor, best_episode_return: float,
@@ -165,16 +173,23 @@ def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVecto
         b_obs, b_actions, b_logp = flat(batch["obs"]), flat(batch["actions"]), flat(batch["logp"])
         b_adv, b_returns = flat(advantages), flat(returns)
         b_adv = (b_adv - b_adv.mean()) / (b_adv.std() + 1e-8)
+        per_epoch: dict[str, list[float]] = {"policy_loss": [], "value_loss": [], "entropy": [], "sigma_mean": []}
         for _ in range(args.epochs):
             dist = model.distribution(b_obs, args.sigma_floor)
             ratio = torch.exp(dist.log_prob(b_actions).sum(-1) - b_logp)
             policy_loss = -torch.min(ratio * b_adv, torch.clamp(ratio, 1 - args.clip, 1 + args.clip) * b_adv).mean()
             value_loss = ((model.value(b_obs) - b_returns) ** 2).mean()
-            loss = policy_loss + args.value_coef * value_loss - args.entropy_coef * dist.entropy().sum(-1).mean()
+            entropy = dist.entropy().sum(-1).mean()
+            loss = policy_loss + args.value_coef * value_loss - args.entropy_coef * entropy
             optimizer.zero_grad()
             loss.backward()
             torch.nn.utils.clip_grad_norm_(model.parameters(), 0.5)
             optimizer.step()
+            for key, measured in (("policy_loss", policy_loss), ("value_loss", value_loss), ("entropy", entropy),
+                               ("sigma_mean", dist.scale.mean())):
+                per_epoch[key].append(float(measured.detach()))
+        diagnostics = {key: float(np.mean(values)) for key, values in per_epoch.items()}
+        diagnostics |= {key: float(batch[key].sum(0).mean()) for key in batch if key.startswith("reward/")}
         evaluation, eval_success = restarts.run(evaluate)
         if evaluation > best_eval:
             best_eval, best_model = evaluation, copy.deepcopy(model)
@@ -182,7 +197,8 @@ def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVecto
         steps = batch["rewards"].numel()
         history.append({"update": update, "episodes": history[-1]["episodes"] + env.num_envs,
                         "env_steps": history[-1]["env_steps"] + steps, "elapsed_s": round(elapsed, 3),
-                        "mean_return": float(episode_returns.mean()), "eval_return": evaluation, "eval_success": eval_success})
+                        "mean_return": float(episode_returns.mean()), "eval_return": evaluation, "eval_success": eval_success,
+                        **diagnostics})
         stopped = update == args.updates or (args.time_budget_s is not None and elapsed >= args.time_budget_s)
         if run_dir is not None:
             save_checkpoint(run_dir, "a2c", {

@@ -9,7 +9,6 @@ only, as the paper does: the quickstart, in seconds, and a policy that hits only
 
 from __future__ import annotations
 
-import csv
 import json
 import time
 from dataclasses import dataclass
@@ -29,6 +28,7 @@ from punch_trainer.learn.reach import ReachVolume
 from punch_trainer.learn.search import SearchArgs, SearchResult, placement_search
 from punch_trainer.learn.volume import EpisodeConditions, VolumeArgs, distribution_observations, validate
 from punch_trainer.pipelines.search import run_search
+from punch_trainer.report.a2c_report import write_a2c_report
 from punch_trainer.report.motion import motion_report
 from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.env import PunchVectorEnv
@@ -233,10 +233,7 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
         env.close()
     timings["total_s"] = time.perf_counter() - started
 
-    with open(out / "a2c_metrics.csv", "w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=list(a2c_history[0]))
-        writer.writeheader()
-        writer.writerows(a2c_history)
+    a2c_plots = write_a2c_report(out, a2c_history)
     ratio = exported_return / search.best_return if search.best_return > 0 else float("nan")
     motion = motion_report({"features": features, "feature_names": np.array(env.feature_names), "physics_hz": np.array(env.info.physics_hz)})
     impact = (f"first contact at {motion['impact_time_s']:.3f} s at {motion['impact_speed_mps']:.2f} m/s, contact point "
@@ -260,6 +257,8 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
         f"metadata: spec hash {data['policy_metadata']['punch_spec_hash']})",
         "", "Search details: [search/report.md](search/report.md)",
     ]
+    if a2c_plots:
+        lines += ["", "## A2C per update (a2c_metrics.csv)", ""] + [f"![{p.stem}]({p.name})" for p in a2c_plots]
     (out / "report.md").write_text("\n".join(lines) + "\n")
     (out / "summary.json").write_text(json.dumps({"search_best_return": search.best_return, "pretrained_return": pretrained_return,
                                                   "exported_return": exported_return, "ratio": ratio, "motion": motion, **timings}, indent=2) + "\n")

@@ -148,6 +148,42 @@ def plot_eval(out: Path, placements: list[dict[str, float]], evaluations: list[d
     return paths
 
 
+def plot_a2c(out: Path, history: list[dict[str, Any]]) -> list[Path]:
+    """A2C's diagnostics per update (`learn.a2c`'s history): returns, the two losses, entropy and sigma, and
+    each reward term's part of the mean episode return."""
+    updates = [row for row in history if row["update"] > 0 and "policy_loss" in row]
+    if not updates:
+        return []
+    x = [row["update"] for row in updates]
+    terms = sorted({key for row in updates for key in row if key.startswith("reward/")})
+    figure, ((returns, losses), (spread, by_term)) = plt.subplots(2, 2, figsize=(10, 7), sharex=True)
+    returns.plot(x, [row["mean_return"] for row in updates], label="mean return of the update's episodes")
+    returns.plot(x, [row["eval_return"] for row in updates], label="noise-free return (evaluation)")
+    returns.set_ylabel("return")
+    losses.plot(x, [row["policy_loss"] for row in updates], label="policy loss")
+    losses.plot(x, [row["value_loss"] for row in updates], label="value loss")
+    losses.set_yscale("symlog", linthresh=1e-3)  # the value loss can be orders of magnitude above the policy loss
+    losses.set_ylabel("loss")
+    spread.plot(x, [row["entropy"] for row in updates], label="entropy (nats)")
+    sigma_axis = spread.twinx()
+    sigma_axis.plot(x, [row["sigma_mean"] for row in updates], color="tab:orange", label="mean sigma")
+    sigma_axis.set_ylabel("mean sigma")
+    spread.set_ylabel("entropy (nats)")
+    spread.legend(handles=spread.get_lines() + sigma_axis.get_lines(), fontsize=8)
+    for term in terms:
+        by_term.plot(x, [row.get(term, np.nan) for row in updates], label=term.removeprefix("reward/"))
+    by_term.set_ylabel("mean episode return of the term")
+    for axis in (returns, losses, by_term):
+        axis.legend(fontsize=8)
+    for axis in (returns, losses, spread, by_term):
+        axis.grid(alpha=0.3)
+    for axis in (spread, by_term):
+        axis.set_xlabel("update")
+    figure.suptitle("A2C diagnostics per update")
+    figure.tight_layout()
+    return [_save(figure, out / "a2c_diagnostics.png")]
+
+
 def _short(policy: str) -> str:
     """A policy's file and folder name: runs/demo_straight/policy.onnx -> demo_straight/policy.onnx."""
     path = Path(policy)
