@@ -4,6 +4,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from punch_trainer import __version__
 from punch_trainer.sim.godot import ADDON_POLICIES
 
@@ -21,6 +23,7 @@ def test_unknown_command_is_a_usage_error() -> None:
     assert "invalid choice" in result.stderr
 
 
+@pytest.mark.godot  # `punch eval` starts its training server before it reads the policy's reward
 def test_a_policy_whose_metadata_names_code_never_runs_it(tmp_path) -> None:
     """A model file is data: `punch_reward` naming a .py file or a module is refused, and the code is not run."""
     import onnx
@@ -41,6 +44,7 @@ def test_a_policy_whose_metadata_names_code_never_runs_it(tmp_path) -> None:
             assert "Traceback" not in result.stderr and not marker.exists()
 
 
+@pytest.mark.godot
 def test_user_errors_are_punch_messages_not_tracebacks(tmp_path) -> None:
     """A reward that exits the process, an --out that cannot be a directory, and a model whose metadata is
     garbage each end with one `punch:` line and a non-zero exit; --debug shows the traceback."""

@@ -14,7 +14,7 @@ from punch_trainer.pipelines.replay import ReplayArgs, policy_metadata, replay_f
 from punch_trainer.pipelines.search import run_search
 from punch_trainer.sim.env import PunchVectorEnv
 
-pytestmark = pytest.mark.godot
+pytestmark = [pytest.mark.godot, pytest.mark.expensive]
 SMOOTHING_WINDOW = 3
 COMPARED_FRAMES = 15  # before any contact: the game and the training server agree to about 1e-5 there
 

@@ -31,6 +31,7 @@ def run_script(name: str, *args: str):
                      check=False, timeout_s=120)
 
 
+@pytest.mark.expensive  # `policy` is trained
 def test_punch_controllers_play_a_shared_policy_batched_in_a_game_scene(policy):
     run = run_script("punch_scene.gd", f"--policy={policy}")
     assert run.fatal_lines() == [] and "ERROR" not in run.log, run.log[-3000:]
@@ -75,6 +76,7 @@ def nan_policy(path, contract: dict[str, str]):
     return export_onnx(NanActor(), 45, path, metadata=contract, verify=False)
 
 
+@pytest.mark.expensive
 def test_controller_faults_give_clear_errors_and_the_game_goes_on(policy, tmp_path):
     corrupt = tmp_path / "corrupt.onnx"
     corrupt.write_bytes(np.random.default_rng(0).bytes(3000))
@@ -105,6 +107,7 @@ def test_controller_faults_give_clear_errors_and_the_game_goes_on(policy, tmp_pa
     assert report["pck_mounted"] and report["pck_started"] and report["pck_punch"]["frames"] == 50
 
 
+@pytest.mark.expensive
 def test_a_character_facing_any_way_punches_as_it_does_facing_forward(policy):
     """Turned by 90, -90, 180, 37 and -150 degrees and moved, each with its sandbag in front of it, a character
     playing the policy with no noise senses the same features as the one at the origin facing +Z (in its own
@@ -333,6 +336,7 @@ def hostile_policy_files(policy, directory):
     return files
 
 
+@pytest.mark.expensive
 def test_policy_files_that_lie_are_refused_once_per_file(policy, tmp_path):
     files = hostile_policy_files(policy, tmp_path)
     run = run_script("hostile_policies.gd", f"--files={','.join(str(f) for f in files.values())}")

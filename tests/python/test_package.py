@@ -16,7 +16,6 @@ from punch_trainer.sim.godot import ADDON_POLICIES, GODOT_PROJECT, PROJECT_ROOT,
 sys.path.insert(0, str(PROJECT_ROOT / "tools"))
 import package  # noqa: E402  (tools/package.py, which ./dev package runs)
 
-pytestmark = pytest.mark.godot
 NEW_GAME = PROJECT_ROOT / "tests" / "fixtures" / "new_game"
 POLICIES = "res://addons/punch_controller/policies"
 
@@ -57,6 +56,7 @@ def test_the_zip_holds_the_addon_and_nothing_else(zip_file):
     assert any(name.startswith("bin/libonnxruntime.so.") for name in inside)
 
 
+@pytest.mark.godot
 def test_a_new_project_from_the_zip_imports_exports_and_punches(zip_file, tmp_path):
     """A new project (a scene with the addon's hook policy, Godot's default physics settings) and the zip."""
     game = tmp_path / "new_game"

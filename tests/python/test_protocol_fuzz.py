@@ -46,6 +46,19 @@ def test_messages_round_trip_bit_for_bit(kind, arrays):
         assert decoded.arrays[name].tobytes() == values.tobytes()
 
 
+def test_python_codec_round_trip_and_garbage():
+    message = Message("step", {"n": 2}, {"actions": np.arange(20, dtype=np.float32).reshape(2, 10)})
+    encoded = message.encode()
+    header_length, payload_length = struct.unpack("<II", encoded[:8])
+    decoded = Message.decode(encoded[8:8 + header_length], encoded[8 + header_length:])
+    assert decoded.type == "step" and decoded.fields == {"n": 2}
+    np.testing.assert_array_equal(decoded.arrays["actions"], message.arrays["actions"])
+    with pytest.raises(ProtocolError):
+        Message.decode(b"[1, 2]", b"")
+    with pytest.raises(ProtocolError):
+        Message.decode(b'{"type": "x", "arrays": [{"name": "a", "shape": [4]}]}', b"\x00" * 8)
+
+
 @pytest.fixture(scope="module")
 def server():
     with TrainingServer(2) as server:

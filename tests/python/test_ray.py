@@ -23,8 +23,6 @@ from punch_trainer.sim.godot import ADDON_POLICIES
 from punch_trainer.sim.rewards import load_reward
 from punch_trainer.sim.rollouts import RolloutPool
 
-pytestmark = pytest.mark.godot
-
 WORKER_NODES = 3
 PROCESSES, CHARACTERS = 3, 8
 
@@ -74,6 +72,8 @@ def search(pool: RolloutPool):
     return trajectory_search(args, load_reward("straight"), pool, progress=False)
 
 
+@pytest.mark.godot
+@pytest.mark.expensive
 def test_a_search_on_ray_is_bitwise_the_local_one_with_workers_on_every_node_and_loopback_only(cluster):
     with RolloutPool(PROCESSES, CHARACTERS) as pool:
         local = search(pool)
@@ -89,6 +89,8 @@ def test_a_search_on_ray_is_bitwise_the_local_one_with_workers_on_every_node_and
     assert on_ray.best_slot == local.best_slot
 
 
+@pytest.mark.godot
+@pytest.mark.expensive
 def test_a_worker_killed_and_a_node_removed_mid_search_are_replaced_and_the_search_ends_as_an_uninterrupted_one(cluster):
     import ray
 
@@ -122,6 +124,8 @@ def policy_weights(path: Path) -> list[np.ndarray]:
     return [numpy_helper.to_array(i) for i in sorted(onnx.load(str(path)).graph.initializer, key=lambda i: i.name)]
 
 
+@pytest.mark.godot
+@pytest.mark.expensive
 def test_punch_train_with_ray_gives_bitwise_the_local_dataset_and_policy(cluster, tmp_path):
     options = dict(reward="straight", seed=0, search_iterations=4, search_rollouts=16, processes=2, pretrain_epochs=100, a2c_updates=2,
                    a2c_characters=4, a2c_time_budget_s=0, reach="spot")
@@ -139,6 +143,8 @@ def test_punch_train_with_ray_gives_bitwise_the_local_dataset_and_policy(cluster
     assert summaries[0]["exported_return"] == summaries[1]["exported_return"]
 
 
+@pytest.mark.godot
+@pytest.mark.expensive
 def test_punch_eval_with_ray_gives_the_local_report(cluster, tmp_path):
     """The per-placement searches on the workers and the punches through PunchController as Ray tasks (the
     policy's bytes travel, a node need not hold the file): the same figures as a local evaluation."""

@@ -27,6 +27,7 @@ def search(pool: RolloutPool):
     return trajectory_search(args, load_reward("straight"), pool, progress=False)
 
 
+@pytest.mark.expensive
 def test_a_godot_killed_mid_search_is_restarted_and_the_result_is_unchanged():
     with RolloutPool(1, 16) as pool:
         reference = search(pool)

@@ -20,10 +20,11 @@ from punch_trainer.learn.search import SearchArgs
 from punch_trainer.pipelines.replay import ReplayArgs, ReplayError, parse_sigmas, replay_frames, run_replay
 from punch_trainer.pipelines.search import run_search
 from punch_trainer.sim.env import PunchVectorEnv
+from punch_trainer.sim.godot import ADDON_POLICIES
 from punch_trainer.sim.rewards import load_reward, score
 
-pytestmark = pytest.mark.godot
 SMOOTHING_WINDOW = 3
+SHIPPED_POLICY = ADDON_POLICIES / "straight.onnx"
 
 
 @pytest.fixture(scope="module")
@@ -47,6 +48,8 @@ def test_sigmas_parse_as_ranges_or_lists():
         parse_sigmas("0.1:x")
 
 
+@pytest.mark.godot
+@pytest.mark.expensive
 def test_parity_of_godot_controller_and_torch_policy(trained, tmp_path):
     """Sigma 0: PunchController (ONNX Runtime in Godot) decides what torch decides on the same observations,
     and its punch scores what the torch policy scores in the training server."""
@@ -77,6 +80,8 @@ def test_parity_of_godot_controller_and_torch_policy(trained, tmp_path):
     assert godot_return == pytest.approx(torch_return, rel=0.01)
 
 
+@pytest.mark.godot
+@pytest.mark.expensive
 def test_replay_reports_and_plots_every_sigma(trained, tmp_path):
     path, _, best = trained
     punch = Path(sys.executable).with_name("punch")
@@ -93,7 +98,7 @@ def test_replay_reports_and_plots_every_sigma(trained, tmp_path):
     assert not list((tmp_path / "r" / "frames").glob("*.f32")), "raw frames are removed unless --keep-frames"
 
 
-def test_replay_refuses_bad_policies_clearly(tmp_path, trained):
+def test_replay_refuses_bad_policies_clearly(tmp_path):
     with pytest.raises(ReplayError, match="not found"):
         run_replay(ReplayArgs(policy=tmp_path / "missing.onnx", sigmas=[0.0], episodes=1), progress=False)
     corrupt = tmp_path / "corrupt.onnx"
@@ -101,9 +106,11 @@ def test_replay_refuses_bad_policies_clearly(tmp_path, trained):
     with pytest.raises(ReplayError, match="not an ONNX model"):
         run_replay(ReplayArgs(policy=corrupt, sigmas=[0.0], episodes=1), progress=False)
     with pytest.raises(ReplayError, match="sigmas must lie"):
-        run_replay(ReplayArgs(policy=trained[0], sigmas=[1.5], episodes=1), progress=False)
+        run_replay(ReplayArgs(policy=SHIPPED_POLICY, sigmas=[1.5], episodes=1), progress=False)
 
 
+@pytest.mark.godot
+@pytest.mark.expensive
 def test_a_policy_that_outputs_nan_ends_the_replay_with_an_error(tmp_path, trained):
     """Its punches stop on the error and say so in `punch_finished`; the replay ends at once instead of
     waiting forever for punches that stopped."""
@@ -120,7 +127,7 @@ def test_a_policy_that_outputs_nan_ends_the_replay_with_an_error(tmp_path, train
         run_replay(ReplayArgs(policy=nan_policy, sigmas=[0.0], episodes=2, timeout_s=120), progress=False)
 
 
-def test_a_godot_that_hangs_silently_is_stopped_at_the_deadline(tmp_path, trained, monkeypatch):
+def test_a_godot_that_hangs_silently_is_stopped_at_the_deadline(tmp_path, monkeypatch):
     fake = tmp_path / "godot"
     fake.write_text('#!/bin/sh\nfor a in "$@"; do [ "$a" = --version ] && { echo 4.6.3.stable.official; exit 0; }; done\n'
                     "exec sleep 600\n")
@@ -128,5 +135,5 @@ def test_a_godot_that_hangs_silently_is_stopped_at_the_deadline(tmp_path, traine
     monkeypatch.setenv("GODOT", str(fake))
     started = time.monotonic()
     with pytest.raises(ReplayError, match="did not finish within 3 s"):
-        run_replay(ReplayArgs(policy=trained[0], sigmas=[0.0], episodes=1, timeout_s=3), progress=False)
+        run_replay(ReplayArgs(policy=SHIPPED_POLICY, sigmas=[0.0], episodes=1, timeout_s=3), progress=False)
     assert time.monotonic() - started < 30

@@ -24,7 +24,7 @@ from punch_trainer.pipelines.search import run_search
 from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.rewards import load_reward
 
-pytestmark = pytest.mark.godot
+pytestmark = [pytest.mark.godot, pytest.mark.expensive]
 
 SEARCH_OPTIONS = ["--reward", "straight", "--seed", "3", "--iterations", "40", "--rollouts", "16",
                   "--characters-per-process", "16", "--plateau-iterations", "0"]

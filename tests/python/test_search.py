@@ -25,6 +25,7 @@ def test_sigma_stays_wide_while_nothing_stands_out_and_shrinks_around_a_clear_be
 
 
 @pytest.mark.godot
+@pytest.mark.expensive
 def test_small_search_is_reproducible_and_writes_its_run(tmp_path):
     args = dict(reward="straight", iterations=4, rollouts=16, characters_per_process=16, plateau_iterations=0, seed=7)
     out, first, report = run_search(SearchArgs(out=tmp_path / "a", **args), progress=False)
@@ -43,6 +44,7 @@ def test_small_search_is_reproducible_and_writes_its_run(tmp_path):
 
 
 @pytest.mark.godot
+@pytest.mark.expensive
 def test_a_reward_written_from_scratch_drives_the_search(tmp_path):
     rewards = tmp_path / "my_rewards.py"
     rewards.write_text("def raise_right_fist(f):\n    return {'height': f['fist_r_pos_y'] - 1.5}\n")
@@ -65,6 +67,7 @@ def test_capture_clip_reads_as_a_punch():
 
 
 @pytest.mark.godot
+@pytest.mark.expensive
 def test_baselines_run_on_the_same_environment():
     from punch_trainer.learn.baselines import cem, cma_es
     from punch_trainer.sim.rewards import load_reward

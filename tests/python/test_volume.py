@@ -22,11 +22,11 @@ from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.rewards import load_reward
 from punch_trainer.sim.server import TrainingServer
 
-pytestmark = pytest.mark.godot
 BUDGET = dict(reward="straight", seed=3, search_iterations=15, search_rollouts=32, pretrain_epochs=600,
               a2c_updates=30, a2c_characters=16, a2c_time_budget_s=0)
 
 
+@pytest.mark.godot
 def test_the_spec_announces_the_reach_volume():
     with TrainingServer(1) as server:
         reach = ReachVolume.from_json(server.info.reach_volume)
@@ -35,6 +35,8 @@ def test_the_spec_announces_the_reach_volume():
     assert len(grid) == 18 and grid[0].height_m == pytest.approx(1.35) and grid[0].side_m == 0.0
 
 
+@pytest.mark.godot
+@pytest.mark.expensive
 def test_a_volume_policy_beats_a_single_spot_policy_on_held_out_placements(tmp_path):
     volume = run_train(TrainArgs(out=tmp_path / "volume", reach="volume", grid="2,3,3", volume_search_iterations=12,
                                  **BUDGET), progress=False)
@@ -72,6 +74,7 @@ def test_a_volume_policy_beats_a_single_spot_policy_on_held_out_placements(tmp_p
     assert json.loads((out / "eval.json").read_text())["seed"] == HELD_OUT_SEED
 
 
+@pytest.mark.godot
 def test_the_sigma_floor_reaches_the_actions_the_simulator_plays():
     """A policy whose own sigma has shrunk to its minimum plays its mean; with A2C's sigma floor its episodes
     in the simulator carry noise of that sigma, which is what it learns to recover from."""
@@ -106,6 +109,8 @@ def test_a_share_of_episodes_at_the_default_placement():
     assert type(without(32, 1).bags[0]) is type(default)
 
 
+@pytest.mark.godot
+@pytest.mark.expensive
 def test_the_after_punch_experiment_searches_from_both_starts(tmp_path):
     out, _, _ = run_search(SearchArgs(out=tmp_path / "s", reward="straight", iterations=4, rollouts=16,
                                       characters_per_process=16, plateau_iterations=0, seed=7), progress=False)

@@ -35,6 +35,7 @@ def run(command: list[str], **kwargs) -> subprocess.CompletedProcess[str]:
     return subprocess.run(command, capture_output=True, text=True, timeout=600, cwd=PROJECT_ROOT, **kwargs)
 
 
+@pytest.mark.expensive  # builds the core's tests for Windows and runs them under Wine: minutes
 def test_the_core_passes_its_whole_test_suite_as_windows_programs():
     env = {**os.environ, "CARGO_TARGET_X86_64_PC_WINDOWS_GNU_RUNNER": str(RUN), "PUNCH_ONNXRUNTIME_DIR": str(BIN)}
     result = run(["cargo", "test", "--manifest-path", "gdextension/Cargo.toml", "-p", "punch_core", "--locked",
