@@ -70,7 +70,7 @@ func add_punching_character() -> void:
 	var character: Node3D = load(CHARACTER_SCENE).instantiate()
 	var sandbag: Node3D = load(SANDBAG_SCENE).instantiate()
 	# Where the policies train the bag's centre to be, relative to the character (the spec's default).
-	sandbag.position = ClassDB.class_call_static("PunchController", "default_target_offset")
+	sandbag.position = ClassDB.class_call_static("PunchSpec", "default_target_offset")
 	var controller: Node = ClassDB.instantiate("PunchController")
 	controller.name = "PunchController"
 	if ResourceLoader.exists(DEFAULT_POLICY) or FileAccess.file_exists(DEFAULT_POLICY):

@@ -19,7 +19,7 @@ func _ready() -> void:
 		var sandbag: Node3D = SANDBAG_SCENE.instantiate()
 		# The spec's target offset is in the character's frame: turned with it (look_at-friendly: the
 		# character faces its +Z, so `look_at` would point its -Z at the bag; place it like this instead).
-		sandbag.transform = Transform3D(where.basis, where * PunchController.default_target_offset())
+		sandbag.transform = Transform3D(where.basis, where * PunchSpec.default_target_offset())
 		add_child(sandbag)
 		var bag: RigidBody3D = sandbag.get_node("Bag")
 		var controller := add_controller(character, bag, 0.1, index + 1)

@@ -5,7 +5,7 @@ extends "res://demo/arena.gd"
 
 ## Distance between the two characters' roots, m: the trained target offset ahead (the opponent's torso
 ## stands where a sandbag's centre would).
-var _distance_m: float = PunchController.default_target_offset().z
+var _distance_m: float = PunchSpec.default_target_offset().z
 var _pair := Node3D.new()
 var _fighters: Array[Node3D] = []
 var _controllers: Array[PunchController] = []

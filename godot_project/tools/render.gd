@@ -41,7 +41,7 @@ func _add_pair(index: int, count: int, sigma: float) -> void:
 	stand.mesh = stand_mesh
 	stand.position = Vector3(x, 0.48, 0)
 	add_child(stand)
-	var offset := PunchController.default_target_offset()
+	var offset := PunchSpec.default_target_offset()
 	if _options.bags != "":
 		var bags := (_options.bags as String).split(";")
 		var bag_m := bags[index % bags.size()].split_floats(",")

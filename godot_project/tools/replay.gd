@@ -77,7 +77,7 @@ func _initialize() -> void:
 		"noise_decisions": int(_options["noise-decisions"]), "seed": int(_options.seed), "bag": _options.bag,
 		"bags": _options.bags, "start": _options.start,
 		"characters": int(_options.characters), "characters_per_world": int(_options["characters-per-world"]),
-		"feature_names": Array(ClassDB.class_call_static("PunchController", "feature_names"))}
+		"feature_names": Array(ClassDB.class_call_static("PunchSpec", "feature_names"))}
 
 
 func _physics_process(_delta: float) -> bool:
@@ -87,12 +87,12 @@ func _physics_process(_delta: float) -> bool:
 		if _pending > 0:
 			return false
 		if _idle_frames_left < 0 and int(_options["idle-frames"]) > 0:
-			_controller_frame_usec.append(ClassDB.class_call_static("PunchController", "take_frame_cost_usec"))
+			_controller_frame_usec.append(Engine.get_singleton("PunchInference").take_frame_cost_usec())
 			_idle_frames_left = int(_options["idle-frames"]) + 1
 			_idle_frame_usec.append([])
 		if _idle_frames_left > 0:
 			# Frame by frame: a median is not moved by the rare frame the OS takes the thread away.
-			_idle_frame_usec[-1].append(ClassDB.class_call_static("PunchController", "take_frame_cost_usec"))
+			_idle_frame_usec[-1].append(Engine.get_singleton("PunchInference").take_frame_cost_usec())
 			_idle_frames_left -= 1
 			if _idle_frames_left > 0:
 				return false
@@ -116,7 +116,7 @@ func _start_batch() -> void:
 	var count := mini(int(_options.characters), _episodes_total - _episodes_done)
 	var per_world := clampi(int(_options["characters-per-world"]), 1, PunchPair.MAX_PER_WORLD)
 	# --bag=distance,height,side in metres; by default the placement the policies train at.
-	var default_offset := PunchController.default_target_offset()
+	var default_offset := PunchSpec.default_target_offset()
 	var bag := PackedFloat64Array([default_offset.z, default_offset.y, default_offset.x])
 	if _options.bag != "":
 		bag = (_options.bag as String).split_floats(",")
@@ -157,8 +157,8 @@ func _start_batch() -> void:
 				_pending -= 1)
 		_controllers.append(controller)
 	_pending = count
-	ClassDB.class_call_static("PunchController", "take_inference_counts")
-	ClassDB.class_call_static("PunchController", "take_frame_cost_usec")
+	Engine.get_singleton("PunchInference").take_inference_counts()
+	Engine.get_singleton("PunchInference").take_frame_cost_usec()
 	for controller in _controllers:
 		if not controller.call("punch"):
 			_fail("PunchController refused to punch (see the error above)")
@@ -166,11 +166,11 @@ func _start_batch() -> void:
 
 
 func _collect_batch() -> void:
-	var counts: Dictionary = ClassDB.class_call_static("PunchController", "take_inference_counts")
+	var counts: Dictionary = Engine.get_singleton("PunchInference").take_inference_counts()
 	for key in _inference:
 		_inference[key] += counts[key]
 	if int(_options["idle-frames"]) == 0:  # else taken before the idle frames
-		_controller_frame_usec.append(ClassDB.class_call_static("PunchController", "take_frame_cost_usec"))
+		_controller_frame_usec.append(Engine.get_singleton("PunchInference").take_frame_cost_usec())
 	if _episodes_done == 0:
 		for kind in ["features", "observations", "mean_actions", "actions"]:
 			_files[kind] = FileAccess.open(_options.out.path_join("%s_%d.f32" % [kind, _sigma_index]), FileAccess.WRITE)

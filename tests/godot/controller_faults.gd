@@ -42,7 +42,7 @@ func _scene() -> Node:
 	_character = load("res://addons/punch_controller/scenes/punch_character.tscn").instantiate()
 	root.add_child(_character)
 	_sandbag = load("res://addons/punch_controller/scenes/punch_sandbag.tscn").instantiate()
-	_sandbag.position = PunchController.default_target_offset()
+	_sandbag.position = PunchSpec.default_target_offset()
 	root.add_child(_sandbag)
 	var controller: Node = ClassDB.instantiate("PunchController")
 	controller.set("character", _character)

@@ -17,11 +17,11 @@ func _initialize() -> void:
 			policy = argument.trim_prefix("--policy=")
 		if argument == "--apply":
 			_report["applied"] = load("res://addons/punch_controller/physics_settings.gd").apply()
-	_report["problems"] = PunchController.project_settings_problems()
+	_report["problems"] = PunchSpec.project_settings_problems()
 	var character: Node3D = load("res://addons/punch_controller/scenes/punch_character.tscn").instantiate()
 	root.add_child(character)
 	var sandbag: Node3D = load("res://addons/punch_controller/scenes/punch_sandbag.tscn").instantiate()
-	sandbag.position = PunchController.default_target_offset()
+	sandbag.position = PunchSpec.default_target_offset()
 	root.add_child(sandbag)
 	_controller = ClassDB.instantiate("PunchController")
 	_controller.set("character", character)

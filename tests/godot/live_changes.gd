@@ -1,8 +1,9 @@
 ## Punch after punch and live changes, each on its own character and sandbag (demo policies):
 ## - "ready" and "ready_twin": punch() called from the controller's `ready` signal (as a game's _ready
 ##   would), on two characters in the same state: the same punch;
-## - "switch": the policy changed to the hook mid-punch (frame 10): the punch ends interrupted, and a new
-##   punch (the hook) runs to its end;
+## - "switch": the policy changed to the hook mid-punch (frame 10): the punch plays on to its end with the
+##   straight, and the next punch (asked for when it ends) plays the hook; the first decision's mean action of
+##   each punch;
 ## - "cancel": cancel() on frame 5; "recover": auto_recover off, recover() called after the punch;
 ## - "seeds": sigma 0.3, punches with seed 1, 2, then 1 again: the first decision's noise of each;
 ## - "again" and "again_raw": a second punch asked for as the first ends (guard_first on, and off): the first
@@ -15,7 +16,7 @@ const STRAIGHT := "res://addons/punch_controller/policies/straight.onnx"
 const HOOK := "res://addons/punch_controller/policies/hook.onnx"
 const CASES := ["ready", "ready_twin", "switch", "cancel", "recover", "seeds", "again", "again_raw"]
 # The joint angles' first feature column, by name from the controller itself.
-var _angle_column: int = Array(PunchController.feature_names()).find("angle_waist_flexion")
+var _angle_column: int = Array(PunchSpec.feature_names()).find("angle_waist_flexion")
 var _controllers := {}
 var _report := {}
 var _frames := 0
@@ -32,7 +33,7 @@ func _initialize() -> void:
 			character.rotation.y = deg_to_rad(90.0 if name == "again" else -150.0)  # turned, not at the origin
 		root.add_child(character)
 		var sandbag: Node3D = load("res://addons/punch_controller/scenes/punch_sandbag.tscn").instantiate()
-		sandbag.position = character.transform * PunchController.default_target_offset()
+		sandbag.position = character.transform * PunchSpec.default_target_offset()
 		root.add_child(sandbag)
 		var controller: Node = ClassDB.instantiate("PunchController")
 		controller.set("character", character)
@@ -48,7 +49,7 @@ func _initialize() -> void:
 			controller.set("noise_sigma", 0.3)
 			controller.set("noise_decisions", 1)
 		_report[name] = {"finished": [], "recovered": 0, "started": 0, "first_noise": [], "features": [],
-			"first_angles": []}
+			"first_angles": [], "first_means": []}
 		controller.connect("punch_started", func(): _report[name].started += 1)
 		controller.connect("punch_finished", func(metrics): _on_finished(name, controller, metrics))
 		controller.connect("recovered", func(): _on_recovered(name, controller))
@@ -79,8 +80,10 @@ func _on_finished(name: String, controller: Node, metrics: Dictionary) -> void:
 		_report[name].first_noise.append(noise)
 	if name == "recover" and not metrics.interrupted:
 		controller.call("recover")
-	if name == "switch" and metrics.interrupted:
-		controller.call("punch")
+	if name == "switch":
+		_report[name].first_means.append(Array(record.mean_actions.slice(0, 10)))
+		if _report[name].finished.size() == 1:
+			controller.call("punch")
 
 
 func _on_recovered(name: String, controller: Node) -> void:

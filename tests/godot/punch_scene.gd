@@ -22,7 +22,7 @@ func _initialize() -> void:
 		character.position = Vector3(3.0 * pair, 0, 0)
 		root.add_child(character)
 		var sandbag: Node3D = load("res://addons/punch_controller/scenes/punch_sandbag.tscn").instantiate()
-		sandbag.position = Vector3(3.0 * pair, 0, 0) + PunchController.default_target_offset()
+		sandbag.position = Vector3(3.0 * pair, 0, 0) + PunchSpec.default_target_offset()
 		root.add_child(sandbag)
 		var controller: Node = ClassDB.instantiate("PunchController")
 		controller.set("character", character)
@@ -38,11 +38,11 @@ func _initialize() -> void:
 func _physics_process(_delta: float) -> bool:
 	_frames += 1
 	if _frames == 2:
-		ClassDB.class_call_static("PunchController", "take_inference_counts")
+		Engine.get_singleton("PunchInference").take_inference_counts()
 		for controller in _controllers:
 			controller.call("punch")
 	if _report.finished.size() == PAIRS and _second_round_frame < 0:
-		_report.inference = ClassDB.class_call_static("PunchController", "take_inference_counts")
+		_report.inference = Engine.get_singleton("PunchInference").take_inference_counts()
 		_second_round_frame = _frames
 		for pair in PAIRS:
 			_controllers[pair].get("character").call("reset_pose")

@@ -18,7 +18,7 @@ func _initialize() -> void:
 		character.rotation.y = 0.7 * index
 		root.add_child(character)
 		var sandbag: Node3D = load("res://addons/punch_controller/scenes/punch_sandbag.tscn").instantiate()
-		sandbag.position = character.transform * (PunchController.default_target_offset() + CASES[name])
+		sandbag.position = character.transform * (PunchSpec.default_target_offset() + CASES[name])
 		root.add_child(sandbag)
 		var controller: Node = ClassDB.instantiate("PunchController")
 		controller.set("character", character)

@@ -21,7 +21,7 @@ func _initialize() -> void:
 		character.position = Vector3(4.0 * index, 0, 0)
 		root.add_child(character)
 		var spot := Node3D.new()
-		spot.position = character.transform * PunchController.default_target_offset()
+		spot.position = character.transform * PunchSpec.default_target_offset()
 		root.add_child(spot)
 		var target := _make_target(kind, spot)
 		var controller: Node = ClassDB.instantiate("PunchController")

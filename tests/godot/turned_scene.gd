@@ -29,7 +29,7 @@ func _initialize() -> void:
 		root.add_child(character)
 		var sandbag: Node3D = load("res://addons/punch_controller/scenes/punch_sandbag.tscn").instantiate()
 		# The target in front of the character: its offset in the character's frame, turned with it.
-		sandbag.transform = Transform3D(character.transform.basis, character.transform * PunchController.default_target_offset())
+		sandbag.transform = Transform3D(character.transform.basis, character.transform * PunchSpec.default_target_offset())
 		root.add_child(sandbag)
 		var controller: Node = ClassDB.instantiate("PunchController")
 		controller.set("character", character)

@@ -123,7 +123,7 @@ def test_a_policy_that_outputs_nan_ends_the_replay_with_an_error(tmp_path, train
                                                              dtype=np.float32), initializer.name))
     nan_policy = tmp_path / "nan.onnx"
     onnx.save(model, str(nan_policy))
-    with pytest.raises((ReplayError, GodotRunError), match="stopped on an error: the policy returned NaN"):
+    with pytest.raises((ReplayError, GodotRunError), match="stopped on an error: inference failed: the policy returned NaN"):
         run_replay(ReplayArgs(policy=nan_policy, sigmas=[0.0], episodes=2, timeout_s=120), progress=False)
 
 

@@ -23,9 +23,11 @@ pub type MotorCommands = [Vec3; 5];
 /// Something the game hears of (a signal of `PunchController`).
 #[derive(Debug, Clone, PartialEq)]
 pub enum Event {
-    /// A punch began. `out_of_reach`: the target was outside the policy's reach volume, as (its offset in the
-    /// character's frame, the nearest covered point the punch goes at instead, world coordinates).
-    Started { out_of_reach: Option<(Vec3, Vec3)> },
+    /// A punch began.
+    Started,
+    /// The punch just started goes at the nearest point the policy covers: the target was outside its reach
+    /// volume. The target's offset in the character's frame, and that point (world coordinates).
+    OutOfReach { offset: Vec3, nearest: Vec3 },
     /// A fist struck something for the first time in this punch.
     Hit(Hit),
     /// The punch is over.
@@ -163,7 +165,10 @@ impl<P: Clone> Lifecycle<P> {
             false => Phase::Punching(punch, start.policy),
         };
         self.hold_next = false;
-        self.events.push_back(Event::Started { out_of_reach: start.out_of_reach });
+        self.events.push_back(Event::Started);
+        if let Some((offset, nearest)) = start.out_of_reach {
+            self.events.push_back(Event::OutOfReach { offset, nearest });
+        }
     }
 
     /// Ends a running punch early (`Finished`, interrupted); the joints then hold. Nothing when none runs.
@@ -390,7 +395,7 @@ mod tests {
         }
         assert_eq!(decided_at, (0..50).step_by(5).collect::<Vec<_>>(), "a character in guard punches at once");
         let events = events(&mut lifecycle);
-        assert_eq!(events[0], Event::Started { out_of_reach: None });
+        assert_eq!(events[0], Event::Started);
         assert!(matches!(events[1], Event::Hit(hit) if hit.collider == FAKE_BAG_ID));
         let Event::Finished(summary, Ending::Completed) = &events[2] else { panic!("{events:?}") };
         assert_eq!((summary.frames, summary.hits, events.len()), (50, 1, 3));
@@ -408,7 +413,7 @@ mod tests {
         assert_eq!(asked, [2, 2, 2], "the new punch asks its own policy");
         let ends: Vec<_> = events(&mut lifecycle).into_iter().filter(|e| !matches!(e, Event::Hit(_))).collect();
         assert!(
-            matches!(&ends[..], [Event::Started { .. }, Event::Finished(summary, Ending::Interrupted), Event::Started { .. }]
+            matches!(&ends[..], [Event::Started, Event::Finished(summary, Ending::Interrupted), Event::Started]
                 if summary.frames == 12 && summary.interrupted),
             "{ends:?}"
         );
@@ -437,7 +442,7 @@ mod tests {
             .into_iter()
             .filter_map(|e| match e {
                 Event::Finished(_, ending) => Some(ending),
-                Event::Started { .. } => Some(Ending::Completed), // a marker for a start
+                Event::Started => Some(Ending::Completed), // a marker for a start
                 _ => None,
             })
             .collect()
@@ -547,7 +552,8 @@ mod tests {
             let mut open = false;
             for event in &heard {
                 match event {
-                    Event::Started { .. } => { prop_assert!(!open, "a start before the last punch finished: {heard:?}"); open = true }
+                    Event::Started => { prop_assert!(!open, "a start before the last punch finished: {heard:?}"); open = true }
+                    Event::OutOfReach { .. } => prop_assert!(open, "out of reach outside a punch"),
                     Event::Finished(..) => { prop_assert!(open, "a finish with no punch: {heard:?}"); open = false }
                     Event::Hit(_) => prop_assert!(open, "a hit outside a punch"),
                     Event::Recovered => prop_assert!(!open, "recovered during a punch"),

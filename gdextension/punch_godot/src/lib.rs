@@ -1,13 +1,14 @@
 //! The punch controller's Godot classes. This crate only registers classes and converts engine types;
 //! the logic is in `punch_core`.
 
-mod batch;
 mod convert;
 mod engine_io;
 mod punch_character;
 mod punch_controller;
+mod punch_inference;
 mod punch_policy;
 mod punch_runtime;
+mod punch_spec;
 // Training runs on Linux (the trainer starts headless Linux Godot); the game classes build everywhere.
 #[cfg(unix)]
 mod punch_training_server;

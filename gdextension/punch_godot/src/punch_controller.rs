@@ -1,29 +1,36 @@
-//! `PunchController`: plays a trained punching policy on a `PunchCharacter` in a game. The punch itself
-//! (decision clock, observation, runtime noise, smoothing, motor law, hits, its end) is `punch_core::punch`;
-//! this class moves engine readings in and motor commands and signals out, and `PunchInference` batches the
-//! policy calls of every controller.
+//! `PunchController`: plays a trained punching policy on a `PunchCharacter` in a game. What a punch is and
+//! how it goes (phases, decisions, noise, hits, events) is `punch_core::lifecycle`; this class reads the
+//! engine into it, drives the joints with what comes back, and turns its events into signals.
+//!
+//! Signals are emitted with no borrow of the controller held (`#[func(gd_self)]`, and the frame pass), so a
+//! handler may do anything: free this or another controller, its character or its target, punch again.
 
 use std::rc::Rc;
+use std::time::Instant;
 
 use glam::Vec3;
-use godot::builtin::{GString, PackedFloat32Array, PackedStringArray, VarDictionary, Vector2, Vector3};
-use godot::classes::{Engine, INode, Node, Node3D, PhysicsShapeQueryParameters3D, ProjectSettings, SphereShape3D};
+use godot::builtin::{PackedFloat32Array, VarDictionary, Vector2, Vector3};
+use godot::classes::notify::NodeNotification;
+use godot::classes::{INode, Node, Node3D, PhysicsShapeQueryParameters3D, SphereShape3D};
 use godot::global::{godot_error, godot_warn};
-use godot::meta::ToGodot;
-use godot::obj::{Base, Gd, InstanceId, NewGd, Singleton, WithBaseField, WithUserSignals};
+use godot::obj::{Base, Gd, InstanceId, NewGd, WithBaseField, WithSignals, WithUserSignals};
 use godot::prelude::{GodotClass, godot_api};
 use punch_core::character::{Body, DEFAULT_DECISION_PERIOD};
+use punch_core::lifecycle::{Drive, Ending, Event, FrameNeeds, Lifecycle, NoiseSettings, PunchStart};
 use punch_core::observation::OBS_DIM;
-use punch_core::punch::{Hit, Punch, PunchRecord, PunchSummary, Recovery, RuntimeNoise, Sensed};
-use punch_core::sensing::{CharacterGeometry, FEATURE_COUNT, FEATURE_NAMES, FrameReading};
-use punch_core::spec::{BagPlacement, PROJECT_SETTINGS, SettingValue, project_setting_problems};
+use punch_core::policy_gate::{DecisionRequest, PunchingPolicy, decide_batched};
+use punch_core::punch::{Punch, PunchSummary};
+use punch_core::sensing::{CharacterGeometry, FEATURE_COUNT, FrameReading};
 
-use crate::batch::{DecisionRequest, PunchInference, SharedPolicy};
 use crate::convert::vector3;
 use crate::engine_io::{add_area_touches, add_bag_contacts, read_forearm_contacts};
 use crate::punch_character::PunchCharacter;
+use crate::punch_inference::PunchInference;
 use crate::punch_policy::PunchPolicy;
 use crate::target::Target;
+
+/// The signals of this class, as the frame pass and the class's own functions emit them.
+type Signals<'c> = <PunchController as WithSignals>::SignalCollection<'c, PunchController>;
 
 /// Makes a `PunchCharacter` punch a target with a trained policy (an .onnx file made by `punch train`).
 /// Each punch differs when `noise_sigma` > 0: Gaussian noise of that standard deviation is added to the
@@ -31,33 +38,45 @@ use crate::target::Target;
 /// play the same `PunchPolicy` resource share one model and run in one inference call per decision tick.
 ///
 /// A punch asked for away from the guard pose first returns the character to guard (`guard_first`); after
-/// it, the character returns to its guard pose under physics (`auto_recover`). Two punches are identical
-/// (sigma 0, or the same seed) when they start from the same state of the world: the character at rest in its guard pose (as after `recover()` from rest, or
-/// in a scene that has just started) and the target at rest at the same place relative to it.
+/// it, the character returns to its guard pose under physics (`auto_recover`). Every `punch_started` is
+/// followed by exactly one `punch_finished`, whatever happens meanwhile (the controller, its character or its
+/// target freed, another punch asked for). Drive each character with one controller at a time: a controller
+/// that starts driving a character another one drives takes it over (the other's punch ends, interrupted,
+/// with a warning). Two punches are identical (sigma 0, or the same seed) when they start from the same
+/// state of the world: the character at rest in its guard pose (as after `recover()` from rest, or in a
+/// scene that has just started) and the target at rest at the same place relative to it.
 #[derive(GodotClass)]
 #[class(base = Node, init)]
 pub struct PunchController {
     /// The policy: an .onnx file from `punch train` (a `PunchPolicy` resource: pick the file, or
     /// `load("res://....onnx")`). The addon ships one per style in `addons/punch_controller/policies/`.
-    /// Changing it during a punch ends that punch (`punch_finished` says it was interrupted); the next punch
-    /// plays the new policy.
+    /// A new policy plays from the next punch; a punch running when it is set plays on with the one it
+    /// started with. Setting the policy it already has changes nothing.
+    #[export_group(name = "Policy")]
     #[export]
     #[var(set = set_policy)]
     policy: Option<Gd<PunchPolicy>>,
     /// Standard deviation of the noise added to the policy's mean action, in action units (actions lie in
-    /// [-1, 1]). Values outside 0..1 are clamped, with a warning. Takes effect at the next decision.
+    /// [-1, 1]). Values outside 0..1 are clamped, and values that are not numbers refused, with a warning.
+    /// Takes effect at the next decision.
     #[export(range = (0.0, 1.0, 0.01))]
     #[var(set = set_noise_sigma)]
     noise_sigma: f32,
     /// Noise on the first k decisions of a punch only; -1 puts noise on every decision.
-    #[export]
+    #[export(range = (-1.0, 20.0, 1.0, or_greater))]
     #[init(val = -1)]
     noise_decisions: i32,
-    /// Physics frames each decision is held for; must match the policy's.
+    /// Seed of the noise: the same seed and sigma give the same sequence of punches. A new seed takes
+    /// effect at the next punch.
     #[export]
+    seed: i64,
+    /// Physics frames each decision is held for; must match the policy's.
+    #[export(range = (1.0, 60.0, 1.0, suffix = "frames"))]
     #[init(val = DEFAULT_DECISION_PERIOD as i32)]
     decision_period: i32,
-    /// The character to drive.
+
+    /// The character to drive. A new character is driven from the next punch.
+    #[export_group(name = "Character and target")]
     #[export]
     character: Option<Gd<PunchCharacter>>,
     /// What to punch: any Node3D (a sandbag, a RigidBody3D, CharacterBody3D, StaticBody3D or Area3D, a
@@ -65,10 +84,6 @@ pub struct PunchController {
     /// (the node itself, else a child, else the nearest ancestor that is one) is what the policy feels.
     #[export]
     target: Option<Gd<Node3D>>,
-    /// Seed of the noise: the same seed and sigma give the same sequence of punches. A new seed takes
-    /// effect at the next punch.
-    #[export]
-    seed: i64,
     /// The physics layers whose bodies count as hit when a fist touches them (the target always counts).
     /// Only what the character's bodies collide with can be touched (their collision masks: layers 1 to 3 in
     /// the addon's character scene).
@@ -79,18 +94,20 @@ pub struct PunchController {
     /// target is always checked. Costs a shape query per fist and frame while punching.
     #[export]
     hit_areas: bool,
+
+    /// A punch asked for while the character is away from its guard pose (the end of an earlier punch,
+    /// mid-recovery) first returns it to guard under physics, at most 0.5 s, then plays the policy: punches
+    /// land far more often from there (BENCHMARKS.md, "after an earlier punch"). Off: the policy starts from
+    /// whatever pose the arms are in. A punch from the guard starts at once either way.
+    #[export_group(name = "Behaviour")]
+    #[export]
+    #[init(val = true)]
+    guard_first: bool,
     /// After a punch, drive the character back to its guard pose under physics (`recovered` says when it
     /// is there). Off: the joints hold where the punch left them.
     #[export]
     #[init(val = true)]
     auto_recover: bool,
-    /// A punch asked for while the character is away from its guard pose (the end of an earlier punch,
-    /// mid-recovery) first returns it to guard under physics, at most 0.5 s, then plays the policy: punches
-    /// land far more often from there (BENCHMARKS.md, "after an earlier punch"). Off: the policy starts from
-    /// whatever pose the arms are in. A punch from the guard starts at once either way.
-    #[export]
-    #[init(val = true)]
-    guard_first: bool,
     /// Punch as soon as the scene starts.
     #[export]
     autostart: bool,
@@ -99,47 +116,17 @@ pub struct PunchController {
     #[export]
     record: bool,
 
-    phase: Phase,
-    loaded: Option<Loaded>,
+    lifecycle: Lifecycle<Rc<PunchingPolicy>>,
+    /// The character the running punch or recovery drives (a `character` set meanwhile waits for the next).
+    driven: Option<Gd<PunchCharacter>>,
     aim: Option<Target>,
     area_query: Option<Gd<PhysicsShapeQueryParameters3D>>,
-    events: Vec<Event>,
-    last_record: PunchRecord,
+    /// This frame was sensed: the frame pass may act on it (a punch started by a signal handler in between
+    /// waits for the next frame).
+    sensed: bool,
+    /// The controller is leaving the scene tree (a `punch_finished` handler may not start another punch).
+    leaving_tree: bool,
     base: Base<Node>,
-}
-
-/// What the controller is doing.
-#[derive(Default)]
-enum Phase {
-    #[default]
-    Idle,
-    Punching(Box<Punch>),
-    /// A punch asked for away from the guard pose (`guard_first`): returning to guard before it starts;
-    /// the motor commands for the next step.
-    Guarding(Box<Punch>, Box<Recovery>, [Vec3; 5]),
-    /// Returning to guard; the motor commands for the next step.
-    Recovering(Box<Recovery>, [Vec3; 5]),
-}
-
-struct Loaded {
-    policy: Rc<SharedPolicy>,
-    noise: RuntimeNoise,
-    /// The seed `noise` was made from.
-    seed: i64,
-}
-
-enum Event {
-    Hit(Hit),
-    Finished(PunchSummary, Ending),
-    Recovered,
-}
-
-/// How a punch ended (`punch_finished`'s `ended`).
-enum Ending {
-    Completed,
-    Interrupted,
-    /// The message was logged (an empty one was logged once for many controllers).
-    Error(String),
 }
 
 #[godot_api]
@@ -147,6 +134,22 @@ impl INode for PunchController {
     fn ready(&mut self) {
         if self.autostart {
             self.base_mut().call_deferred("punch", &[]);
+        }
+    }
+
+    fn on_notification(&mut self, what: NodeNotification) {
+        match what {
+            NodeNotification::ENTER_TREE => self.leaving_tree = false,
+            // Leaving the tree (removed, or freed with its scene): no frame will come, so the punch ends now.
+            NodeNotification::EXIT_TREE => {
+                self.leaving_tree = true;
+                self.lifecycle.cancel();
+                self.act_now();
+                while let Some(event) = self.lifecycle.next_event() {
+                    emit(self.signals(), event);
+                }
+            }
+            _ => {}
         }
     }
 }
@@ -175,9 +178,10 @@ impl PunchController {
 
     /// Emitted when a punch is over, however it ended, with `frames`, `peak_fist_speed_mps`, `hits`,
     /// `strongest_hit_ns` (the largest fist impulse of one frame), `ended` ("completed"; "interrupted":
-    /// cancelled, restarted, or its policy changed before its last frame; "error": it stopped on an error,
-    /// given in `error` and logged), and `interrupted` (true unless completed). Every `punch_started` is
-    /// followed by one `punch_finished`, so code waiting for it never waits forever.
+    /// cancelled, restarted, taken over by another controller, or the controller left the scene tree before
+    /// its last frame; "error": it stopped on an error, given in `error` and logged), and `interrupted` (true
+    /// unless completed). Every `punch_started` is followed by exactly one `punch_finished`, so code waiting
+    /// for it never waits forever.
     #[signal]
     fn punch_finished(metrics: VarDictionary);
 
@@ -187,29 +191,51 @@ impl PunchController {
     fn recovered();
 
     /// Starts a punch (a punch already running ends first, interrupted): at once from the guard pose, else
-    /// after a return to guard (`guard_first`) or from the current pose.
-    /// Returns false (with the reason in the log) when the policy, the character or the target is missing or
-    /// unusable, or the project's physics settings are not the policy's. A target outside the policy's
+    /// after a return to guard (`guard_first`) or from the current pose. Returns false (with the reason in the
+    /// log) when the controller is not in the scene tree, the policy, the character or the target is missing
+    /// or unusable, or the project's physics settings are not the policy's. A target outside the policy's
     /// reach gets a punch at the nearest point it covers, and `target_out_of_reach`.
-    #[func]
-    fn punch(&mut self) -> bool {
-        self.interrupt();
-        match self.start() {
-            Ok(out_of_reach) => {
-                PunchInference::enlist(self.to_gd());
-                self.signals().punch_started().emit();
-                if let Some((offset, nearest)) = out_of_reach {
-                    self.signals().target_out_of_reach().emit(vector3(offset), vector3(nearest));
-                }
+    #[func(gd_self)]
+    fn punch(mut this: Gd<Self>) -> bool {
+        let started = this.bind_mut().start_punch();
+        let started = match started {
+            Ok(character) => {
+                Self::take_over(&this, character);
                 true
             }
             Err(error) => {
                 if !error.is_empty() {
-                    godot_error!("PunchController '{}': {error}", self.base().get_name());
+                    godot_error!("PunchController '{}': {error}", this.get_name());
                 }
                 false
             }
+        };
+        Self::emit_events(&mut this);
+        started
+    }
+
+    /// Ends the current punch (`punch_finished` reports it interrupted) or recovery; the joints then hold
+    /// the pose they are in.
+    #[func(gd_self)]
+    fn cancel(mut this: Gd<Self>) {
+        {
+            let mut controller = this.bind_mut();
+            controller.lifecycle.cancel();
+            controller.act_now();
         }
+        Self::emit_events(&mut this);
+    }
+
+    /// Drives the character back to its guard pose under physics (ending a punch that is running);
+    /// `recovered` is emitted when it is there.
+    #[func(gd_self)]
+    fn recover(mut this: Gd<Self>) {
+        let started = this.bind_mut().start_recovery();
+        match started {
+            Ok(character) => Self::take_over(&this, character),
+            Err(error) => godot_error!("PunchController '{}': {error}", this.get_name()),
+        }
+        Self::emit_events(&mut this);
     }
 
     /// The target placements the policy was trained to punch, in the character's frame: `distance_m`,
@@ -219,7 +245,7 @@ impl PunchController {
     #[func]
     fn reach_volume(&self) -> VarDictionary {
         let mut result = VarDictionary::new();
-        let reach = match self.shared_policy() {
+        let reach = match self.punching_policy() {
             Ok(policy) => policy.reach,
             Err(error) => {
                 if !error.is_empty() {
@@ -238,45 +264,24 @@ impl PunchController {
         result
     }
 
-    /// Ends the current punch (`punch_finished` reports it interrupted) or recovery; the joints then hold
-    /// the pose they are in.
-    #[func]
-    fn cancel(&mut self) {
-        self.interrupt();
-        if matches!(std::mem::take(&mut self.phase), Phase::Recovering(..)) {
-            self.hold();
-        }
-    }
-
-    /// Drives the character back to its guard pose under physics (ending a punch that is running);
-    /// `recovered` is emitted when it is there.
-    #[func]
-    fn recover(&mut self) {
-        self.interrupt();
-        match self.start_recovery() {
-            Ok(()) => PunchInference::enlist(self.to_gd()),
-            Err(error) => godot_error!("PunchController '{}': {error}", self.base().get_name()),
-        }
-    }
-
     /// True while a punch is running (including its return to guard first, `guard_first`).
     #[func]
     pub fn is_punching(&self) -> bool {
-        matches!(self.phase, Phase::Punching(_) | Phase::Guarding(..))
+        self.lifecycle.is_punching()
     }
 
     /// True while the character returns to its guard pose.
     #[func]
     fn is_recovering(&self) -> bool {
-        matches!(self.phase, Phase::Recovering(..))
+        self.lifecycle.is_recovering()
     }
 
     /// The last finished punch, when `record` is on: `features` (frames x feature count, the names are
-    /// the training server's), `observations` (decisions x 45), `mean_actions` and `actions` (decisions x 10,
-    /// before and after noise), `frames` and `decisions`.
+    /// `PunchSpec.feature_names()`), `observations` (decisions x 45), `mean_actions` and `actions`
+    /// (decisions x 10, before and after noise), `frames` and `decisions`.
     #[func]
     fn last_punch_record(&self) -> VarDictionary {
-        let record = &self.last_record;
+        let record = self.lifecycle.last_record();
         let mut result = VarDictionary::new();
         result.set("features", &PackedFloat32Array::from(record.features.as_slice()));
         result.set("observations", &PackedFloat32Array::from(record.observations.as_slice()));
@@ -287,235 +292,205 @@ impl PunchController {
         result
     }
 
-    /// Mean time (µs) all controllers together spent per physics frame (sensing, batched inference,
-    /// driving) since the last call: for benchmarks.
-    #[func]
-    fn take_frame_cost_usec() -> f64 {
-        PunchInference::singleton().bind_mut().take_frame_cost_usec()
-    }
-
-    /// How batched the inference was since the last call, over all controllers: `calls` to ONNX Runtime,
-    /// the `rows` (controller decisions) they ran, and the time they took, `usec` (for benchmarks).
-    #[func]
-    fn take_inference_counts() -> VarDictionary {
-        let (calls, rows, usec) = PunchInference::take_inference_counts();
-        let mut counts = VarDictionary::new();
-        counts.set("calls", calls as i64);
-        counts.set("rows", rows as i64);
-        counts.set("usec", usec);
-        counts
-    }
-
-    /// Names of the per-frame features in `last_punch_record()`, in column order.
-    #[func]
-    fn feature_names() -> PackedStringArray {
-        FEATURE_NAMES.iter().map(|name| GString::from(*name)).collect()
-    }
-
-    /// Where the training puts the target's centre relative to the character's root, in the character's
-    /// frame (+Z ahead, +Y up, +X the character's left): place a target here for the trained punch.
-    #[func]
-    fn default_target_offset() -> Vector3 {
-        let position = BagPlacement::DEFAULT.position();
-        Vector3::new(position.x, position.y, position.z)
-    }
-
-    /// The project settings policies are trained with (setting path to value): a game needs the same.
-    #[func]
-    fn required_project_settings() -> VarDictionary {
-        let mut settings = VarDictionary::new();
-        for setting in PROJECT_SETTINGS {
-            let value = match setting.value {
-                SettingValue::Int(v) => v.to_variant(),
-                SettingValue::Float(v) => v.to_variant(),
-                SettingValue::Text(v) => v.to_variant(),
-            };
-            settings.set(setting.path, &value);
-        }
-        settings
-    }
-
-    /// The running game's settings that differ from `required_project_settings()`, one line each saying
-    /// what to set (empty when all is well). The physics rate is the engine's current one.
-    #[func]
-    pub fn project_settings_problems() -> PackedStringArray {
-        project_setting_problems(|path| {
-            if path == PROJECT_SETTINGS[0].path {
-                return (Some(Engine::singleton().get_physics_ticks_per_second() as f64), None);
-            }
-            let value = ProjectSettings::singleton().get_setting(path);
-            let number = value.try_to::<f64>().ok().or_else(|| value.try_to::<i64>().ok().map(|v| v as f64));
-            (number, value.try_to::<GString>().ok().map(|s| s.to_string()))
-        })
-        .iter()
-        .map(GString::from)
-        .collect()
-    }
-
-    /// Sets the policy; the next punch plays it (a punch running now ends, interrupted).
+    /// Sets the policy; the next punch plays it (a punch running now plays on with its own).
     #[func]
     fn set_policy(&mut self, policy: Option<Gd<PunchPolicy>>) {
-        let changed = policy != self.policy;
         self.policy = policy;
-        self.loaded = None;
-        if changed {
-            // After the change: a `punch_finished` handler that punches again gets the new policy.
-            self.interrupt();
-        }
     }
 
-    /// Sets `noise_sigma`, clamped to 0..1 with a warning.
+    /// Sets `noise_sigma`: clamped to 0..1 with a warning; a value that is not a number is refused (the
+    /// sigma stays as it was) with a warning.
     #[func]
     fn set_noise_sigma(&mut self, sigma: f32) {
-        let clamped = if sigma.is_finite() { sigma.clamp(0.0, 1.0) } else { 0.0 };
-        if clamped != sigma {
+        let name = self.base().get_name();
+        if !sigma.is_finite() {
             godot_warn!(
-                "PunchController '{}': noise_sigma {sigma} is outside 0..1; using {clamped}",
-                self.base().get_name()
+                "PunchController '{name}': noise_sigma {sigma} is not a number in 0..1; keeping {}",
+                self.noise_sigma
             );
+            return;
+        }
+        let clamped = sigma.clamp(0.0, 1.0);
+        if clamped != sigma {
+            godot_warn!("PunchController '{name}': noise_sigma {sigma} is outside 0..1; using {clamped}");
         }
         self.noise_sigma = clamped;
     }
 }
 
 impl PunchController {
-    /// Starts a punch; `Some((offset, nearest))` when the target is out of reach (`target_out_of_reach`).
-    fn start(&mut self) -> Result<Option<(Vec3, Vec3)>, String> {
+    /// Starts a punch (its events queued); returns the character it drives.
+    fn start_punch(&mut self) -> Result<Gd<PunchCharacter>, String> {
+        self.lifecycle.interrupt();
+        self.act_now();
+        if !self.base().is_inside_tree() || self.leaving_tree {
+            return Err("the controller is not in the scene tree: add it to the scene before punching (punches \
+                        run on the scene tree's physics frames)"
+                .into());
+        }
         PunchInference::check_project_settings()?;
-        if self.loaded.as_ref().is_some_and(|loaded| loaded.seed != self.seed) {
-            // A new seed starts a new sequence of punches.
-            self.loaded = None;
-        }
-        if self.loaded.is_none() {
-            let policy = self.shared_policy()?;
-            let noise = RuntimeNoise::new(self.seed as u64, self.noise_sigma, self.noise_decisions);
-            self.loaded = Some(Loaded { policy, noise, seed: self.seed });
-        }
-        let loaded = self.loaded.as_ref().ok_or("no policy")?;
-        loaded.policy.check_spec(self.decision_period.max(1) as u32)?;
+        let policy = self.punching_policy()?;
+        policy.check_spec(self.decision_period.max(1) as u32).map_err(|e| e.to_string())?;
+        let character = live(&self.character).ok_or("no character set (or it was freed)")?;
         let mut target = Target::resolve(live(&self.target).ok_or("no target set (or it was freed)")?);
-        let mut geometry = self.geometry()?;
+        let mut geometry = geometry_of(&character)?;
         let offset = geometry.root_rotation.inverse() * (target.state().position - geometry.root_position);
-        let reach = loaded.policy.reach;
-        let out_of_reach = (!reach.contains(offset)).then(|| {
+        let out_of_reach = (!policy.reach.contains(offset)).then(|| {
             // The policy sees the target at the nearest point it covers, and punches there.
-            let nearest = geometry.root_position + geometry.root_rotation * reach.nearest(offset);
+            let nearest = geometry.root_position + geometry.root_rotation * policy.reach.nearest(offset);
             target.aim_at(nearest);
             (offset, nearest)
         });
         target.describe(&mut geometry);
         self.aim = Some(target);
-        let punch = Box::new(Punch::new(geometry, loaded.policy.spec, self.record));
-        self.phase = if self.guard_first {
-            // Decided at the next frame's reading: a character already in guard punches in that same frame.
-            Phase::Guarding(punch, Box::new(Recovery::new(geometry)), [Vec3::ZERO; 5])
-        } else {
-            Phase::Punching(punch)
-        };
-        Ok(out_of_reach)
+        let punch = Punch::new(geometry, policy.spec, self.record);
+        let identity = Rc::as_ptr(&policy) as usize;
+        let start = PunchStart { punch, policy, guard_first: self.guard_first, out_of_reach };
+        self.lifecycle.start(start, identity, self.noise());
+        self.drive_from_now(character.clone());
+        Ok(character)
+    }
+
+    /// Starts a recovery; returns the character it drives.
+    fn start_recovery(&mut self) -> Result<Gd<PunchCharacter>, String> {
+        let character = live(&self.character).ok_or("no character set (or it was freed)")?;
+        let geometry = geometry_of(&character)?;
+        if !self.base().is_inside_tree() || self.leaving_tree {
+            return Err("the controller is not in the scene tree".into());
+        }
+        self.lifecycle.recover(geometry);
+        self.drive_from_now(character.clone());
+        Ok(character)
+    }
+
+    /// Puts this controller on the frame pass's list, driving `character`.
+    fn drive_from_now(&mut self, character: Gd<PunchCharacter>) {
+        self.driven = Some(character);
+        self.sensed = false;
+        let tree = self.base().get_tree();
+        PunchInference::enlist(self.base().instance_id(), tree, Self::frame_pass);
+    }
+
+    /// `this` drives `character` from now on: another controller that drove it stops, its punch ending
+    /// (interrupted), with a warning.
+    fn take_over(this: &Gd<Self>, character: Gd<PunchCharacter>) {
+        let Some(previous) = PunchInference::take_over(character.instance_id(), this.instance_id()) else { return };
+        let Ok(mut other) = Gd::<Self>::try_from_instance_id(previous) else { return };
+        let was_punching = other.bind().lifecycle.is_punching();
+        if !other.bind().lifecycle.is_active() || other.bind().driven.as_ref() != Some(&character) {
+            return;
+        }
+        if was_punching {
+            godot_warn!(
+                "PunchController '{}' takes character '{}' over from '{}', whose punch ends (interrupted): drive each \
+                 character with one controller at a time",
+                this.get_name(),
+                character.get_name(),
+                other.get_name()
+            );
+        }
+        {
+            let mut other = other.bind_mut();
+            other.lifecycle.cancel();
+            other.act_now();
+        }
+        Self::emit_events(&mut other);
     }
 
     /// The policy resource as a checked punching policy (an empty error: refused and reported before).
-    fn shared_policy(&self) -> Result<Rc<SharedPolicy>, String> {
+    fn punching_policy(&self) -> Result<Rc<PunchingPolicy>, String> {
         let mut policy = self.policy.clone().ok_or("no policy set")?;
         policy.bind_mut().punching()
     }
 
-    /// The character's rest geometry where it stands now.
-    fn geometry(&self) -> Result<CharacterGeometry, String> {
-        let character = live(&self.character).ok_or("no character set (or it was freed)")?;
-        let root = character.get_global_transform();
-        let geometry = character.bind().rig().map(|rig| rig.geometry_at(root));
-        geometry.ok_or_else(|| "the character is not ready (is it in the scene tree?)".into())
+    fn noise(&self) -> NoiseSettings {
+        NoiseSettings { seed: self.seed, sigma: self.noise_sigma, noisy_decisions: self.noise_decisions }
     }
 
-    fn start_recovery(&mut self) -> Result<(), String> {
-        let recovery = Recovery::new(self.geometry()?);
-        self.phase = Phase::Recovering(Box::new(recovery), [Vec3::ZERO; 5]);
-        Ok(())
-    }
-
-    /// Ends a running punch early: `punch_finished` (interrupted) is emitted now.
-    fn interrupt(&mut self) {
-        if !self.is_punching() {
-            return;
+    /// Applies at once what the lifecycle asks of the joints (after a punch or recovery ended outside the
+    /// frame pass).
+    fn act_now(&mut self) {
+        if !self.lifecycle.is_punching() {
+            let drive = self.lifecycle.act(None, self.noise()).unwrap_or(Drive::Hold);
+            self.apply(drive);
         }
-        let (Phase::Punching(punch) | Phase::Guarding(punch, ..)) = std::mem::take(&mut self.phase) else { return };
-        let (summary, record) = punch.interrupt();
-        self.last_record = record.unwrap_or_default();
-        self.hold();
-        self.signals().punch_finished().emit(&finish_metrics(&summary, &Ending::Interrupted));
     }
 
-    /// Stops the joint motors: the character holds its pose.
-    fn hold(&self) {
-        if let Some(character) = live(&self.character)
+    fn apply(&self, drive: Drive) {
+        let commands = match drive {
+            Drive::Nothing => return,
+            Drive::Motors(commands) => commands,
+            Drive::Hold => [Vec3::ZERO; 5],
+        };
+        if let Some(character) = live(&self.driven)
             && let Some(rig) = character.bind().rig()
         {
-            rig.drive(&[Vec3::ZERO; 5]);
+            rig.drive(&commands);
         }
     }
 
-    /// Ends the punch on an error, logging it.
-    fn stop_with_error(&mut self, error: &str) {
-        godot_error!("PunchController '{}': {error}; the punch stops", self.base().get_name());
-        self.stop_quietly(error);
-    }
-
-    /// Ends the punch on an error already logged (once for all the controllers a shared policy failed).
-    fn stop_quietly(&mut self, error: &str) {
-        if let Phase::Punching(punch) | Phase::Guarding(punch, ..) = std::mem::take(&mut self.phase) {
-            // Whoever waits for the end of the punch hears of it.
-            self.events.push(Event::Finished(punch.interrupt().0, Ending::Error(error.to_string())));
+    /// Runs every active controller for one physics frame (on the scene tree's `physics_frame` signal, before
+    /// any node's `_physics_process`): each reads the frame just simulated, then every shared policy decides
+    /// once for all controllers that ask it, then each drives its joints and emits its signals.
+    fn frame_pass() {
+        let started = Instant::now();
+        let ids = PunchInference::active();
+        let mut requests: Vec<DecisionRequest> = Vec::new();
+        let mut askers: Vec<InstanceId> = Vec::new();
+        for &id in &ids {
+            if let Some(mut controller) = running(id)
+                && let Some(request) = controller.bind_mut().sense_frame()
+            {
+                askers.push(id);
+                requests.push(request);
+            }
         }
-        self.hold();
-        self.loaded = None;
-    }
-
-    /// True while the controller drives its character (punching or recovering).
-    pub(crate) fn is_active(&self) -> bool {
-        !matches!(self.phase, Phase::Idle)
+        let batch = decide_batched(&requests);
+        let mut reported = Vec::new();
+        for error in batch.means.iter().filter_map(|mean| mean.as_ref().err()) {
+            if !reported.iter().any(|r| Rc::ptr_eq(r, error)) {
+                // Once for the policy, not once per controller that asked it; each of their punches ends.
+                let count = batch.means.iter().filter(|m| m.as_ref().is_err_and(|e| Rc::ptr_eq(e, error))).count();
+                godot_error!("PunchController: inference failed for {count} controllers: {error}");
+                reported.push(error.clone());
+            }
+        }
+        for &id in &ids {
+            let Some(mut controller) = running(id) else { continue };
+            let mean = askers.iter().position(|asker| *asker == id).map(|row| batch.means[row].clone());
+            controller.bind_mut().act_frame(mean);
+            Self::emit_events(&mut controller);
+        }
+        PunchInference::retain_active(|id| {
+            Gd::<Self>::try_from_instance_id(id).is_ok_and(|controller| controller.bind().lifecycle.is_active())
+        });
+        PunchInference::count_frame(started, &batch.calls);
     }
 
     /// First half of a frame: reads the frame just simulated and, when a decision is due, returns the
-    /// observation to decide on (with the policy to ask). Ends the punch after its last frame.
-    pub(crate) fn sense(&mut self) -> Option<DecisionRequest> {
+    /// observation to decide on (with the policy to ask). An error ends the punch.
+    fn sense_frame(&mut self) -> Option<DecisionRequest> {
+        self.sensed = true;
         match self.try_sense() {
             Ok(request) => request,
             Err(error) => {
-                self.stop_with_error(&error);
+                if self.lifecycle.is_punching() {
+                    godot_error!("PunchController '{}': {error}; the punch stops", self.base().get_name());
+                }
+                self.lifecycle.fail(&error);
                 None
             }
         }
     }
 
     fn try_sense(&mut self) -> Result<Option<DecisionRequest>, String> {
-        let character = live(&self.character).ok_or("the character was freed")?;
+        let character = live(&self.driven).ok_or("the character was freed")?;
         let character = character.bind();
         let rig = character.rig().ok_or("the character is not ready")?;
         let mut reading = FrameReading { bodies: rig.read_bodies(), ..FrameReading::default() };
-        if let Phase::Recovering(recovery, commands) = &mut self.phase {
-            match recovery.step(&reading) {
-                Some(next) => *commands = next,
-                None => {
-                    self.phase = Phase::Idle;
-                    rig.drive(&[Vec3::ZERO; 5]);
-                    self.events.push(Event::Recovered);
-                }
-            }
+        if self.lifecycle.begin_frame(&reading) == FrameNeeds::Nothing {
             return Ok(None);
         }
-        if let Phase::Guarding(_, recovery, commands) = &mut self.phase {
-            if let Some(next) = recovery.step(&reading) {
-                *commands = next;
-                return Ok(None);
-            }
-            // In guard: the punch starts with this frame.
-            if let Phase::Guarding(punch, ..) = std::mem::take(&mut self.phase) {
-                self.phase = Phase::Punching(punch);
-            }
-        }
-        let Phase::Punching(punch) = &mut self.phase else { return Ok(None) };
         let aim = self.aim.as_ref().filter(|aim| aim.is_valid()).ok_or("the target was freed")?;
         reading.bag = aim.state();
         let mut touches = Vec::new();
@@ -524,100 +499,92 @@ impl PunchController {
         }
         let (target_rid, reports) = (aim.body_rid(), aim.reported_contacts().is_some());
         read_forearm_contacts(&rig.forearm_states, target_rid, reports, self.hit_layers, &mut reading, &mut touches);
-        if self.hit_areas || aim.area().is_some() {
+        if (self.hit_areas || aim.area().is_some())
+            && let Some([right, left]) = self.lifecycle.fists(&reading)
+        {
             let mask = self.hit_layers | aim.area().map_or(0, |area| area.get_collision_layer());
-            let [right, left] = punch.fists(&reading);
             let fists = [(Body::ForearmR.index(), right.0), (Body::ForearmL.index(), left.0)];
             let query = self.area_query.get_or_insert_with(|| fist_query(rig.geometry.fist_radius_m));
             if let Some(mut space) = character.base().get_world_3d().and_then(|w| w.get_direct_space_state()) {
                 add_area_touches(&mut space, query, fists, mask, &mut touches);
             }
         }
-        let (hits, sensed) = punch.sense(reading, &touches);
-        self.events.extend(hits.into_iter().map(Event::Hit));
-        match sensed {
-            Sensed::Hold => Ok(None),
-            Sensed::Decide(observation) => {
-                let policy = self.loaded.as_ref().ok_or("no policy")?.policy.clone();
-                Ok(Some((policy, *observation)))
-            }
-            Sensed::Finished(summary, record) => {
-                self.events.push(Event::Finished(summary, Ending::Completed));
-                self.last_record = record.unwrap_or_default();
-                self.phase = Phase::Idle;
-                if self.auto_recover {
-                    let geometry = rig.geometry_at(character.base().get_global_transform());
-                    let mut recovery = Recovery::new(geometry);
-                    if let Some(commands) = recovery.step(&reading) {
-                        self.phase = Phase::Recovering(Box::new(recovery), commands);
-                    }
-                }
-                Ok(None)
-            }
-        }
+        let recover_at = self.auto_recover.then(|| rig.geometry_at(character.base().get_global_transform()));
+        Ok(self.lifecycle.sense(reading, &touches, || recover_at).map(|(policy, observation)| (policy, *observation)))
     }
 
-    /// Second half of a frame: takes the decision's mean action (when one was due), adds the noise, and
-    /// drives the joints. A failed decision (`mean` an error, logged by the batch) ends the punch.
-    pub(crate) fn act(&mut self, mean: Option<Result<Vec<f32>, String>>) {
-        match mean {
-            Some(Err(error)) => self.stop_quietly(&error),
-            mean => {
-                if let Err(error) = self.try_act(mean.and_then(Result::ok)) {
-                    self.stop_with_error(&error);
-                }
-            }
+    /// Second half of a frame: takes the decision's mean action (when one was due; an error of its
+    /// inference, logged by the frame pass, ends the punch), adds the noise, and drives the joints.
+    fn act_frame(&mut self, mean: Option<Result<Vec<f32>, Rc<punch_core::CoreError>>>) {
+        if !std::mem::take(&mut self.sensed) {
+            return; // started after this frame was read: it plays from the next frame
         }
-    }
-
-    fn try_act(&mut self, mean: Option<Vec<f32>>) -> Result<(), String> {
-        let commands = match &mut self.phase {
-            Phase::Idle => return Ok(()),
-            Phase::Recovering(_, commands) | Phase::Guarding(_, _, commands) => *commands,
-            Phase::Punching(punch) => {
-                let loaded = self.loaded.as_mut().ok_or("no policy")?;
-                // The inspector may change these at any time: they apply from the next decision.
-                loaded.noise.sigma = self.noise_sigma;
-                loaded.noise.noisy_decisions = self.noise_decisions;
-                punch.act(mean.as_deref(), &mut loaded.noise).map_err(|e| e.to_string())?
+        let mean = match mean {
+            Some(Err(error)) => {
+                self.lifecycle.fail(&error.to_string());
+                None
+            }
+            Some(Ok(mean)) => Some(mean),
+            None => None,
+        };
+        let drive = match self.lifecycle.act(mean.as_deref(), self.noise()) {
+            Ok(drive) => drive,
+            Err(error) => {
+                godot_error!("PunchController '{}': {error}; the punch stops", self.base().get_name());
+                Drive::Hold
             }
         };
-        let character = live(&self.character).ok_or("the character was freed")?;
-        if let Some(rig) = character.bind().rig() {
-            rig.drive(&commands);
-        }
-        Ok(())
+        self.apply(drive);
     }
 
-    /// Emits the signals a frame produced (called with no borrow of the controller held), including any
-    /// that its handlers cause.
-    pub(crate) fn emit_events(controller: &mut Gd<Self>) {
+    /// Emits the controller's queued events one at a time, with no borrow held, so that a handler may do
+    /// anything (its own events then follow in order). Stops when a handler freed the controller.
+    fn emit_events(this: &mut Gd<Self>) {
         loop {
-            let events = std::mem::take(&mut controller.bind_mut().events);
-            if events.is_empty() {
+            if !this.is_instance_valid() {
                 return;
             }
-            for event in events {
-                match event {
-                    Event::Hit(hit) => {
-                        let body = Gd::<Node3D>::try_from_instance_id(InstanceId::from_i64(hit.collider as i64)).ok();
-                        let push = Vector3::new(hit.impulse.x, hit.impulse.y, hit.impulse.z);
-                        let position = Vector3::new(hit.position.x, hit.position.y, hit.position.z);
-                        controller.signals().hit().emit(hit.impulse_ns(), hit.speed_mps, position, body.as_ref(), push);
-                    }
-                    Event::Finished(summary, ending) => {
-                        controller.signals().punch_finished().emit(&finish_metrics(&summary, &ending))
-                    }
-                    Event::Recovered => controller.signals().recovered().emit(),
-                }
-            }
+            let Some(event) = this.bind_mut().lifecycle.next_event() else { return };
+            emit(this.signals(), event);
         }
     }
+}
+
+/// Emits one event as its signal.
+fn emit(mut signals: Signals<'_>, event: Event) {
+    match event {
+        Event::Started => signals.punch_started().emit(),
+        Event::OutOfReach { offset, nearest } => signals.target_out_of_reach().emit(vector3(offset), vector3(nearest)),
+        Event::Hit(hit) => {
+            let body = Gd::<Node3D>::try_from_instance_id(InstanceId::from_i64(hit.collider as i64)).ok();
+            signals.hit().emit(
+                hit.impulse_ns(),
+                hit.speed_mps,
+                vector3(hit.position),
+                body.as_ref(),
+                vector3(hit.impulse),
+            );
+        }
+        Event::Finished(summary, ending) => signals.punch_finished().emit(&finish_metrics(&summary, &ending)),
+        Event::Recovered => signals.recovered().emit(),
+    }
+}
+
+/// The controller with this id, if it still exists and is processing (not paused).
+fn running(id: InstanceId) -> Option<Gd<PunchController>> {
+    Gd::<PunchController>::try_from_instance_id(id).ok().filter(|controller| controller.can_process())
 }
 
 /// The node if it is set and not freed (cloning a freed node's handle would panic).
 fn live<T: GodotClass>(node: &Option<Gd<T>>) -> Option<Gd<T>> {
     node.as_ref().filter(|n| n.is_instance_valid()).cloned()
+}
+
+/// The character's rest geometry where it stands now.
+fn geometry_of(character: &Gd<PunchCharacter>) -> Result<CharacterGeometry, String> {
+    let root = character.get_global_transform();
+    let geometry = character.bind().rig().map(|rig| rig.geometry_at(root));
+    geometry.ok_or_else(|| "the character is not ready (is it in the scene tree?)".into())
 }
 
 /// A sphere query of the fist's size for overlapping areas.

@@ -12,8 +12,8 @@ use godot::global::{Error, godot_error};
 use godot::obj::WithBaseField;
 use godot::prelude::{Base, GodotClass, godot_api};
 use punch_core::Policy;
+use punch_core::policy_gate::PunchingPolicy;
 
-use crate::batch::SharedPolicy;
 use crate::punch_runtime::ensure_onnx_runtime;
 
 /// A trained policy: an .onnx file from `punch train`, loaded with `load("res://....onnx")` or picked in the
@@ -35,7 +35,7 @@ enum Model {
     /// A model, not yet checked as a punching policy.
     Loaded(Policy),
     /// A punching policy, shared by every controller that plays this resource (one inference call per tick).
-    Punching(Rc<SharedPolicy>),
+    Punching(Rc<PunchingPolicy>),
     /// Not a punching policy; the reason was logged by the first controller that tried it.
     Refused,
 }
@@ -135,11 +135,11 @@ impl PunchPolicy {
     /// The model as a punching policy, checked once (its interface and contract) and then shared. The error
     /// is empty when it was refused before (it was reported then): one message per policy, not per
     /// controller.
-    pub fn punching(&mut self) -> Result<Rc<SharedPolicy>, String> {
+    pub fn punching(&mut self) -> Result<Rc<PunchingPolicy>, String> {
         let name = self.base().get_path();
         match std::mem::replace(&mut self.model, Model::Refused) {
             Model::Loaded(policy) => {
-                let shared = SharedPolicy::new(policy).map(Rc::new).map_err(|e| format!("policy '{name}': {e}"))?;
+                let shared = PunchingPolicy::new(policy).map(Rc::new).map_err(|e| format!("policy '{name}': {e}"))?;
                 self.model = Model::Punching(shared.clone());
                 Ok(shared)
             }

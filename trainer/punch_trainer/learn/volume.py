@@ -46,7 +46,7 @@ class VolumeArgs:
     """share of A2C episodes whose bag swings at the start"""
     default_share: float = 0.0
     """share of A2C episodes with the bag hanging still at the default placement (where
-    `PunchController.default_target_offset()` and the demo put it)"""
+    `PunchSpec.default_target_offset()` and the demo put it)"""
     after_punch_share: float = 0.35
     """share of lead-in episodes that start at the end of an earlier punch"""
     recovering_share: float = 0.2

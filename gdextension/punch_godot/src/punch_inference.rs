@@ -1,0 +1,140 @@
+//! `PunchInference`: the state every `PunchController` of a game shares, as an engine singleton: which
+//! controllers are active, which controller drives each character, and the counters benchmarks read. The
+//! frame pass that runs the active controllers, batching their policy calls, is `PunchController`'s own
+//! (`punch_controller.rs`); this class knows controllers only by their instance ids.
+
+use godot::builtin::{Callable, StringName, VarDictionary, Variant};
+use godot::classes::{Object, SceneTree};
+use godot::obj::{Base, Gd, InstanceId, Singleton};
+use godot::prelude::{GodotClass, godot_api};
+use punch_core::policy_gate::PolicyCall;
+
+use crate::punch_spec::PunchSpec;
+
+/// Shared state of every `PunchController` in the game, and counters for benchmarks. An engine singleton the
+/// extension registers itself; games need not touch it.
+#[derive(GodotClass)]
+#[class(init, singleton, base = Object)]
+pub struct PunchInference {
+    /// The controllers with a punch or a recovery running (or just started).
+    active: Vec<InstanceId>,
+    /// Which controller drives each character now: (character, controller).
+    drivers: Vec<(InstanceId, InstanceId)>,
+    /// The scene tree whose `physics_frame` signal runs the frame pass.
+    connected_tree: Option<InstanceId>,
+    /// Controller work since the last `take_frame_cost_usec`: (microseconds, frames).
+    cost: (f64, u64),
+    /// Policy calls, the rows they ran, and their time (µs) since the last `take_inference_counts`.
+    inference: (u64, u64, f64),
+    /// The project-settings error was logged (once per game).
+    settings_reported: bool,
+    base: Base<Object>,
+}
+
+#[godot_api]
+impl PunchInference {
+    /// Mean time (µs) all controllers together spent per physics frame (sensing, batched inference,
+    /// driving) since the last call: for benchmarks.
+    #[func]
+    pub fn take_frame_cost_usec(&mut self) -> f64 {
+        let (usec, frames) = std::mem::take(&mut self.cost);
+        if frames == 0 { 0.0 } else { usec / frames as f64 }
+    }
+
+    /// How batched the inference was since the last call, over all controllers: `calls` to ONNX Runtime,
+    /// the `rows` (controller decisions) they ran, and the time they took, `usec` (for benchmarks).
+    #[func]
+    pub fn take_inference_counts(&mut self) -> VarDictionary {
+        let (calls, rows, usec) = std::mem::take(&mut self.inference);
+        let mut counts = VarDictionary::new();
+        counts.set("calls", calls as i64);
+        counts.set("rows", rows as i64);
+        counts.set("usec", usec);
+        counts
+    }
+}
+
+impl PunchInference {
+    /// The active controllers, in the order they became active.
+    pub fn active() -> Vec<InstanceId> {
+        Self::singleton().bind().active.clone()
+    }
+
+    /// Puts a controller on the list run every physics frame of `tree`, whose `physics_frame` signal then
+    /// runs `frame_pass` (connected once per tree).
+    pub fn enlist(controller: InstanceId, mut tree: Gd<SceneTree>, frame_pass: fn()) {
+        let mut hub = Self::singleton();
+        let mut hub = hub.bind_mut();
+        if !hub.active.contains(&controller) {
+            hub.active.push(controller);
+        }
+        if hub.connected_tree != Some(tree.instance_id()) {
+            let tick = Callable::from_fn("punch_controller_frame", move |_| {
+                frame_pass();
+                Variant::nil()
+            });
+            tree.connect(&StringName::from("physics_frame"), &tick);
+            hub.connected_tree = Some(tree.instance_id());
+        }
+    }
+
+    /// Keeps the active controllers for which `keep` is true (the frame pass drops those that are done).
+    pub fn retain_active(mut keep: impl FnMut(InstanceId) -> bool) {
+        let active = Self::active();
+        let kept: Vec<InstanceId> = active.iter().copied().filter(|id| keep(*id)).collect();
+        let mut hub = Self::singleton();
+        let mut hub = hub.bind_mut();
+        // Controllers enlisted while `keep` ran (a signal handler started a punch) stay too.
+        let joined: Vec<InstanceId> = hub.active.iter().copied().filter(|id| !active.contains(id)).collect();
+        hub.active = kept.into_iter().chain(joined).collect();
+        let active = hub.active.clone();
+        hub.drivers.retain(|(_, controller)| active.contains(controller));
+    }
+
+    /// Records that `controller` drives `character` from now on; returns the controller that drove it until
+    /// now, if another one did.
+    pub fn take_over(character: InstanceId, controller: InstanceId) -> Option<InstanceId> {
+        let mut hub = Self::singleton();
+        let mut hub = hub.bind_mut();
+        let previous = match hub.drivers.iter_mut().find(|(driven, _)| *driven == character) {
+            Some(entry) => Some(std::mem::replace(&mut entry.1, controller)),
+            None => {
+                hub.drivers.push((character, controller));
+                None
+            }
+        };
+        previous.filter(|previous| *previous != controller)
+    }
+
+    /// Checks the game's physics settings against the policies' (`PunchSpec.project_settings_problems`).
+    /// The error, which says what to set, is logged once per game; later calls return an empty error.
+    pub fn check_project_settings() -> Result<(), String> {
+        let problems = PunchSpec::project_settings_problems();
+        if problems.is_empty() {
+            return Ok(());
+        }
+        let mut hub = Self::singleton();
+        if std::mem::replace(&mut hub.bind_mut().settings_reported, true) {
+            return Err(String::new());
+        }
+        let lines: Vec<String> = problems.as_slice().iter().map(|line| format!("  - {line}")).collect();
+        Err(format!(
+            "this project's physics settings are not the ones the policies were trained with, so punches \
+             would miss; no punch plays until they are set (the editor plugin offers to set them; see the \
+             README, 'Project settings'):\n{}",
+            lines.join("\n")
+        ))
+    }
+
+    /// Counts one frame of controller work that began at `started`, and its policy calls.
+    pub fn count_frame(started: std::time::Instant, calls: &[PolicyCall]) {
+        let mut hub = Self::singleton();
+        let mut hub = hub.bind_mut();
+        let (usec, frames) = hub.cost;
+        hub.cost = (usec + started.elapsed().as_secs_f64() * 1e6, frames + 1);
+        for call in calls {
+            let (count, rows, usec) = hub.inference;
+            hub.inference = (count + 1, rows + call.rows as u64, usec + call.usec);
+        }
+    }
+}
