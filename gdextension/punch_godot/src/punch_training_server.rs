@@ -27,23 +27,23 @@ use crate::training_world::{MAX_SLOTS_PER_WORLD, TrainingWorld};
 #[class(base = Node, init)]
 pub struct PunchTrainingServer {
     /// TCP port on 127.0.0.1; 0 picks a free port (printed in the ready line).
-    #[export]
+    #[export(range = (0.0, 65535.0, 1.0))]
     port: i32,
     /// Number of characters simulated side by side (N).
-    #[export]
+    #[export(range = (1.0, 4096.0, 1.0))]
     #[init(val = 1)]
     slot_count: i32,
     /// Physics frames each action is held for.
-    #[export]
+    #[export(range = (1.0, 60.0, 1.0, suffix = "frames"))]
     #[init(val = DEFAULT_DECISION_PERIOD as i32)]
     decision_period: i32,
     /// Characters sharing one physics world (1 to 16). 1 makes every slot bitwise identical whatever its
     /// index, at about 2.7 times the cost; see docs/env.md.
-    #[export]
+    #[export(range = (1.0, 16.0, 1.0))]
     #[init(val = 16)]
     slots_per_world: i32,
     /// Seconds without a client (or without a message from it) after which the server quits.
-    #[export]
+    #[export(range = (1.0, 3600.0, 1.0, or_greater, suffix = "s"))]
     #[init(val = 120.0)]
     idle_timeout_s: f32,
     /// The character scene (the addon's punch_character.tscn).
