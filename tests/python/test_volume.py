@@ -87,8 +87,8 @@ def test_the_sigma_floor_reaches_the_actions_the_simulator_plays():
         for floor in (0.0, 0.2):
             batch = collect_episodes(model, env, reward, sigma_floor=floor)
             with torch.no_grad():
-                mean, _ = model(batch["obs"].reshape(-1, env.info.observation_size))
-            spread[floor] = float((batch["actions"].reshape(mean.shape) - mean).std())
+                mean, _ = model(batch.observations.reshape(-1, env.info.observation_size))
+            spread[floor] = float((batch.actions.reshape(mean.shape) - mean).std())
     assert spread[0.0] == pytest.approx(SIGMA_MIN, rel=0.2), spread
     assert spread[0.2] == pytest.approx(0.2, rel=0.1), spread
 

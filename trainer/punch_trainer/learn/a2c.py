@@ -70,13 +70,39 @@ def evaluate_noise_free(model: ActorCritic, env: PunchVectorEnv, reward: Reward)
             return episode
 
 
+@dataclass(frozen=True)
+class EpisodeBatch:
+    """One episode on each of N characters, T decisions long, as `collect_episodes` sampled it. Every tensor is
+    indexed [decision, character, ...]."""
+
+    observations: torch.Tensor
+    """[T, N, observation size]: what the policy saw before each decision"""
+    actions: torch.Tensor
+    """[T, N, action size]: the sampled actions, before clamping to [-1, 1] (the simulator played them clamped)"""
+    log_probs: torch.Tensor
+    """[T, N]: the log-probability of each sampled action (summed over its components) under the sampling policy"""
+    values: torch.Tensor
+    """[T, N]: the critic's value of each observation"""
+    rewards: torch.Tensor
+    """[T, N]: each decision's reward, the reward function's score of the frames it played"""
+    term_rewards: dict[str, torch.Tensor]
+    """the reward function's term name -> [T, N]: that term's part of `rewards`"""
+
+    def episode_returns(self) -> torch.Tensor:
+        """[N]: each character's episode return."""
+        return self.rewards.sum(0)
+
+
 def collect_episodes(model: ActorCritic, env: PunchVectorEnv, reward: Reward,
-                     options: EpisodeStart | None = None, sigma_floor: float = 0.0) -> dict[str, torch.Tensor]:
+                     options: EpisodeStart | None = None, sigma_floor: float = 0.0) -> EpisodeBatch:
     """One episode on every character with actions sampled from the policy (reset with `options`: bag
-    placements, lead-ins): per decision [T, N, ...] the observations, actions, log-probabilities, values
-    and rewards, and each reward term's part of the rewards as `reward/<term>`."""
+    placements, lead-ins)."""
     obs, _ = env.reset(options=options)
-    batch: dict[str, list[torch.Tensor]] = {"obs": [], "actions": [], "logp": [], "values": [], "rewards": []}
+    observations: list[torch.Tensor] = []
+    actions: list[torch.Tensor] = []
+    log_probs: list[torch.Tensor] = []
+    values: list[torch.Tensor] = []
+    rewards: list[torch.Tensor] = []
     term_rewards: dict[str, list[torch.Tensor]] = {}
     done = np.zeros(env.num_envs, dtype=bool)
     while not done.all():
@@ -88,13 +114,17 @@ def collect_episodes(model: ActorCritic, env: PunchVectorEnv, reward: Reward,
             value = model.value(obs_t)
         obs, _, terminated, truncated, info = env.step(action.clamp(-1, 1).numpy())
         step_returns, step_terms = score_terms(reward, info["features"], env.feature_names)
-        step_rewards = torch.as_tensor(step_returns, dtype=torch.float32)
-        for key, item in zip(batch, (obs_t, action, logp, value, step_rewards)):
-            batch[key].append(item)
+        observations.append(obs_t)
+        actions.append(action)
+        log_probs.append(logp)
+        values.append(value)
+        rewards.append(torch.as_tensor(step_returns, dtype=torch.float32))
         for term, per_frame in step_terms.items():
-            term_rewards.setdefault(f"reward/{term}", []).append(torch.as_tensor(per_frame.sum(axis=-1)))
+            term_rewards.setdefault(term, []).append(torch.as_tensor(per_frame.sum(axis=-1)))
         done = terminated | truncated
-    return {key: torch.stack(items) for key, items in (batch | term_rewards).items()}
+    return EpisodeBatch(observations=torch.stack(observations), actions=torch.stack(actions), log_probs=torch.stack(log_probs),
+                        values=torch.stack(values), rewards=torch.stack(rewards),
+                        term_rewards={term: torch.stack(items) for term, items in term_rewards.items()})
 
 
 def advantages_and_returns(rewards: torch.Tensor, values: torch.Tensor, best_episode_return: float,
@@ -133,7 +163,7 @@ def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVecto
         if validation is None:
             return evaluate_noise_free(model, env, reward), None
         result = validate(model, env, reward, validation)
-        return result["return"], result["success"]
+        return result.mean_return, result.success_rate
 
     optimizer = torch.optim.Adam(model.parameters(), lr=args.learning_rate)
     restarts = SimulatorRestarts(env.restart, max_restarts)
@@ -161,16 +191,16 @@ def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVecto
         rng_state = torch.get_rng_state()
         options = conditions(env.num_envs, update) if conditions is not None else None
 
-        def collect(rng_state: torch.Tensor = rng_state, options: EpisodeStart | None = options) -> dict[str, torch.Tensor]:
+        def collect(rng_state: torch.Tensor = rng_state, options: EpisodeStart | None = options) -> EpisodeBatch:
             torch.set_rng_state(rng_state)  # a rerun after a restart samples the same actions
             return collect_episodes(model, env, reward, options, args.sigma_floor)
 
         batch = restarts.run(collect)
-        episode_returns = batch["rewards"].sum(0)
+        episode_returns = batch.episode_returns()
         best_episode_return = max(best_episode_return, float(episode_returns.max()))
-        advantages, returns = advantages_and_returns(batch["rewards"], batch["values"], best_episode_return, args)
+        advantages, returns = advantages_and_returns(batch.rewards, batch.values, best_episode_return, args)
         flat = lambda x: x.reshape(-1, *x.shape[2:])
-        b_obs, b_actions, b_logp = flat(batch["obs"]), flat(batch["actions"]), flat(batch["logp"])
+        b_obs, b_actions, b_logp = flat(batch.observations), flat(batch.actions), flat(batch.log_probs)
         b_adv, b_returns = flat(advantages), flat(returns)
         b_adv = (b_adv - b_adv.mean()) / (b_adv.std() + 1e-8)
         per_epoch: dict[str, list[float]] = {"policy_loss": [], "value_loss": [], "entropy": [], "sigma_mean": []}
@@ -189,12 +219,12 @@ def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVecto
                                ("sigma_mean", dist.scale.mean())):
                 per_epoch[key].append(float(measured.detach()))
         diagnostics = {key: float(np.mean(values)) for key, values in per_epoch.items()}
-        diagnostics |= {key: float(batch[key].sum(0).mean()) for key in batch if key.startswith("reward/")}
+        diagnostics |= {f"reward/{term}": float(term_rewards.sum(0).mean()) for term, term_rewards in batch.term_rewards.items()}
         evaluation, eval_success = restarts.run(evaluate)
         if evaluation > best_eval:
             best_eval, best_model = evaluation, copy.deepcopy(model)
         elapsed = time.perf_counter() - start
-        steps = batch["rewards"].numel()
+        steps = batch.rewards.numel()
         history.append({"update": update, "episodes": history[-1]["episodes"] + env.num_envs,
                         "env_steps": history[-1]["env_steps"] + steps, "elapsed_s": round(elapsed, 3),
                         "mean_return": float(episode_returns.mean()), "eval_return": evaluation, "eval_success": eval_success,

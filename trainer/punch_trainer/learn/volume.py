@@ -117,10 +117,24 @@ def run_policy(model: ActorCritic, env: PunchVectorEnv, reward: Reward,
             return returns, np.concatenate(frames, axis=1)
 
 
-def validate(model: ActorCritic, env: PunchVectorEnv, reward: Reward, placements: list[BagPlacement]) -> dict[str, float]:
+@dataclass(frozen=True)
+class Validation:
+    """A policy's noise-free episodes at fixed validation placements (`validate`)."""
+
+    mean_return: float
+    """the mean episode return"""
+    success_rate: float
+    """the share of episodes that succeeded (`success`), from 0 to 1"""
+
+    def to_json(self) -> dict[str, float]:
+        """As a policy's training summary stores it."""
+        return {"return": self.mean_return, "success": self.success_rate}
+
+
+def validate(model: ActorCritic, env: PunchVectorEnv, reward: Reward, placements: list[BagPlacement]) -> Validation:
     """Noise-free mean return and success rate over fixed validation placements (one per character)."""
     returns, features = run_policy(model, env, reward, EpisodeStart(placements))
-    return {"return": float(returns.mean()), "success": float(success(returns, features, env.feature_names).mean())}
+    return Validation(float(returns.mean()), float(success(returns, features, env.feature_names).mean()))
 
 
 def distribution_observations(env: PunchVectorEnv, conditions: EpisodeConditions, punches: np.ndarray,

@@ -225,8 +225,9 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
         summary = {"search_best_return": search.best_return, "pretrained_return": pretrained_return,
                    "a2c_best_eval_return": max(h["eval_return"] for h in a2c_history), "a2c_updates": len(a2c_history) - 1,
                    "reach": args.reach, "grid_best_returns": [round(r, 4) for r in grid_bests]}
-        if validation is not None:
-            summary["validation"] = validate(model, env, reward, validation)
+        validated = validate(model, env, reward, validation) if validation is not None else None
+        if validated is not None:
+            summary["validation"] = validated.to_json()
         policy_path = export_policy(model, out / "policy.onnx", contract=data["policy_metadata"], reward=reward.name, summary=summary)
         exported_return, features = run_exported_policy(policy_path, env, reward)
     finally:
@@ -248,8 +249,8 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
         f"best noise-free return {max(h['eval_return'] for h in a2c_history):.4f}",
         f"- exported policy (onnxruntime, sigma 0) in the simulator: return {exported_return:.4f} = {100 * ratio:.1f}% of the search's best",
         f"- reach: {args.reach}" + (f" ({len(grid_bests)} search placements; on {len(validation or [])} validation placements, "
-                                    f"sigma 0: success {100 * summary['validation']['success']:.1f}%, mean return {summary['validation']['return']:.4f})"
-                                    if validation is not None else " (the default placement only)"),
+                                    f"sigma 0: success {100 * validated.success_rate:.1f}%, mean return {validated.mean_return:.4f})"
+                                    if validated is not None else " (the default placement only)"),
         f"- the exported policy's punch: peak right-fist speed {motion['peak_fist_speed_mps']:.2f} m/s; {impact}",
         f"- timings: search {timings['search_s']:.1f} s, pretraining {timings['pretrain_s']:.1f} s, A2C {timings['a2c_s']:.1f} s, "
         f"total {timings['total_s']:.1f} s",
