@@ -4,6 +4,7 @@ module or inside a function; and no modules import one another in a circle. That
 started in one place (sim/godot.py) is checked by test_godot_launcher.py."""
 
 import ast
+import re
 from pathlib import Path
 
 from conftest import PROJECT_ROOT
@@ -69,6 +70,11 @@ def import_cycles(package: Path) -> list[list[str]]:
     packages = {module_name(path, package) for path in package.rglob("__init__.py")}
     graph = {name: {target for target in targets if target in graph and target not in packages and target != name}
              for name, targets in graph.items() if name not in packages}
+    return cycles_of(graph)
+
+
+def cycles_of(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Every circle in a graph of imports (each found once, from its smallest member)."""
     cycles: list[list[str]] = []
 
     def walk(start: str, node: str, trail: list[str]) -> None:
@@ -81,6 +87,27 @@ def import_cycles(package: Path) -> list[list[str]]:
     for start in sorted(graph):
         walk(start, start, [start])
     return cycles
+
+
+RUST_CRATES = [PROJECT_ROOT / "gdextension" / crate / "src" for crate in ("punch_core", "punch_godot")]
+
+
+def rust_module_imports(source: Path) -> dict[str, set[str]]:
+    """Each module of a Rust crate (a file of src/) and the crate modules its code names (`crate::x`); unit
+    tests (from `#[cfg(test)]` on) and the test-only fake world are left out."""
+    code = {path.stem: path.read_text().split("#[cfg(test)]")[0] for path in source.glob("*.rs")}
+    modules = set(code) - {"lib", "fake_world"}
+    return {name: set(re.findall(r"\bcrate::(\w+)", code[name])) & modules - {name} for name in modules}
+
+
+def test_no_rust_modules_import_one_another_in_a_circle():
+    """In each crate: the game's classes, the training server and their helpers (punch_godot), and the core's
+    modules (punch_core) import one another without a circle; punch_core names no Godot type."""
+    for source in RUST_CRATES:
+        assert cycles_of(rust_module_imports(source)) == [], source
+    core_manifest = (RUST_CRATES[0].parent / "Cargo.toml").read_text()
+    assert "godot" not in core_manifest.split("[dependencies]")[1], "punch_core depends on no Godot crate"
+    assert cycles_of({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
 
 
 def test_no_layer_imports_a_layer_above_it():
