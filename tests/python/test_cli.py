@@ -17,6 +17,40 @@ def test_version() -> None:
     assert result.stdout.strip() == f"punch {__version__}"
 
 
+def test_selfcheck_bench_and_experiment_options_are_their_args_dataclasses() -> None:
+    """Each option's default is its dataclass field's, and the commands the docs show parse to the same values."""
+    from punch_trainer.cli.arguments import dataclass_from_arguments
+    from punch_trainer.cli.main import build_parser
+    from punch_trainer.pipelines.bench import DEMO_POLICY, BenchEnvArgs, BenchInferenceArgs, BenchSearchArgs
+    from punch_trainer.pipelines.experiments import AfterPunchArgs, Fig6Args
+    from punch_trainer.pipelines.selfcheck import SelfCheckArgs
+
+    dataset = Path("runs/NAME/search/dataset.npz")
+    cases = [
+        ("selfcheck", SelfCheckArgs()),
+        ("selfcheck --batch 16 --seed 3", SelfCheckArgs(batch=16, seed=3)),
+        ("bench env", BenchEnvArgs()),
+        ("bench env --ray simulated --no-write", BenchEnvArgs()),
+        ("bench env --characters 1 64 --processes 2 --frames 25 --episodes 2", BenchEnvArgs([1, 64], [2], 25, 2)),
+        ("bench inference", BenchInferenceArgs(policy=DEMO_POLICY)),
+        ("bench inference --characters 64 100", BenchInferenceArgs(characters=[64, 100])),
+        ("bench inference --policy p.onnx --batches 1", BenchInferenceArgs(policy=Path("p.onnx"), batches=1)),
+        ("bench search", BenchSearchArgs()),
+        ("bench search --presets hook --seeds 4 5 --iterations 7 --rollouts 8", BenchSearchArgs(["hook"], [4, 5], 7, 8)),
+        ("experiment fig6 --reward straight --seeds 0 1 2", Fig6Args()),
+        ("experiment fig6 --reward hook --seeds 1 --search-iterations 2 --a2c-updates 3 --characters 4 --no-write",
+         Fig6Args("hook", [1], 2, 3, 4)),
+        (f"experiment after-punch {dataset}", AfterPunchArgs(dataset)),
+        (f"experiment after-punch {dataset} --iterations 3 --rollouts 8 --seed 1", AfterPunchArgs(dataset, 3, 8, 1)),
+    ]
+    parser = build_parser()
+    for command, expected in cases:
+        parsed = parser.parse_args(command.split())
+        assert dataclass_from_arguments(type(expected), parsed) == expected, command
+        if "no_write" in parsed:
+            assert parsed.no_write == ("--no-write" in command), command
+
+
 def test_unknown_command_is_a_usage_error() -> None:
     result = subprocess.run([PUNCH, "no-such-command"], capture_output=True, text=True)
     assert result.returncode == 2

@@ -57,9 +57,9 @@ def test_punch_controllers_play_a_shared_policy_batched_in_a_game_scene(policy):
 
 
 def test_bench_inference_measures_punching_and_idle_controllers():
-    from punch_trainer.pipelines.bench import bench_inference, inference_table
+    from punch_trainer.pipelines.bench import BenchInferenceArgs, bench_inference, inference_table
 
-    (row,) = bench_inference(ADDON_POLICIES / "straight.onnx", characters=(3,), batches=1)
+    (row,) = bench_inference(BenchInferenceArgs(ADDON_POLICIES / "straight.onnx", characters=[3], batches=1))
     # One batched call per decision tick: 10 decisions of 3 controllers.
     assert (row["calls"], row["rows"]) == (10, 30)
     assert row["controller_usec_per_frame"] > 0 and np.isfinite(row["idle_controller_usec_per_frame"])

@@ -46,9 +46,9 @@ def test_small_training_run_exports_a_policy_that_repeats_its_punch(tmp_path):
 
 
 def test_fig6_experiment_runs_every_method_with_honest_axes(tmp_path):
-    from punch_trainer.pipelines.experiments import METHODS, fig6
+    from punch_trainer.pipelines.experiments import METHODS, Fig6Args, fig6
 
-    out, rows = fig6("straight", seeds=(0,), search_iterations=2, a2c_updates=2, characters=4, out=tmp_path)
+    out, rows = fig6(Fig6Args(reward="straight", seeds=[0], search_iterations=2, a2c_updates=2, characters=4), out=tmp_path)
     assert [r["method"] for r in rows] == METHODS
     assert (out / "fig6.png").is_file() and (out / "curves.csv").is_file()
     by_method = {r["method"]: r for r in rows}

@@ -14,7 +14,7 @@ from punch_trainer.learn.reach import HELD_OUT_SEED, METADATA_KEY, ReachVolume, 
 from punch_trainer.learn.search import SearchArgs
 from punch_trainer.learn.volume import EpisodeConditions, VolumeArgs
 from punch_trainer.pipelines.evaluate import EvalArgs, run_eval
-from punch_trainer.pipelines.experiments import after_punch_headroom
+from punch_trainer.pipelines.experiments import AfterPunchArgs, after_punch_headroom
 from punch_trainer.pipelines.replay import policy_metadata
 from punch_trainer.pipelines.search import run_search
 from punch_trainer.pipelines.train import TrainArgs, run_train
@@ -114,7 +114,7 @@ def test_a_share_of_episodes_at_the_default_placement():
 def test_the_after_punch_experiment_searches_from_both_starts(tmp_path):
     out, _, _ = run_search(SearchArgs(out=tmp_path / "s", reward="straight", iterations=4, rollouts=16,
                                       characters_per_process=16, plateau_iterations=0, seed=7), progress=False)
-    rows = after_punch_headroom(out / "dataset.npz", iterations=3, rollouts=8)
+    rows = after_punch_headroom(AfterPunchArgs(out / "dataset.npz", iterations=3, rollouts=8))
     assert [row["start"] for row in rows] == ["the guard", "the end of the best punch"]
     assert all(np.isfinite(row["best_return"]) and 0.0 <= row["last_batch_hit_share"] <= 1.0 for row in rows)
     # The same search with the same seed from another start: the earlier punch changed what the actions did.

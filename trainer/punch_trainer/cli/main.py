@@ -1,6 +1,5 @@
-"""The `punch` command: parses the options (the training, search, evaluation, replay and render options come
-from their `*Args` dataclasses: `cli/arguments.py`), chooses where training servers run (`--ray`), runs a
-pipeline and prints what it found."""
+"""The `punch` command: parses the options (each command's come from its `*Args` dataclass: `cli/arguments.py`),
+chooses where training servers run (`--ray`), runs a pipeline and prints what it found."""
 
 from __future__ import annotations
 
@@ -13,19 +12,19 @@ from pathlib import Path
 from typing import Any, ClassVar, Protocol, TypeVar
 
 from punch_trainer import __version__
-from punch_trainer.cli.arguments import add_dataclass_arguments, dataclass_from_arguments
+from punch_trainer.cli.arguments import add_dataclass_arguments, dataclass_from_arguments, field_docs
 from punch_trainer.errors import PunchError
 from punch_trainer.learn.checkpoint import read_config
 from punch_trainer.learn.pretrain import PretrainArgs
 from punch_trainer.learn.search import SearchArgs
+from punch_trainer.pipelines.bench import BenchEnvArgs, BenchInferenceArgs, BenchSearchArgs
 from punch_trainer.pipelines.evaluate import EvalArgs
+from punch_trainer.pipelines.experiments import AfterPunchArgs, Fig6Args
 from punch_trainer.pipelines.render import RenderArgs
 from punch_trainer.pipelines.replay import ReplayArgs, parse_sigmas
+from punch_trainer.pipelines.selfcheck import SelfCheckArgs
 from punch_trainer.pipelines.train import TrainArgs, reach_default_notes
 from punch_trainer.sim.cluster import backend_for
-from punch_trainer.sim.godot import ADDON_POLICIES
-
-DEMO_POLICY = ADDON_POLICIES / "straight.onnx"
 
 
 class _RunArgs(Protocol):
@@ -43,7 +42,7 @@ RunArgsT = TypeVar("RunArgsT", bound=_RunArgs)
 def _selfcheck(args: argparse.Namespace) -> int:
     from punch_trainer.pipelines.selfcheck import run_selfcheck
 
-    report = run_selfcheck(batch=args.batch, seed=args.seed)
+    report = run_selfcheck(dataclass_from_arguments(SelfCheckArgs, args))
     print("\n".join(report.lines()))
     print("Self-check passed.")
     return 0
@@ -52,28 +51,31 @@ def _selfcheck(args: argparse.Namespace) -> int:
 def _bench_env(args: argparse.Namespace) -> int:
     from punch_trainer.pipelines.bench import bench_env, bench_ray, env_table, ray_tables, write_section
 
+    bench_args, defaults = dataclass_from_arguments(BenchEnvArgs, args), BenchEnvArgs()
     if args.ray is not None:
         # K = 1 always: the projection starts from one worker's batch.
+        processes = sorted({1, *bench_args.processes}) if bench_args.processes != defaults.processes else [1, 2, 3]
         with backend_for(args.ray) as backend:
-            rows = bench_ray(backend, processes=sorted({1, *args.processes}) if args.processes != [1, 2] else [1, 2, 3], frames=args.frames)
-        table = ray_tables(rows, frames=args.frames)
+            rows = bench_ray(backend, processes=processes, frames=bench_args.frames)
+        table = ray_tables(rows, frames=bench_args.frames)
         print(table)
         if not args.no_write:
             note = ("Ray's cost against local processes at the same count K (`sim/cluster.py`): open-loop batches of 64 characters "
-                    f"per worker, {args.frames} frames each, timed on K local Godot processes and on K Ray workers, alternating "
+                    f"per worker, {bench_args.frames} frames each, timed on K local Godot processes and on K Ray workers, alternating "
                     "eight times in one run so both see the same machine (the medians of the eight). Goal: at most 10% overhead "
                     "at 64 characters per worker.")
             print(f"written to {write_section('Ray workers', f'punch bench env --ray {args.ray}', note + chr(10) + chr(10) + table)}")
         return 0
 
-    results = bench_env(characters=args.characters, processes=args.processes, frames=args.frames, episodes=args.episodes)
+    results = bench_env(bench_args)
     table = env_table(results)
     print(table)
     if not args.no_write:
-        command = "punch bench env" + ("" if args.characters == [1, 16, 64] and args.processes == [1, 2] else
-                                       f" --characters {' '.join(map(str, args.characters))} --processes {' '.join(map(str, args.processes))}")
+        same = (bench_args.characters, bench_args.processes) == (defaults.characters, defaults.processes)
+        command = "punch bench env" + ("" if same else f" --characters {' '.join(map(str, bench_args.characters))} "
+                                                       f"--processes {' '.join(map(str, bench_args.processes))}")
         note = ("Character-physics-frames per second through the real TCP socket, reset included, "
-                f"{args.frames}-frame episodes at 120 Hz. Open loop: one `rollout` message per episode; "
+                f"{bench_args.frames}-frame episodes at 120 Hz. Open loop: one `rollout` message per episode; "
                 "closed loop: `reset` then one `step` per decision.")
         print(f"written to {write_section('Env throughput', command, note + chr(10) + chr(10) + table)}")
     return 0
@@ -82,13 +84,14 @@ def _bench_env(args: argparse.Namespace) -> int:
 def _bench_inference(args: argparse.Namespace) -> int:
     from punch_trainer.pipelines.bench import IDLE_FRAMES, bench_inference, inference_table, write_section
 
-    rows = bench_inference(args.policy, args.characters, args.batches)
+    bench_args = dataclass_from_arguments(BenchInferenceArgs, args)
+    rows = bench_inference(bench_args)
     table = inference_table(rows)
     print(table)
     if not args.no_write:
-        command = "punch bench inference" + ("" if args.policy == DEMO_POLICY else f" --policy {args.policy}")
-        note = (f"PunchController in headless Godot (the editor's debug build of the extension), {args.batches} punches of 50 "
-                "frames per controller at sigma 0.3, every controller sharing one policy (`" + os.path.relpath(args.policy) + "`), so one ONNX "
+        command = "punch bench inference" + ("" if bench_args.policy == BenchInferenceArgs().policy else f" --policy {bench_args.policy}")
+        note = (f"PunchController in headless Godot (the editor's debug build of the extension), {bench_args.batches} punches of 50 "
+                "frames per controller at sigma 0.3, every controller sharing one policy (`" + os.path.relpath(bench_args.policy) + "`), so one ONNX "
                 "Runtime call per decision tick. Inference time is measured around each call; the controller work is the whole "
                 "per-frame pass over all controllers (sensing, observation, inference, noise, smoothing, motor commands), without "
                 "the physics step. The last column is that work while the same characters stand idle (not punching, not "
@@ -118,16 +121,16 @@ def _bench_search(args: argparse.Namespace) -> int:
     from punch_trainer.pipelines.bench import bench_search, search_table, write_section
     from punch_trainer.sim.godot import PROJECT_ROOT
 
+    bench_args = dataclass_from_arguments(BenchSearchArgs, args)
     plot = Path(tempfile.mkdtemp()) / "bench_search.png" if args.no_write else PROJECT_ROOT / "docs" / "bench_search.png"
-    rows = bench_search(plot, args.presets, args.seeds, args.iterations, args.rollouts)
+    rows = bench_search(bench_args, plot)
     table = search_table(rows)
     print(table)
     if not args.no_write:
-        command = "punch bench search" + ("" if (args.presets, args.seeds, args.iterations, args.rollouts) ==
-                                         (["straight", "straight100", "hook", "swing"], [0, 1, 2], 100, 64) else
-                                         f" --presets {' '.join(args.presets)} --seeds {' '.join(map(str, args.seeds))} "
-                                         f"--iterations {args.iterations} --rollouts {args.rollouts}")
-        note = (f"Each method gets {args.iterations} iterations of {args.rollouts} rollouts (equal rollouts), on one "
+        command = "punch bench search" + ("" if bench_args == BenchSearchArgs() else
+                                         f" --presets {' '.join(bench_args.presets)} --seeds {' '.join(map(str, bench_args.seeds))} "
+                                         f"--iterations {bench_args.iterations} --rollouts {bench_args.rollouts}")
+        note = (f"Each method gets {bench_args.iterations} iterations of {bench_args.rollouts} rollouts (equal rollouts), on one "
                 "process with 64 characters, with smoothing window 3. Target: TTR reaches 95% of its final return "
                 "for `straight` in at most 20 s, and no baseline beats it at equal rollouts. TTR uses each preset's sigma "
                 "clip: 0.2, and 0.1 for `swing`. In the first run, at 0.2, CMA-ES beat TTR on `swing` "
@@ -187,14 +190,15 @@ def _fig6(args: argparse.Namespace) -> int:
     from punch_trainer.pipelines.experiments import fig6, fig6_table
     from punch_trainer.sim.godot import PROJECT_ROOT
 
-    out, rows = fig6(args.reward, args.seeds, args.search_iterations, args.a2c_updates, args.characters)
+    fig6_args = dataclass_from_arguments(Fig6Args, args)
+    out, rows = fig6(fig6_args)
     table = fig6_table(rows)
     print(table)
     if not args.no_write:
         shutil.copy(out / "fig6.png", PROJECT_ROOT / "docs" / "fig6.png")
-        command = f"punch experiment fig6 --reward {args.reward} --seeds {' '.join(map(str, args.seeds))}"
-        note = (f"Reward `{args.reward}`. A2C runs {args.a2c_updates} updates of {args.characters} episodes each. The pretrained "
-                f"variants first run the trajectory search ({args.search_iterations} iterations of 64 rollouts), and their "
+        command = f"punch experiment fig6 --reward {fig6_args.reward} --seeds {' '.join(map(str, fig6_args.seeds))}"
+        note = (f"Reward `{fig6_args.reward}`. A2C runs {fig6_args.a2c_updates} updates of {fig6_args.characters} episodes each. The pretrained "
+                f"variants first run the trajectory search ({fig6_args.search_iterations} iterations of 64 rollouts), and their "
                 "environment steps, episodes and wall time include it. A2C alone and PPO (Stable-Baselines3, n_steps 128) get "
                 "as many environment steps in all as the pretrained variants (matched budgets). 'Mean episode return' averages the sampled (noisy) episodes; the best "
                 "noise-free return is the policy's mean actions, evaluated after every update.\n\n![Fig. 6](docs/fig6.png)")
@@ -206,7 +210,7 @@ def _fig6(args: argparse.Namespace) -> int:
 def _after_punch(args: argparse.Namespace) -> int:
     from punch_trainer.pipelines.experiments import after_punch_headroom
 
-    rows = after_punch_headroom(args.dataset, args.iterations, args.rollouts, seed=args.seed)
+    rows = after_punch_headroom(dataclass_from_arguments(AfterPunchArgs, args))
     print("| start | best return found | share of the last batch that hit |\n|---|---|---|")
     for row in rows:
         print(f"| {row['start']} | {row['best_return']:.3f} | {100 * row['last_batch_hit_share']:.0f}% |")
@@ -257,8 +261,7 @@ def build_parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(dest="command", required=True)
 
     selfcheck = commands.add_parser("selfcheck", help="check Godot, Jolt, the extension and ONNX Runtime end to end")
-    selfcheck.add_argument("--batch", type=int, default=8, help="rows of the test input batch")
-    selfcheck.add_argument("--seed", type=int, default=0, help="seed of the test model and input")
+    add_dataclass_arguments(selfcheck, SelfCheckArgs)
     selfcheck.set_defaults(run=_selfcheck)
 
     search = commands.add_parser("search", help="trajectory search (TTR) for a reward; writes a run directory")
@@ -299,44 +302,34 @@ def build_parser() -> argparse.ArgumentParser:
     experiment = commands.add_parser("experiment", help="experiments of the paper")
     experiments = experiment.add_subparsers(dest="experiment", required=True)
     fig6 = experiments.add_parser("fig6", help="A2C only, A2C after pretraining, and SB3 PPO (paper Fig. 6)")
-    fig6.add_argument("--reward", default="straight")
-    fig6.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
-    fig6.add_argument("--search-iterations", dest="search_iterations", type=int, default=60)
-    fig6.add_argument("--a2c-updates", dest="a2c_updates", type=int, default=40)
-    fig6.add_argument("--characters", type=int, default=32)
-    fig6.add_argument("--no-write", action="store_true", help="print only; leave BENCHMARKS.md alone")
+    add_dataclass_arguments(fig6, Fig6Args)
+    add_no_write_option(fig6)
     fig6.set_defaults(run=_fig6)
     after = experiments.add_parser("after-punch", help="what a punch from the end of an earlier one can score")
-    after.add_argument("dataset", type=Path, help="a search's dataset.npz: its best punch is the earlier one")
-    after.add_argument("--iterations", type=int, default=40)
-    after.add_argument("--rollouts", type=int, default=64)
-    after.add_argument("--seed", type=int, default=0)
+    after.add_argument("dataset", type=Path, help=field_docs(AfterPunchArgs)["dataset"])
+    add_dataclass_arguments(after, AfterPunchArgs, exclude=["dataset"])
     after.set_defaults(run=_after_punch)
 
     bench = commands.add_parser("bench", help="measure speed and write BENCHMARKS.md")
     bench_targets = bench.add_subparsers(dest="target", required=True)
     env = bench_targets.add_parser("env", help="simulation throughput in character-frames per second")
-    env.add_argument("--characters", type=int, nargs="+", default=[1, 16, 64], help="characters per process (N)")
-    env.add_argument("--processes", type=int, nargs="+", default=[1, 2], help="Godot processes (K)")
-    env.add_argument("--frames", type=int, default=50, help="physics frames per episode")
-    env.add_argument("--episodes", type=int, default=6, help="episodes measured per configuration")
-    env.add_argument("--no-write", action="store_true", help="print only; leave BENCHMARKS.md alone")
+    add_dataclass_arguments(env, BenchEnvArgs)
+    add_no_write_option(env)
     add_ray_option(env)
     env.set_defaults(run=_bench_env)
     inference = bench_targets.add_parser("inference", help="PunchController inference and per-frame cost in Godot, 1 to 256 controllers")
-    inference.add_argument("--policy", type=Path, default=DEMO_POLICY, help="policy to run (default: the demo's straight punch)")
-    inference.add_argument("--characters", type=int, nargs="+", default=[1, 4, 16, 64, 100, 128, 256])
-    inference.add_argument("--batches", type=int, default=3, help="punches per controller")
-    inference.add_argument("--no-write", action="store_true", help="print only; leave BENCHMARKS.md alone")
+    add_dataclass_arguments(inference, BenchInferenceArgs, default_notes={"policy": "the demo's straight punch"})
+    add_no_write_option(inference)
     inference.set_defaults(run=_bench_inference)
     search_bench = bench_targets.add_parser("search", help="TTR against CEM and CMA-ES at equal rollouts")
-    search_bench.add_argument("--presets", nargs="+", default=["straight", "straight100", "hook", "swing"])
-    search_bench.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
-    search_bench.add_argument("--iterations", type=int, default=100)
-    search_bench.add_argument("--rollouts", type=int, default=64, help="population per iteration, the same for every method")
-    search_bench.add_argument("--no-write", action="store_true", help="print only; leave BENCHMARKS.md alone")
+    add_dataclass_arguments(search_bench, BenchSearchArgs)
+    add_no_write_option(search_bench)
     search_bench.set_defaults(run=_bench_search)
     return parser
+
+
+def add_no_write_option(command: argparse.ArgumentParser) -> None:
+    command.add_argument("--no-write", action="store_true", help="print only; leave BENCHMARKS.md alone")
 
 
 def add_ray_option(command: argparse.ArgumentParser) -> None:

@@ -8,7 +8,7 @@ import platform
 import re
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -18,11 +18,52 @@ from tqdm import tqdm
 from punch_trainer.errors import PunchError
 from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.cluster import RayBackend
-from punch_trainer.sim.godot import PROJECT_ROOT
+from punch_trainer.sim.godot import ADDON_POLICIES, PROJECT_ROOT
 from punch_trainer.sim.protocol import Message, reset_message, rollout_message, step_message
 from punch_trainer.sim.server import ServerConnection, exchange
 
 BENCHMARKS_FILE = PROJECT_ROOT / "BENCHMARKS.md"
+DEMO_POLICY = ADDON_POLICIES / "straight.onnx"
+
+
+@dataclass
+class BenchEnvArgs:
+    """The options of `punch bench env`."""
+
+    characters: list[int] = field(default_factory=lambda: [1, 16, 64])
+    """characters per process (N)"""
+    processes: list[int] = field(default_factory=lambda: [1, 2])
+    """Godot processes (K)"""
+    frames: int = 50
+    """physics frames per episode"""
+    episodes: int = 6
+    """episodes measured per configuration"""
+
+
+@dataclass
+class BenchInferenceArgs:
+    """The options of `punch bench inference`."""
+
+    policy: Path = DEMO_POLICY
+    """policy to run"""
+    characters: list[int] = field(default_factory=lambda: [1, 4, 16, 64, 100, 128, 256])
+    """controllers measured at once, one measurement per count"""
+    batches: int = 3
+    """punches per controller"""
+
+
+@dataclass
+class BenchSearchArgs:
+    """The options of `punch bench search`."""
+
+    presets: list[str] = field(default_factory=lambda: ["straight", "straight100", "hook", "swing"])
+    """reward presets to search"""
+    seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
+    """one run of every method per preset and seed"""
+    iterations: int = 100
+    """iterations of every method"""
+    rollouts: int = 64
+    """population per iteration, the same for every method"""
 
 
 @dataclass(frozen=True)
@@ -48,10 +89,10 @@ def machine_description() -> str:
     return f"{cpu}, {os.cpu_count()} cores, {platform.system()} {platform.release()}"
 
 
-def bench_env(characters: Sequence[int] = (1, 16, 64), processes: Sequence[int] = (1, 2), frames: int = 50, episodes: int = 6,
-              seed: int = 0, *, backend: Backend = LOCAL) -> list[EnvThroughput]:
+def bench_env(args: BenchEnvArgs, seed: int = 0, *, backend: Backend = LOCAL) -> list[EnvThroughput]:
     """Character-physics-frames per second through the real socket, open and closed loop, on servers started
     on `backend`. Each measurement runs `episodes` full episodes (reset included) after one warm-up episode."""
+    characters, processes, frames, episodes = args.characters, args.processes, args.frames, args.episodes
     rng = np.random.default_rng(seed)
     results = []
     configurations = [(k, n) for k in processes for n in characters]
@@ -197,10 +238,10 @@ def write_section(name: str, command: str, body: str) -> Path:
     return BENCHMARKS_FILE
 
 
-def bench_search(plot_path: Path, presets: Sequence[str] = ("straight", "straight100", "hook", "swing"), seeds: Sequence[int] = (0, 1, 2),
-                 iterations: int = 100, rollouts: int = 64, characters_per_process: int = 64) -> list[dict[str, Any]]:
+def bench_search(args: BenchSearchArgs, plot_path: Path, characters_per_process: int = 64) -> list[dict[str, Any]]:
     """TTR, CEM and CMA-ES on the same presets, seeds and rollout budget. Returns one row per (preset,
     method, seed) and writes a plot of return against rollouts and against wall time to `plot_path`."""
+    presets, seeds, iterations, rollouts = args.presets, args.seeds, args.iterations, args.rollouts
     from punch_trainer.learn.baselines import cem, cma_es
     from punch_trainer.learn.search import SearchArgs, trajectory_search
     from punch_trainer.sim.rewards import load_reward
@@ -212,8 +253,8 @@ def bench_search(plot_path: Path, presets: Sequence[str] = ("straight", "straigh
         jobs = [(preset, method, seed) for preset in presets for method in methods for seed in seeds]
         for preset, method, seed in tqdm(jobs, desc="bench search", unit="run"):
             reward = load_reward(preset)
-            args = SearchArgs(reward=preset, seed=seed, iterations=iterations, rollouts=rollouts, plateau_iterations=0)
-            history = methods[method](args, reward, pool)
+            search_args = SearchArgs(reward=preset, seed=seed, iterations=iterations, rollouts=rollouts, plateau_iterations=0)
+            history = methods[method](search_args, reward, pool)
             final = history[-1]["best_return"]
             reach = next((h for h in history if h["best_return"] >= 0.95 * final), history[-1])
             rows.append({"preset": preset, "method": method, "seed": seed, "final_return": final,
@@ -268,11 +309,11 @@ def search_table(rows: list[dict[str, Any]]) -> str:
 IDLE_FRAMES = 120
 
 
-def bench_inference(policy: Path, characters: Sequence[int] = (1, 4, 16, 64, 100, 128, 256), batches: int = 3,
-                    sigma: float = 0.3) -> list[dict[str, Any]]:
+def bench_inference(args: BenchInferenceArgs, sigma: float = 0.3) -> list[dict[str, Any]]:
     """PunchController's cost in Godot, from `batches` punches of every controller at once for each count:
     ONNX Runtime time per call and per character-decision (all controllers share the policy, so one call per
     decision tick), and the controllers' whole work per physics frame (sensing, inference, driving)."""
+    policy, characters, batches = args.policy, args.characters, args.batches
     import tempfile
 
     from punch_trainer.pipelines.replay import ReplayArgs, run_godot_replay
@@ -280,8 +321,8 @@ def bench_inference(policy: Path, characters: Sequence[int] = (1, 4, 16, 64, 100
     rows = []
     for count in tqdm(characters, desc="bench inference", unit="config"):
         with tempfile.TemporaryDirectory() as frames_dir:
-            args = ReplayArgs(policy=policy, sigmas=[sigma], episodes=count * batches, characters=count)
-            meta = run_godot_replay(args, Path(frames_dir), progress=False, idle_frames=IDLE_FRAMES)
+            replay_args = ReplayArgs(policy=policy, sigmas=[sigma], episodes=count * batches, characters=count)
+            meta = run_godot_replay(replay_args, Path(frames_dir), progress=False, idle_frames=IDLE_FRAMES)
         inference = meta["inference"]
         frame_usec = float(np.mean(meta["controller_frame_usec_per_batch"]))
         # Per frame: the median, as a rare frame in which the OS took the thread away outweighs a mean of ~1 µs.

@@ -18,6 +18,7 @@ import csv
 import json
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -35,6 +36,36 @@ from punch_trainer.sim.rewards import Reward, load_reward
 from punch_trainer.sim.rollouts import RolloutPool
 
 METHODS = ["A2C only", "A2C after pretraining (GAE)", "A2C after pretraining (paper's advantage)", "SB3 PPO"]
+
+
+@dataclass
+class Fig6Args:
+    """The options of `punch experiment fig6`."""
+
+    reward: str = "straight"
+    """a preset (straight, straight100, hook, swing) or FILE.py:FUNCTION"""
+    seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
+    """one run of every method per seed"""
+    search_iterations: int = 60
+    """iterations of the trajectory search (64 rollouts each) before the pretrained variants"""
+    a2c_updates: int = 40
+    """A2C updates of the pretrained variants (A2C alone and PPO get as many environment steps in all)"""
+    characters: int = 32
+    """characters simulated at once: A2C's episodes per update, and PPO's window of episodes for its mean return"""
+
+
+@dataclass
+class AfterPunchArgs:
+    """The options of `punch experiment after-punch`."""
+
+    dataset: Path
+    """a search's dataset.npz: its best punch is the earlier one"""
+    iterations: int = 40
+    """iterations of the cross-entropy search from each start"""
+    rollouts: int = 64
+    """rollouts per iteration"""
+    seed: int = 0
+    """seed of the search"""
 
 
 def _a2c_curve(history: list[dict[str, Any]], offset_steps: int, offset_episodes: int, offset_s: float) -> list[dict[str, Any]]:
@@ -76,8 +107,9 @@ def _ppo_curve(reward: Reward, seed: int, total_steps: int, frames: int, smoothi
     return callback.rows
 
 
-def fig6(reward_name: str = "straight", seeds: Sequence[int] = (0, 1, 2), search_iterations: int = 60, a2c_updates: int = 40,
-         characters: int = 32, smoothing_window: int = 3, out: Path | None = None) -> tuple[Path, list[dict[str, Any]]]:
+def fig6(args: Fig6Args, smoothing_window: int = 3, out: Path | None = None) -> tuple[Path, list[dict[str, Any]]]:
+    reward_name, seeds, search_iterations = args.reward, args.seeds, args.search_iterations
+    a2c_updates, characters = args.a2c_updates, args.characters
     reward = load_reward(reward_name)
     out = out or Path("runs") / f"fig6_{reward.name}"
     out.mkdir(parents=True, exist_ok=True)
@@ -177,8 +209,7 @@ def fig6_table(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
-def after_punch_headroom(dataset_path: Path, iterations: int = 40, rollouts: int = 64, elites: int = 8,
-                         seed: int = 0) -> list[dict[str, Any]]:
+def after_punch_headroom(args: AfterPunchArgs, elites: int = 8) -> list[dict[str, Any]]:
     """How much a punch can score when it starts from the end of an earlier one, against one from the guard.
 
     An open-loop cross-entropy search (the same for both starts, so the two are comparable) through the env, at
@@ -187,6 +218,7 @@ def after_punch_headroom(dataset_path: Path, iterations: int = 40, rollouts: int
     of the last batch that hit (a positive return and the right fist touched the bag)."""
     from punch_trainer.learn.volume import success
 
+    dataset_path, iterations, rollouts, seed = args.dataset, args.iterations, args.rollouts, args.seed
     with np.load(dataset_path) as data:
         earlier = data["executed_actions"].astype(np.float32)
         bag = BagPlacement.from_wire(json.loads(str(data["bag"])))

@@ -37,6 +37,16 @@ class TinyActor(torch.nn.Module):
 
 
 @dataclass(frozen=True)
+class SelfCheckArgs:
+    """The options of `punch selfcheck`."""
+
+    batch: int = 8
+    """rows of the test input batch"""
+    seed: int = 0
+    """seed of the test model and input"""
+
+
+@dataclass(frozen=True)
 class SelfCheckReport:
     """What the self-check measured."""
 
@@ -66,8 +76,9 @@ def make_model(directory: Path, *, obs_dim: int = 12, act_dim: int = 10, seed: i
                          metadata={"purpose": "punch selfcheck"}, seed=seed)
 
 
-def run_selfcheck(*, batch: int = 8, seed: int = 0, work_dir: Path | None = None) -> SelfCheckReport:
+def run_selfcheck(args: SelfCheckArgs = SelfCheckArgs(), *, work_dir: Path | None = None) -> SelfCheckReport:
     """Runs the self-check and returns its report; raises SelfCheckError when any part fails."""
+    batch, seed = args.batch, args.seed
     with tempfile.TemporaryDirectory(prefix="punch_selfcheck_") as scratch:
         directory = Path(work_dir or scratch)
         directory.mkdir(parents=True, exist_ok=True)
