@@ -61,9 +61,9 @@ def test_bench_inference_measures_punching_and_idle_controllers():
 
     (row,) = bench_inference(BenchInferenceArgs(ADDON_POLICIES / "straight.onnx", characters=[3], batches=1))
     # One batched call per decision tick: 10 decisions of 3 controllers.
-    assert (row["calls"], row["rows"]) == (10, 30)
-    assert row["controller_usec_per_frame"] > 0 and np.isfinite(row["idle_controller_usec_per_frame"])
-    assert row["idle_controller_usec_per_frame"] >= 0
+    assert (row.calls, row.rows) == (10, 30)
+    assert row.controller_usec_per_frame > 0 and np.isfinite(row.idle_controller_usec_per_frame)
+    assert row.idle_controller_usec_per_frame >= 0
     assert [line.count("|") for line in inference_table([row]).splitlines()] == [8, 8, 8]
 
 

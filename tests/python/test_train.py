@@ -49,13 +49,13 @@ def test_fig6_experiment_runs_every_method_with_honest_axes(tmp_path):
     from punch_trainer.pipelines.experiments import METHODS, Fig6Args, fig6
 
     out, rows = fig6(Fig6Args(reward="straight", seeds=[0], search_iterations=2, a2c_updates=2, characters=4), out=tmp_path)
-    assert [r["method"] for r in rows] == METHODS
+    assert [r.method for r in rows] == METHODS
     assert (out / "fig6.png").is_file() and (out / "curves.csv").is_file()
-    by_method = {r["method"]: r for r in rows}
+    by_method = {r.method: r for r in rows}
     # Matched budgets: every method gets the pretrained variants' total steps (to within one A2C update).
-    total = by_method["A2C after pretraining (GAE)"]["env_steps"]
-    assert abs(by_method["A2C only"]["env_steps"] - total) <= 4 * 10
-    assert abs(by_method["SB3 PPO"]["env_steps"] - total) <= 128
+    total = by_method["A2C after pretraining (GAE)"].env_steps
+    assert abs(by_method["A2C only"].env_steps - total) <= 4 * 10
+    assert abs(by_method["SB3 PPO"].env_steps - total) <= 128
     # Honest axes: the pretrained curves start after the search's own rollouts (2 iterations of 64, plus one).
     import csv
 

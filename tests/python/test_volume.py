@@ -115,7 +115,7 @@ def test_the_after_punch_experiment_searches_from_both_starts(tmp_path):
     out, _, _ = run_search(SearchArgs(out=tmp_path / "s", reward="straight", iterations=4, rollouts=16,
                                       characters_per_process=16, plateau_iterations=0, seed=7), progress=False)
     rows = after_punch_headroom(AfterPunchArgs(out / "dataset.npz", iterations=3, rollouts=8))
-    assert [row["start"] for row in rows] == ["the guard", "the end of the best punch"]
-    assert all(np.isfinite(row["best_return"]) and 0.0 <= row["last_batch_hit_share"] <= 1.0 for row in rows)
+    assert [row.start for row in rows] == ["the guard", "the end of the best punch"]
+    assert all(np.isfinite(row.best_return) and 0.0 <= row.last_batch_hit_share <= 1.0 for row in rows)
     # The same search with the same seed from another start: the earlier punch changed what the actions did.
-    assert rows[0]["best_return"] != rows[1]["best_return"]
+    assert rows[0].best_return != rows[1].best_return

@@ -213,7 +213,7 @@ def _after_punch(args: argparse.Namespace) -> int:
     rows = after_punch_headroom(dataclass_from_arguments(AfterPunchArgs, args))
     print("| start | best return found | share of the last batch that hit |\n|---|---|---|")
     for row in rows:
-        print(f"| {row['start']} | {row['best_return']:.3f} | {100 * row['last_batch_hit_share']:.0f}% |")
+        print(f"| {row.start} | {row.best_return:.3f} | {100 * row.last_batch_hit_share:.0f}% |")
     return 0
 
 

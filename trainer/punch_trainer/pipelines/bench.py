@@ -77,6 +77,57 @@ class EnvThroughput:
     steady_character_frames_per_s: float | None = None
 
 
+@dataclass(frozen=True)
+class RayOverhead:
+    """Ray workers against local processes at one count K (`bench_ray`); times in ms."""
+
+    workers: int
+    characters: int
+    """characters per worker"""
+    local_batch_ms: float
+    """one open-loop batch on K local Godot processes (the median of the rounds)"""
+    ray_batch_ms: float
+    """the same batch on K Ray workers"""
+    overhead_ms: float
+    overhead_pct: float
+    driver_ms_per_worker: float
+    """the trainer's own handling of one worker's request and reply"""
+    local_character_frames_per_s: float
+
+
+@dataclass(frozen=True)
+class InferenceCost:
+    """PunchController's cost at one count of controllers (`bench_inference`)."""
+
+    controllers: int
+    calls: int
+    """ONNX Runtime calls"""
+    rows: int
+    """character-decisions in those calls"""
+    usec_per_call: float
+    usec_per_character_decision: float
+    controller_usec_per_frame: float
+    """the whole per-frame pass over all controllers while they punch (mean over batches)"""
+    controller_usec_per_character_frame: float
+    idle_controller_usec_per_frame: float
+    """the same pass while they stand idle after their punches (median frame)"""
+
+
+@dataclass(frozen=True)
+class SearchBenchRun:
+    """One search method's run on one preset and seed (`bench_search`)."""
+
+    preset: str
+    method: str
+    seed: int
+    final_return: float
+    rollouts: int
+    wall_s: float
+    s_to_95: float
+    """seconds until the best return reached 95% of the run's final"""
+    rollouts_to_95: int
+
+
 def machine_description() -> str:
     cpu = platform.processor() or "unknown CPU"
     try:
@@ -143,7 +194,7 @@ def _batch_seconds(servers: list[ServerConnection], rollout: Message, batches: i
 
 
 def bench_ray(backend: Backend, processes: Sequence[int] = (1, 2, 3), characters: int = 64, frames: int = 50, batches: int = 6,
-              rounds: int = 8, seed: int = 0) -> list[dict[str, float]]:
+              rounds: int = 8, seed: int = 0) -> list[RayOverhead]:
     """Ray's cost against local processes at the same count K: open-loop batches of `characters` per worker,
     timed on local Godot processes and on Ray workers of `backend` (a cluster joined with `cluster.ray_cluster`),
     alternating `rounds` times so that both see the same machine. One row per K (times in ms)."""
@@ -181,28 +232,28 @@ def bench_ray(backend: Backend, processes: Sequence[int] = (1, 2, 3), characters
                 server.close()
         # Medians of the rounds: a round that the machine slowed for a moment does not move them.
         local_ms, ray_ms = 1000 * float(np.median(times["local"])), 1000 * float(np.median(times["ray"]))
-        rows.append({"workers": k, "characters": characters, "local_batch_ms": local_ms, "ray_batch_ms": ray_ms,
-                     "overhead_ms": ray_ms - local_ms, "overhead_pct": 100 * (ray_ms - local_ms) / local_ms,
-                     "driver_ms_per_worker": 1000 * driver_s / (batches * k),
-                     "local_character_frames_per_s": k * characters * frames / (local_ms / 1000)})
+        rows.append(RayOverhead(workers=k, characters=characters, local_batch_ms=local_ms, ray_batch_ms=ray_ms,
+                                overhead_ms=ray_ms - local_ms, overhead_pct=100 * (ray_ms - local_ms) / local_ms,
+                                driver_ms_per_worker=1000 * driver_s / (batches * k),
+                                local_character_frames_per_s=k * characters * frames / (local_ms / 1000)))
     return rows
 
 
-def ray_tables(rows: list[dict[str, float]], frames: int = 50, projected_workers: Sequence[int] = (8, 64, 512)) -> str:
+def ray_tables(rows: list[RayOverhead], frames: int = 50, projected_workers: Sequence[int] = (8, 64, 512)) -> str:
     """The measured rows, then throughput projected to more workers with the model written above the table."""
     lines = ["| workers K | characters per worker | local batch (ms) | Ray batch (ms) | Ray overhead (ms per batch) | overhead | "
              "trainer's handling per worker (ms) | local character-frames/s |", "|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r['workers']:.0f} | {r['characters']:.0f} | {r['local_batch_ms']:.1f} | {r['ray_batch_ms']:.1f} | "
-                     f"{r['overhead_ms']:.1f} | {r['overhead_pct']:+.1f}% | {r['driver_ms_per_worker']:.2f} | "
-                     f"{r['local_character_frames_per_s']:,.0f} |")
+        lines.append(f"| {r.workers:.0f} | {r.characters:.0f} | {r.local_batch_ms:.1f} | {r.ray_batch_ms:.1f} | "
+                     f"{r.overhead_ms:.1f} | {r.overhead_pct:+.1f}% | {r.driver_ms_per_worker:.2f} | "
+                     f"{r.local_character_frames_per_s:,.0f} |")
     # Model: a batch on W workers, each alone on its node's cores, takes one worker's batch time, plus Ray's
     # fixed round trip, plus the trainer's serial handling of W requests and replies: t(W) = t1 + a + b W.
-    one = next(r for r in rows if r["workers"] == 1)
-    b = float(np.median([r["driver_ms_per_worker"] for r in rows]))
-    a = max(0.0, one["overhead_ms"] - b)
-    characters = one["characters"]
-    lines += ["", f"Projection: t(W) = t1 + a + b·W, with t1 = {one['local_batch_ms']:.1f} ms (one local worker's batch of "
+    one = next(r for r in rows if r.workers == 1)
+    b = float(np.median([r.driver_ms_per_worker for r in rows]))
+    a = max(0.0, one.overhead_ms - b)
+    characters = one.characters
+    lines += ["", f"Projection: t(W) = t1 + a + b·W, with t1 = {one.local_batch_ms:.1f} ms (one local worker's batch of "
               f"{characters:.0f} characters x {frames} frames), a = {a:.1f} ms (the measured overhead at K = 1 less b, at least 0) "
               f"and b = {b:.2f} ms (the trainer's own handling of one worker's request and reply, timed with the reply already "
               "there: the part that grows with W, as the trainer sends and reads one message per worker); throughput = "
@@ -210,9 +261,9 @@ def ray_tables(rows: list[dict[str, float]], frames: int = 50, projected_workers
               "leaves out the trainer's per-batch work outside the exchange (the search's update).", "",
               "| workers W | projected batch (ms) | projected character-frames/s | of W x one worker's rate |", "|---|---|---|---|"]
     for w in projected_workers:
-        batch_ms = one["local_batch_ms"] + a + b * w
+        batch_ms = one.local_batch_ms + a + b * w
         rate = w * characters * frames / (batch_ms / 1000)
-        lines.append(f"| {w} | {batch_ms:.1f} | {rate:,.0f} | {rate / (w * one['local_character_frames_per_s']):.0%} |")
+        lines.append(f"| {w} | {batch_ms:.1f} | {rate:,.0f} | {rate / (w * one.local_character_frames_per_s):.0%} |")
     return "\n".join(lines)
 
 
@@ -238,7 +289,7 @@ def write_section(name: str, command: str, body: str) -> Path:
     return BENCHMARKS_FILE
 
 
-def bench_search(args: BenchSearchArgs, plot_path: Path, characters_per_process: int = 64) -> list[dict[str, Any]]:
+def bench_search(args: BenchSearchArgs, plot_path: Path, characters_per_process: int = 64) -> list[SearchBenchRun]:
     """TTR, CEM and CMA-ES on the same presets, seeds and rollout budget. Returns one row per (preset,
     method, seed) and writes a plot of return against rollouts and against wall time to `plot_path`."""
     presets, seeds, iterations, rollouts = args.presets, args.seeds, args.iterations, args.rollouts
@@ -257,9 +308,9 @@ def bench_search(args: BenchSearchArgs, plot_path: Path, characters_per_process:
             history = methods[method](search_args, reward, pool)
             final = history[-1]["best_return"]
             reach = next((h for h in history if h["best_return"] >= 0.95 * final), history[-1])
-            rows.append({"preset": preset, "method": method, "seed": seed, "final_return": final,
-                         "rollouts": history[-1]["rollouts"], "wall_s": history[-1]["elapsed_s"],
-                         "s_to_95": reach["elapsed_s"], "rollouts_to_95": reach["rollouts"]})
+            rows.append(SearchBenchRun(preset=preset, method=method, seed=seed, final_return=final,
+                                       rollouts=history[-1]["rollouts"], wall_s=history[-1]["elapsed_s"],
+                                       s_to_95=reach["elapsed_s"], rollouts_to_95=reach["rollouts"]))
             curves[(preset, method, seed)] = history
     _plot_search_bench(curves, presets, list(methods), plot_path)
     return rows
@@ -293,15 +344,15 @@ def _plot_search_bench(curves: dict[tuple[str, str, int], list[dict[str, Any]]],
     plt.close(figure)
 
 
-def search_table(rows: list[dict[str, Any]]) -> str:
+def search_table(rows: list[SearchBenchRun]) -> str:
     lines = ["| preset | method | final best return (mean +- sd over seeds) | rollouts | wall time (s) | time to 95% of own final (s) |",
              "|---|---|---|---|---|---|"]
-    keys = dict.fromkeys((r["preset"], r["method"]) for r in rows)
+    keys = dict.fromkeys((r.preset, r.method) for r in rows)
     for preset, method in keys:
-        group = [r for r in rows if r["preset"] == preset and r["method"] == method]
-        finals = np.array([r["final_return"] for r in group])
-        lines.append(f"| {preset} | {method} | {finals.mean():.3f} +- {finals.std():.3f} | {group[0]['rollouts']} | "
-                     f"{np.mean([r['wall_s'] for r in group]):.1f} | {np.mean([r['s_to_95'] for r in group]):.1f} |")
+        group = [r for r in rows if r.preset == preset and r.method == method]
+        finals = np.array([r.final_return for r in group])
+        lines.append(f"| {preset} | {method} | {finals.mean():.3f} +- {finals.std():.3f} | {group[0].rollouts} | "
+                     f"{np.mean([r.wall_s for r in group]):.1f} | {np.mean([r.s_to_95 for r in group]):.1f} |")
     return "\n".join(lines)
 
 
@@ -309,7 +360,7 @@ def search_table(rows: list[dict[str, Any]]) -> str:
 IDLE_FRAMES = 120
 
 
-def bench_inference(args: BenchInferenceArgs, sigma: float = 0.3) -> list[dict[str, Any]]:
+def bench_inference(args: BenchInferenceArgs, sigma: float = 0.3) -> list[InferenceCost]:
     """PunchController's cost in Godot, from `batches` punches of every controller at once for each count:
     ONNX Runtime time per call and per character-decision (all controllers share the policy, so one call per
     decision tick), and the controllers' whole work per physics frame (sensing, inference, driving)."""
@@ -327,19 +378,19 @@ def bench_inference(args: BenchInferenceArgs, sigma: float = 0.3) -> list[dict[s
         frame_usec = float(np.mean(meta["controller_frame_usec_per_batch"]))
         # Per frame: the median, as a rare frame in which the OS took the thread away outweighs a mean of ~1 µs.
         idle_usec = float(np.median(np.concatenate(meta["idle_controller_frame_usec_per_batch"])))
-        rows.append({"controllers": count, "calls": inference["calls"], "rows": inference["rows"],
-                     "usec_per_call": inference["usec"] / inference["calls"],
-                     "usec_per_character_decision": inference["usec"] / inference["rows"],
-                     "controller_usec_per_frame": frame_usec, "controller_usec_per_character_frame": frame_usec / count,
-                     "idle_controller_usec_per_frame": idle_usec})
+        rows.append(InferenceCost(controllers=count, calls=inference["calls"], rows=inference["rows"],
+                                  usec_per_call=inference["usec"] / inference["calls"],
+                                  usec_per_character_decision=inference["usec"] / inference["rows"],
+                                  controller_usec_per_frame=frame_usec, controller_usec_per_character_frame=frame_usec / count,
+                                  idle_controller_usec_per_frame=idle_usec))
     return rows
 
 
-def inference_table(rows: list[dict[str, Any]]) -> str:
+def inference_table(rows: list[InferenceCost]) -> str:
     lines = ["| controllers | ONNX Runtime calls | µs per call | µs per character-decision | controller work per physics frame (µs) | per character (µs) | all idle: work per frame (µs) |",
              "|---|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r['controllers']} | {r['calls']} | {r['usec_per_call']:.1f} | {r['usec_per_character_decision']:.2f} | "
-                     f"{r['controller_usec_per_frame']:.0f} | {r['controller_usec_per_character_frame']:.2f} | "
-                     f"{r['idle_controller_usec_per_frame']:.2f} |")
+        lines.append(f"| {r.controllers} | {r.calls} | {r.usec_per_call:.1f} | {r.usec_per_character_decision:.2f} | "
+                     f"{r.controller_usec_per_frame:.0f} | {r.controller_usec_per_character_frame:.2f} | "
+                     f"{r.idle_controller_usec_per_frame:.2f} |")
     return "\n".join(lines)

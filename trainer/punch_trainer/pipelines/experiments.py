@@ -68,6 +68,32 @@ class AfterPunchArgs:
     """seed of the search"""
 
 
+@dataclass(frozen=True)
+class Fig6Result:
+    """One method's figures, averaged over the seeds (`fig6`)."""
+
+    method: str
+    final_mean_return: float
+    """the mean return of the sampled (noisy) episodes at the end of the run, mean over seeds"""
+    final_mean_return_sd: float
+    """its standard deviation over seeds"""
+    best_noise_free_return: float
+    """the best return of the policy's mean actions over the run, mean over seeds (NaN for PPO: not evaluated)"""
+    env_steps: int
+    wall_s: float
+
+
+@dataclass(frozen=True)
+class AfterPunchHeadroom:
+    """What the search found from one start (`after_punch_headroom`)."""
+
+    start: str
+    """where the punch starts: the guard, or the end of the best punch"""
+    best_return: float
+    last_batch_hit_share: float
+    """the share of the last batch that hit (a positive return and the right fist touched the bag)"""
+
+
 def _a2c_curve(history: list[dict[str, Any]], offset_steps: int, offset_episodes: int, offset_s: float) -> list[dict[str, Any]]:
     return [{"episodes": h["episodes"] + offset_episodes, "env_steps": h["env_steps"] + (offset_steps if h["update"] else 0),
              "wall_s": h["elapsed_s"] + offset_s, "mean_return": h["mean_return"], "eval_return": h["eval_return"]}
@@ -107,7 +133,7 @@ def _ppo_curve(reward: Reward, seed: int, total_steps: int, frames: int, smoothi
     return callback.rows
 
 
-def fig6(args: Fig6Args, smoothing_window: int = 3, out: Path | None = None) -> tuple[Path, list[dict[str, Any]]]:
+def fig6(args: Fig6Args, smoothing_window: int = 3, out: Path | None = None) -> tuple[Path, list[Fig6Result]]:
     reward_name, seeds, search_iterations = args.reward, args.seeds, args.search_iterations
     a2c_updates, characters = args.a2c_updates, args.characters
     reward = load_reward(reward_name)
@@ -148,7 +174,7 @@ def fig6(args: Fig6Args, smoothing_window: int = 3, out: Path | None = None) -> 
             else:
                 curves[(method, seed)] = _ppo_curve(reward, seed, matched_steps, reward.frames, smoothing_window, characters)
     rows = _summarise(curves, seeds)
-    _write(out, curves, rows, reward)
+    _write(out, curves, reward)
     return out, rows
 
 
@@ -156,22 +182,22 @@ Curves = dict[tuple[str, int], list[dict[str, Any]]]
 """(method, seed) -> the points of its learning curve"""
 
 
-def _summarise(curves: Curves, seeds: Sequence[int]) -> list[dict[str, Any]]:
+def _summarise(curves: Curves, seeds: Sequence[int]) -> list[Fig6Result]:
     rows = []
     for method in METHODS:
         finals = [curves[(method, s)][-1] for s in seeds if curves.get((method, s))]
-        rows.append({
-            "method": method,
-            "final_mean_return": float(np.mean([f["mean_return"] for f in finals])),
-            "final_mean_return_sd": float(np.std([f["mean_return"] for f in finals])),
-            "best_noise_free_return": float(np.nanmean([max(r["eval_return"] for r in curves[(method, s)]) for s in seeds])) if "PPO" not in method else float("nan"),
-            "env_steps": int(np.mean([f["env_steps"] for f in finals])),
-            "wall_s": float(np.mean([f["wall_s"] for f in finals])),
-        })
+        rows.append(Fig6Result(
+            method=method,
+            final_mean_return=float(np.mean([f["mean_return"] for f in finals])),
+            final_mean_return_sd=float(np.std([f["mean_return"] for f in finals])),
+            best_noise_free_return=float(np.nanmean([max(r["eval_return"] for r in curves[(method, s)]) for s in seeds])) if "PPO" not in method else float("nan"),
+            env_steps=int(np.mean([f["env_steps"] for f in finals])),
+            wall_s=float(np.mean([f["wall_s"] for f in finals])),
+        ))
     return rows
 
 
-def _write(out: Path, curves: Curves, rows: list[dict[str, Any]], reward: Reward) -> None:
+def _write(out: Path, curves: Curves, reward: Reward) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -200,16 +226,16 @@ def _write(out: Path, curves: Curves, rows: list[dict[str, Any]], reward: Reward
     plt.close(figure)
 
 
-def fig6_table(rows: list[dict[str, Any]]) -> str:
+def fig6_table(rows: list[Fig6Result]) -> str:
     lines = ["| method | final mean episode return (mean +- sd over seeds) | best noise-free return | env steps | wall time (s) |",
              "|---|---|---|---|---|"]
     for r in rows:
-        best = "-" if np.isnan(r["best_noise_free_return"]) else f"{r['best_noise_free_return']:.3f}"
-        lines.append(f"| {r['method']} | {r['final_mean_return']:.3f} +- {r['final_mean_return_sd']:.3f} | {best} | {r['env_steps']:,} | {r['wall_s']:.1f} |")
+        best = "-" if np.isnan(r.best_noise_free_return) else f"{r.best_noise_free_return:.3f}"
+        lines.append(f"| {r.method} | {r.final_mean_return:.3f} +- {r.final_mean_return_sd:.3f} | {best} | {r.env_steps:,} | {r.wall_s:.1f} |")
     return "\n".join(lines)
 
 
-def after_punch_headroom(args: AfterPunchArgs, elites: int = 8) -> list[dict[str, Any]]:
+def after_punch_headroom(args: AfterPunchArgs, elites: int = 8) -> list[AfterPunchHeadroom]:
     """How much a punch can score when it starts from the end of an earlier one, against one from the guard.
 
     An open-loop cross-entropy search (the same for both starts, so the two are comparable) through the env, at
@@ -243,5 +269,5 @@ def after_punch_headroom(args: AfterPunchArgs, elites: int = 8) -> list[dict[str
                 elite = actions[np.argsort(returns)[-elites:]]
                 mean, sigma = elite.mean(axis=0), np.maximum(elite.std(axis=0), 0.05)
                 best = max(best, float(returns.max()))
-            rows.append({"start": start, "best_return": best, "last_batch_hit_share": float(hit.mean())})
+            rows.append(AfterPunchHeadroom(start=start, best_return=best, last_batch_hit_share=float(hit.mean())))
     return rows
