@@ -73,7 +73,7 @@ pub struct Hit {
     pub collider: u64,
     /// Contact impulse on what was hit in this first frame, N s (world axes; zero for an area).
     pub impulse: Vec3,
-    /// The fist's peak speed so far in this punch, m/s.
+    /// The striking fist's peak speed so far in this punch, m/s.
     pub speed_mps: f32,
     /// Where the fist was (world coordinates).
     pub position: Vec3,
@@ -91,7 +91,10 @@ impl Hit {
 pub struct PunchSummary {
     /// Physics frames played.
     pub frames: usize,
+    /// The punching (right) fist's peak speed, m/s.
     pub peak_fist_speed_mps: f32,
+    /// The off (left, guard) fist's peak speed, m/s: a guard hand that flails shows here, not above.
+    pub peak_off_fist_speed_mps: f32,
     /// Things a fist struck (each counted once per punch).
     pub hits: i64,
     /// The largest contact impulse of a fist in one frame, N s.
@@ -231,8 +234,9 @@ impl Punch {
     fn track_hits(&mut self, features: &[f32; FEATURE_COUNT], reading: &FrameReading, touches: &[Touch]) -> Vec<Hit> {
         let length = |column: usize| feature_vector(features, column).length();
         let speeds = [length(columns::FIST_R_VEL), length(columns::FIST_L_VEL)];
-        let previous_peak = self.summary.peak_fist_speed_mps;
-        self.summary.peak_fist_speed_mps = previous_peak.max(speeds[0]).max(speeds[1]);
+        self.summary.peak_fist_speed_mps = self.summary.peak_fist_speed_mps.max(speeds[0]);
+        self.summary.peak_off_fist_speed_mps = self.summary.peak_off_fist_speed_mps.max(speeds[1]);
+        let peaks = [self.summary.peak_fist_speed_mps, self.summary.peak_off_fist_speed_mps];
 
         let fists = self.controller.fists(reading);
         let reach = self.controller.geometry().fist_radius_m + FIST_CONTACT_MARGIN_M;
@@ -265,12 +269,7 @@ impl Punch {
             if !continuing && !self.struck.contains(&collider) {
                 self.struck.push(collider);
                 self.summary.hits += 1;
-                hits.push(Hit {
-                    collider,
-                    impulse,
-                    speed_mps: previous_peak.max(speeds[side]),
-                    position: fists[side].0,
-                });
+                hits.push(Hit { collider, impulse, speed_mps: peaks[side], position: fists[side].0 });
             }
         }
         self.in_contact = in_contact;
@@ -377,6 +376,7 @@ mod tests {
         assert_eq!(hits.len(), 1, "the fist stays on the bag: one hit, not one per frame");
         assert_eq!(summary.hits, 1);
         assert!(summary.strongest_hit_ns > HIT_IMPULSE_NS && summary.peak_fist_speed_mps > 0.0);
+        assert_eq!(hits[0].speed_mps, summary.peak_fist_speed_mps, "the right fist's peak, reached before contact");
         assert!(hits[0].position.z > 0.3, "the hit is where the fist met the bag: {:?}", hits[0].position);
         assert_eq!(hits[0].collider, FAKE_BAG_ID);
     }
@@ -418,6 +418,19 @@ mod tests {
         assert_eq!(summary.hits, 2);
         assert!((summary.strongest_hit_ns - 6.0).abs() < 1e-5, "a later contact still counts as an impact");
         assert!(summary.interrupted && summary.frames == frames.len());
+    }
+
+    #[test]
+    fn the_punching_fists_peak_speed_is_its_own_and_the_off_fists_comes_apart() {
+        let mut reading = FakeWorld::new(1).read_slot(0);
+        reading.bodies[Body::ForearmL.index()].linear_velocity = Vec3::new(0.0, 9.0, 0.0); // a flailing guard
+        reading.bodies[Body::ForearmR.index()].linear_velocity = Vec3::new(0.0, 0.0, 3.0);
+        let mut punch = Punch::new(rest_geometry(), PolicySpec::new(5, 50, 1).expect("valid"), false);
+        let (hits, _) = punch.sense(reading, &[fist_touch(1, 1.0)]);
+        let summary = punch.interrupt().0;
+        assert!((summary.peak_fist_speed_mps - 3.0).abs() < 1e-4, "{summary:?}");
+        assert!((summary.peak_off_fist_speed_mps - 9.0).abs() < 1e-4, "{summary:?}");
+        assert!((hits[0].speed_mps - 3.0).abs() < 1e-4, "the striking fist's speed: {hits:?}");
     }
 
     #[test]

@@ -169,14 +169,15 @@ impl PunchController {
 
     /// Emitted when a fist strikes something (the target, or a body on `hit_layers`), once per thing and
     /// punch (touching it again in the same punch is no new hit): `impulse` (N s) on it in that first
-    /// frame, the fist's peak `speed` so far (m/s), where the fist was (`position`, global), what was hit
+    /// frame, the striking fist's peak `speed` so far (m/s), where the fist was (`position`, global), what was hit
     /// (`body`: a CollisionObject3D, or null if it is gone), and `push`, the impulse vector (N s, global
     /// axes) for bodies that physics does not push, such as a CharacterBody3D:
     /// `enemy.velocity += push / enemy_mass_kg` knocks it back.
     #[signal]
     fn hit(impulse: f32, speed: f32, position: Vector3, body: Option<Gd<Node3D>>, push: Vector3);
 
-    /// Emitted when a punch is over, however it ended, with `frames`, `peak_fist_speed_mps`, `hits`,
+    /// Emitted when a punch is over, however it ended, with `frames`, `peak_fist_speed_mps` (the punching,
+    /// right fist's; m/s), `peak_off_fist_speed_mps` (the guard hand's, m/s), `hits`,
     /// `strongest_hit_ns` (the largest fist impulse of one frame), `ended` ("completed"; "interrupted":
     /// cancelled, restarted, taken over by another controller, or the controller left the scene tree before
     /// its last frame; "error": it stopped on an error, given in `error` and logged), and `interrupted` (true
@@ -611,6 +612,7 @@ fn finish_metrics(summary: &PunchSummary, ending: &Ending) -> VarDictionary {
     }
     metrics.set("frames", summary.frames as i64);
     metrics.set("peak_fist_speed_mps", summary.peak_fist_speed_mps);
+    metrics.set("peak_off_fist_speed_mps", summary.peak_off_fist_speed_mps);
     metrics.set("hits", summary.hits);
     metrics.set("strongest_hit_ns", summary.strongest_hit_ns);
     metrics.set("interrupted", summary.interrupted);
