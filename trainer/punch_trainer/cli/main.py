@@ -218,22 +218,11 @@ def _after_punch(args: argparse.Namespace) -> int:
 
 
 def _pretrain(args: argparse.Namespace) -> int:
-    from punch_trainer.learn.dataset import load_datasets
-    from punch_trainer.learn.export import export_policy
-    from punch_trainer.learn.policy import ActorCritic
-    from punch_trainer.learn.pretrain import pretrain
+    from punch_trainer.pipelines.pretrain import pretrain_datasets
 
-    data = load_datasets(args.datasets)
-    model = ActorCritic(data["observations"].shape[1], data["actions"].shape[1], seed=args.seed)
-    history = pretrain(model, data, dataclass_from_arguments(PretrainArgs, args))
-    # A policy names its reward when every dataset had the same one (punch replay scores with it).
-    rewards = data["reward_names"]
-    summary = {"pretrained_on": [str(path) for path in args.datasets], "decisions": len(data["actions"]),
-               "final_actor_mse": history[-1]["actor_mse"]}
-    path = export_policy(model, args.out, contract=data["policy_metadata"], reward=rewards[0] if len(rewards) == 1 else "",
-                         summary=summary)
-    print(f"pretrained on {len(data['actions'])} decisions from {len(args.datasets)} dataset(s); final actor MSE "
-          f"{history[-1]['actor_mse']:.3g}; exported and verified: {path}")
+    result = pretrain_datasets(args.datasets, args.out, dataclass_from_arguments(PretrainArgs, args))
+    print(f"pretrained on {result.decisions} decisions from {len(args.datasets)} dataset(s); final actor MSE "
+          f"{result.final_actor_mse:.3g}; exported and verified: {result.policy}")
     return 0
 
 
