@@ -1,0 +1,341 @@
+"""How much a punch looks like a person's: the naturalness figures of docs/naturalness.md, computed from one
+punch's per-frame features (the character's frame: +Z toward the bag, +X the character's left, +Y up), and
+the same figures of the four punches of the motion capture (CMU 143/23, `report.mocap`), for the tables of
+`punch eval` and `punch train`.
+
+Every figure of a simulated punch runs from the episode's first frame to the right fist's first contact with
+the bag (its closest approach when it never touches); the off fist's distance from its guard and its peak
+speed are also given over the whole episode. A captured punch runs from movement onset to full reach
+(`CapturedPunch`)."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from punch_trainer.report.mocap import CHARACTER_ARM_LENGTH_M, DEFAULT_BVH, joint_positions, read_bvh
+from punch_trainer.sim.rewards import first_right_contact
+
+CAPTURE_REACH_FRAMES = (140, 317, 509, 695)
+"""frames of the capture near which the right hand is at full reach (../shared/data/README.md)"""
+ONSET_SPEED_FRACTION = 0.15
+"""movement onset: the hand's speed last rises above this fraction of its peak before full reach"""
+CAPTURE_SEARCH_S = 0.35
+"""the capture's onset and speed peak are looked for in this long a window before full reach"""
+CAPTURE_LEAD_S = 0.2
+"""a captured punch's joint positions start this long before its onset (for the plots and the trunk's wind-up)"""
+CAPTURE_RETURN_AFTER_S = 0.1
+"""the capture's whole punch ends at the first frame this long after full reach where the hand is slow again"""
+
+
+@dataclass(frozen=True)
+class PunchNaturalness:
+    """The figures of one punch (docs/naturalness.md). Distances in m, speeds in m/s, times in s."""
+
+    path_over_chord: float
+    """punching fist's path length / the straight distance from its first to its last position"""
+    chord_distance_m: float
+    """punching fist's largest distance from that chord (the segment from its first to its last position)"""
+    off_fist_from_guard_m: float
+    """off (left) fist's largest distance from its position in the first frame, until contact"""
+    off_fist_from_guard_whole_m: float
+    """the same over the whole punch"""
+    off_fist_peak_speed_mps: float
+    """off fist's peak speed until contact"""
+    off_fist_peak_speed_whole_mps: float
+    """the same over the whole punch"""
+    trunk_flexion_deg: float
+    """largest waist flexion (simulated: angle_waist_flexion; captured: trunk lean from vertical)"""
+    fist_peak_speed_mps: float
+    """punching fist's peak speed until contact"""
+    proximal_to_distal: bool
+    """waist rotation, then shoulder, then elbow reach their peak speed, in that order (ties count as in order)"""
+    time_to_contact_s: float | None
+    """from the first frame (captured: movement onset) to contact (captured: full reach); None without contact"""
+
+    def to_json(self) -> dict[str, float | bool | None]:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class Figure:
+    """One row of the naturalness table."""
+
+    key: str
+    label: str
+    scale: float
+    unit: str
+    digits: int
+
+
+FIGURES = (
+    Figure("path_over_chord", "punching fist path length / chord", 1.0, "", 2),
+    Figure("chord_distance_m", "punching fist's largest distance from that chord", 100.0, " cm", 1),
+    Figure("off_fist_from_guard_m", "off fist's largest distance from its guard, by contact", 100.0, " cm", 1),
+    Figure("off_fist_from_guard_whole_m", "off fist's largest distance from its guard, whole punch", 100.0, " cm", 1),
+    Figure("off_fist_peak_speed_mps", "off fist peak speed, by contact", 1.0, " m/s", 2),
+    Figure("off_fist_peak_speed_whole_mps", "off fist peak speed, whole punch", 1.0, " m/s", 2),
+    Figure("trunk_flexion_deg", "largest waist flexion (captured: trunk lean from vertical)", 1.0, "°", 1),
+    Figure("fist_peak_speed_mps", "punching fist peak speed", 1.0, " m/s", 2),
+    Figure("time_to_contact_s", "time to contact (captured: onset to full reach)", 1.0, " s", 3),
+)
+
+
+# --- geometry of a path -------------------------------------------------------------------------------------
+
+def path_over_chord(points: np.ndarray) -> float:
+    """Length of the path through `points` [frames, 3] over the distance from its first to its last point
+    (1 for a straight path; inf when it ends where it started)."""
+    length = float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
+    chord = float(np.linalg.norm(points[-1] - points[0]))
+    return length / chord if chord > 0 else float("inf")
+
+
+def largest_distance_from_chord(points: np.ndarray) -> float:
+    """Largest distance of `points` [frames, 3] from the segment joining the first and the last point."""
+    start, end = points[0], points[-1]
+    chord = end - start
+    squared = float(chord @ chord)
+    along = np.clip((points - start) @ chord / squared, 0.0, 1.0) if squared > 0 else np.zeros(len(points))
+    return float(np.linalg.norm(points - (start + along[:, None] * chord), axis=1).max())
+
+
+def largest_distance_from_start(points: np.ndarray) -> float:
+    """Largest distance of `points` [frames, 3] from the first of them."""
+    return float(np.linalg.norm(points - points[0], axis=1).max())
+
+
+def speeds_from_positions(points: np.ndarray, dt_s: float) -> np.ndarray:
+    """Speed between consecutive frames (forward differences), [frames - 1]."""
+    return np.asarray(np.linalg.norm(np.diff(points, axis=0), axis=1) / dt_s, dtype=np.float64)
+
+
+def in_proximal_to_distal_order(waist: np.ndarray, shoulder: np.ndarray, elbow: np.ndarray) -> bool:
+    """Whether the peaks of |waist|, |shoulder| and |elbow| (speeds over the same frames) come in that order."""
+    waist_peak, shoulder_peak, elbow_peak = (int(np.abs(s).argmax()) for s in (waist, shoulder, elbow))
+    return waist_peak <= shoulder_peak <= elbow_peak
+
+
+# --- a simulated punch ----------------------------------------------------------------------------------------
+
+def contact_frame(features: np.ndarray, names: list[str]) -> tuple[int, bool]:
+    """The right fist's first contact frame of features [frames, F], or, when it never touches, the frame of its
+    closest approach to the bag; and whether it touched."""
+    hit, first = first_right_contact(features, names)
+    if bool(hit):
+        return int(first), True
+    return int(np.argmin(features[:, names.index("fist_r_bag_distance")])), False
+
+
+def punch_naturalness(features: np.ndarray, names: list[str], physics_hz: float) -> PunchNaturalness:
+    """The figures of one simulated punch, features [frames, F] in the character's frame (docs/naturalness.md)."""
+    f = np.asarray(features, dtype=np.float64)
+    col = names.index
+    end, touched = contact_frame(f, names)
+    until = slice(0, end + 1)
+
+    def vector(stem: str) -> np.ndarray:
+        return f[:, col(f"{stem}_x"):col(f"{stem}_z") + 1]
+
+    fist, off, off_velocity = vector("fist_r_pos"), vector("fist_l_pos"), vector("fist_l_vel")
+    fist_speed = np.linalg.norm(vector("fist_r_vel"), axis=1)
+    off_speed = np.linalg.norm(off_velocity, axis=1)
+    shoulder = np.linalg.norm(f[:, [col("speed_shoulder_r_flexion"), col("speed_shoulder_r_rotation"),
+                                    col("speed_shoulder_r_abduction")]], axis=1)
+    return PunchNaturalness(
+        path_over_chord=path_over_chord(fist[until]) if end > 0 else 1.0,
+        chord_distance_m=largest_distance_from_chord(fist[until]),
+        off_fist_from_guard_m=largest_distance_from_start(off[until]),
+        off_fist_from_guard_whole_m=largest_distance_from_start(off),
+        off_fist_peak_speed_mps=float(off_speed[until].max()),
+        off_fist_peak_speed_whole_mps=float(off_speed.max()),
+        trunk_flexion_deg=float(np.degrees(f[until, col("angle_waist_flexion")].max())),
+        fist_peak_speed_mps=float(fist_speed[until].max()),
+        proximal_to_distal=in_proximal_to_distal_order(f[until, col("speed_waist_rotation")], shoulder[until],
+                                                        f[until, col("speed_elbow_r_extension")]),
+        time_to_contact_s=(end + 1) / physics_hz if touched else None,
+    )
+
+
+def punches_naturalness(features: np.ndarray, names: list[str], physics_hz: float) -> list[PunchNaturalness]:
+    """`punch_naturalness` of every punch of features [punches, frames, F]."""
+    return [punch_naturalness(np.asarray(punch), names, physics_hz) for punch in features]
+
+
+@dataclass(frozen=True)
+class NaturalnessSummary:
+    """Medians of the figures over punches, and the share in proximal-to-distal order."""
+
+    punches: int
+    contacts: int
+    medians: dict[str, float | None]
+    proximal_to_distal_share: float
+
+    def to_json(self) -> dict[str, object]:
+        return asdict(self)
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> NaturalnessSummary:
+        """Back from `to_json` (other keys beside it are ignored)."""
+        return cls(int(data["punches"]), int(data["contacts"]), dict(data["medians"]), float(data["proximal_to_distal_share"]))
+
+
+def summarise(punches: list[PunchNaturalness]) -> NaturalnessSummary:
+    """Medians over `punches` (time to contact over the punches that touched; None when none did)."""
+    medians: dict[str, float | None] = {}
+    for figure in FIGURES:
+        values = [getattr(p, figure.key) for p in punches if getattr(p, figure.key) is not None]
+        medians[figure.key] = float(np.median(values)) if values else None
+    share = float(np.mean([p.proximal_to_distal for p in punches])) if punches else 0.0
+    return NaturalnessSummary(len(punches), sum(p.time_to_contact_s is not None for p in punches), medians, share)
+
+
+# --- the motion capture ---------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class CapturedPunch:
+    """One punch of the capture, in the capture's world frame turned about the vertical so the punching hand's
+    reach (its position at full reach minus the right shoulder's at onset, horizontally) points at +Z, +X the
+    boxer's left, +Y up, and scaled from the file's units to the character's arm (`CHARACTER_ARM_LENGTH_M`)."""
+
+    onset: int
+    """frame of movement onset, in `positions`' own frames"""
+    reach: int
+    """frame of full reach"""
+    end: int
+    """frame where the hand is slow again after pulling back: the end of the whole punch"""
+    frame_time_s: float
+    positions: np.ndarray
+    """[frames, joints, 3] (m), from `CAPTURE_LEAD_S` before `onset` to `end`"""
+    names: list[str]
+
+    def joint(self, name: str) -> np.ndarray:
+        return self.positions[:, self.names.index(name)]
+
+
+def captured_punches(path: Path = DEFAULT_BVH) -> list[CapturedPunch]:
+    """The four right-hand punches of the capture (docs/naturalness.md, "The capture")."""
+    skeleton = read_bvh(path)
+    world = joint_positions(skeleton)
+    names = skeleton.names
+    index = names.index
+    arm_length = float(np.linalg.norm(skeleton.offsets[index("RightForeArm")]) + np.linalg.norm(skeleton.offsets[index("RightHand")]))
+    scaled = world * (CHARACTER_ARM_LENGTH_M / arm_length)
+    dt = skeleton.frame_time_s
+    hand, shoulder = scaled[:, index("RightHand")], scaled[:, index("RightArm")]
+    reach_distance = np.linalg.norm(hand - shoulder, axis=1)
+    speed = speeds_from_positions(hand, dt)  # speed[k]: from frame k to k + 1
+    punches = []
+    for near in CAPTURE_REACH_FRAMES:
+        reach = near - 15 + int(np.argmax(reach_distance[near - 15:near + 16]))
+        first = max(1, reach - int(round(CAPTURE_SEARCH_S / dt)))  # frame 0 is the T-pose
+        window = speed[first:reach]
+        peak = int(np.argmax(window))
+        threshold = ONSET_SPEED_FRACTION * float(window.max())
+        onset = peak
+        while onset > 0 and window[onset - 1] >= threshold:
+            onset -= 1
+        onset += first
+        end = reach + int(round(CAPTURE_RETURN_AFTER_S / dt))
+        while end < len(speed) - 1 and speed[end] >= threshold:
+            end += 1
+        direction = (hand[reach] - shoulder[onset]) * [1.0, 0.0, 1.0]
+        angle = np.arctan2(direction[0], direction[2])
+        c, s = np.cos(angle), np.sin(angle)
+        turn = np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]])
+        start = max(1, onset - int(round(CAPTURE_LEAD_S / dt)))
+        positions = scaled[start:end + 1] @ turn.T
+        punches.append(CapturedPunch(onset - start, reach - start, end - start, dt, positions, names))
+    return punches
+
+
+def _angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    cosine = np.sum(a * b, axis=-1) / (np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1))
+    return np.asarray(np.arccos(np.clip(cosine, -1.0, 1.0)), dtype=np.float64)
+
+
+def trunk_lean_deg(punch: CapturedPunch) -> np.ndarray:
+    """Per frame: the angle of the line from the lower back to the neck from vertical (degrees)."""
+    return np.asarray(np.degrees(_angle_between(punch.joint("Neck") - punch.joint("LowerBack"), np.array([0.0, 1.0, 0.0]))), dtype=np.float64)
+
+
+def capture_joint_speeds(punch: CapturedPunch) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per frame (central differences, rad/s): the trunk's rotation about the vertical relative to the hips (the
+    shoulder line's yaw less the hip line's), the right upper arm's angular speed relative to the trunk, and the
+    right elbow's rate of opening."""
+    dt = punch.frame_time_s
+
+    def yaw(left: str, right: str) -> np.ndarray:
+        line = punch.joint(left) - punch.joint(right)
+        return np.unwrap(np.arctan2(line[:, 2], line[:, 0]))
+
+    waist = np.gradient(yaw("LeftArm", "RightArm") - yaw("LeftUpLeg", "RightUpLeg"), dt)
+    up = punch.joint("Neck") - punch.joint("LowerBack")
+    across = punch.joint("LeftArm") - punch.joint("RightArm")
+    across = across - (np.sum(across * up, axis=1) / np.sum(up * up, axis=1))[:, None] * up
+    axes = [across / np.linalg.norm(across, axis=1, keepdims=True), up / np.linalg.norm(up, axis=1, keepdims=True)]
+    axes.append(np.cross(axes[0], axes[1]))
+    trunk = np.stack(axes, axis=1)  # [frames, 3 axes, 3]
+    upper = punch.joint("RightForeArm") - punch.joint("RightArm")
+    in_trunk = np.einsum("fij,fj->fi", trunk, upper / np.linalg.norm(upper, axis=1, keepdims=True))
+    shoulder = np.linalg.norm(np.gradient(in_trunk, dt, axis=0), axis=1)
+    elbow = np.gradient(_angle_between(punch.joint("RightArm") - punch.joint("RightForeArm"),
+                                       punch.joint("RightHand") - punch.joint("RightForeArm")), dt)
+    return waist, shoulder, elbow
+
+
+def captured_naturalness(punch: CapturedPunch) -> PunchNaturalness:
+    """The figures of one captured punch: onset to full reach, the whole punch onset to `end`."""
+    dt = punch.frame_time_s
+    until = slice(punch.onset, punch.reach + 1)
+    hand, off = punch.joint("RightHand"), punch.joint("LeftHand")
+    hand_speed, off_speed = speeds_from_positions(hand, dt), speeds_from_positions(off, dt)
+    waist, shoulder, elbow = capture_joint_speeds(punch)
+    return PunchNaturalness(
+        path_over_chord=path_over_chord(hand[until]),
+        chord_distance_m=largest_distance_from_chord(hand[until]),
+        off_fist_from_guard_m=largest_distance_from_start(off[until]),
+        off_fist_from_guard_whole_m=largest_distance_from_start(off[punch.onset:]),
+        off_fist_peak_speed_mps=float(off_speed[punch.onset:punch.reach].max()),
+        off_fist_peak_speed_whole_mps=float(off_speed[punch.onset:].max()),
+        trunk_flexion_deg=float(trunk_lean_deg(punch)[until].max()),
+        fist_peak_speed_mps=float(hand_speed[punch.onset:punch.reach].max()),
+        proximal_to_distal=in_proximal_to_distal_order(waist[until], shoulder[until], elbow[until]),
+        time_to_contact_s=(punch.reach - punch.onset) * dt,
+    )
+
+
+def capture_figures(path: Path = DEFAULT_BVH) -> list[PunchNaturalness] | None:
+    """The figures of the four captured punches, or None when the capture file is not there."""
+    if not Path(path).is_file():
+        return None
+    return [captured_naturalness(punch) for punch in captured_punches(path)]
+
+
+# --- the table --------------------------------------------------------------------------------------------------
+
+def _value(value: float | None, figure: Figure) -> str:
+    return "-" if value is None else f"{value * figure.scale:.{figure.digits}f}{figure.unit}"
+
+
+def naturalness_table(columns: list[tuple[str, NaturalnessSummary]], capture: list[PunchNaturalness] | None) -> list[str]:
+    """A Markdown table: one row per figure, one column per summary (medians), and the captured punches' range."""
+    header = ["figure (median)", *[title for title, _ in columns]] + (["captured punches (CMU 143/23, 4)"] if capture else [])
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for figure in FIGURES:
+        row = [figure.label, *[_value(summary.medians[figure.key], figure) for _, summary in columns]]
+        if capture:
+            values = [getattr(p, figure.key) for p in capture]
+            row.append(f"{_value(min(values), figure)} to {_value(max(values), figure)}")
+        lines.append("| " + " | ".join(row) + " |")
+    order = ["waist rotation, shoulder, elbow peak speeds in proximal-to-distal order",
+             *[f"{100 * summary.proximal_to_distal_share:.0f}%" for _, summary in columns]]
+    if capture:
+        order.append(f"{sum(p.proximal_to_distal for p in capture)}/{len(capture)}")
+    lines.append("| " + " | ".join(order) + " |")
+    lines.append("| punches (touched the bag) | " + " | ".join(f"{s.punches} ({s.contacts})" for _, s in columns)
+                 + (" | 4 |" if capture else " |"))
+    return lines
