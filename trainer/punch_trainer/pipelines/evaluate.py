@@ -9,7 +9,10 @@ replay` does), in these conditions:
 - sigma 0 starting from the end of an earlier punch.
 
 Per condition: the success rate (a positive return and the right fist touched the bag), the mean return as a
-fraction of the trajectory search's best at that placement, and the spread of the impact points. The
+fraction of the trajectory search's best at that placement, and the spread of the impact points. With noise on
+every decision, at each sigma: the naturalness figures (docs/naturalness.md), medians over the punches, beside
+those of the four captured punches; and, where the capture is there, the paper's Fig. 4 (both fists and the
+trunk against the capture) and a strip of stick figures, a captured punch above the policy's. The
 per-placement search best comes from a short search at every held-out placement, warm-started from the
 policy's own noise-free actions there (so it is at least the policy's own return, give or take the small
 difference between the game and the training server). `--baseline` evaluates a second policy (today's
@@ -34,6 +37,15 @@ from punch_trainer.learn.reach import HELD_OUT_SEED, ReachVolume
 from punch_trainer.learn.search import SearchArgs, placement_search
 from punch_trainer.learn.volume import success
 from punch_trainer.pipelines.replay import ReplayArgs, ReplayError, analyse_sigma, policy_metadata, run_godot_replay
+from punch_trainer.report.mocap import DEFAULT_BVH
+from punch_trainer.report.naturalness import (
+    NaturalnessSummary,
+    capture_figures,
+    captured_punches,
+    naturalness_table,
+    punches_naturalness,
+    summarise,
+)
 from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.placement import BagPlacement
 from punch_trainer.sim.rewards import Reward, metadata_reward
@@ -74,9 +86,12 @@ def held_out_placements(reach: ReachVolume, count: int, seed: int) -> tuple[list
 
 
 def run_condition(policy: Path, bags: list[BagPlacement], sigmas: list[float], reward: Reward, *, episodes_per_bag: int = 1,
-                  noise_decisions: int = -1, start: str = "guard", keep_actions: bool = False, seed: int = 0) -> list[dict[str, Any]]:
+                  noise_decisions: int = -1, start: str = "guard", keep_actions: bool = False, keep_features: bool = False,
+                  seed: int = 0) -> list[dict[str, Any]]:
     """Punches through PunchController in Godot at every placement of `bags` (`episodes_per_bag` each) for each
-    sigma; per sigma: returns, success, the placement of every episode, the analysis of `punch replay`."""
+    sigma; per sigma: returns, success, the placement of every episode, the analysis of `punch replay` and every
+    punch's naturalness figures (`keep_features`: also the features [episodes, frames, F] and their names)."""
+    physics_hz = float(policy_metadata(policy).get("punch_physics_hz", 120))
     with tempfile.TemporaryDirectory(prefix="punch_eval_") as directory:
         frames_dir = Path(directory)
         bags_file = frames_dir / "bags.json"
@@ -91,7 +106,10 @@ def run_condition(policy: Path, bags: list[BagPlacement], sigmas: list[float], r
             features = np.fromfile(frames_dir / f"features_{index}.f32", dtype="<f4").reshape(episodes, meta["frames"], len(names))
             analysis = analyse_sigma(features, names, reward)
             result = {"sigma": sigma, "returns": analysis["returns"], "success": success(analysis["returns"], features, names),
-                      "placement": np.arange(episodes) % len(bags), "impact_spread_m": analysis["impact_spread_m"]}
+                      "placement": np.arange(episodes) % len(bags), "impact_spread_m": analysis["impact_spread_m"],
+                      "naturalness": punches_naturalness(features, names, physics_hz), "physics_hz": physics_hz}
+            if keep_features:
+                result["features"], result["feature_names"] = features, names
             if keep_actions:
                 actions = np.fromfile(frames_dir / f"actions_{index}.f32", dtype="<f4").reshape(episodes, meta["decisions"], -1)
                 result["actions"] = actions
@@ -158,8 +176,27 @@ def evaluate_policy(policy: Path, args: EvalArgs, still: list[BagPlacement], mov
         rows.append({"condition": name, "sigma": result["sigma"], "episodes": len(result["returns"]),
                      "success_rate": float(result["success"].mean()), "return_fraction_of_search_best": fraction,
                      "impact_spread_m": result["impact_spread_m"]})
+    naturalness = [{"sigma": result["sigma"], **summarise(result["naturalness"]).to_json()}
+                   for name, result in conditions if name == "every decision"]
     return {"policy": str(policy), "reward": reward.name, "reach": metadata.get("punch_reach_volume"), "rows": rows,
-            "success_at_sigma0": base["success"].tolist()}
+            "success_at_sigma0": base["success"].tolist(), "naturalness": naturalness,
+            "naturalness_at_sigma0": [punch.to_json() for punch in base["naturalness"]]}
+
+
+def plot_naturalness(out: Path, base: dict[str, Any], placements: list[BagPlacement], suffix: str = "") -> list[Path]:
+    """Fig. 4 of a policy's noise-free punches (`base`, with features) against the capture, and the stick-figure
+    strip of its punch at the placement nearest the middle of `placements`; none when the capture is not there."""
+    from punch_trainer.report.naturalness_plots import plot_capture_comparison, plot_stick_strip
+
+    if not DEFAULT_BVH.is_file():
+        return []
+    capture = captured_punches(DEFAULT_BVH)
+    points = np.array([[p.distance_m, p.height_m, p.side_m] for p in placements])
+    spread = np.where(points.std(axis=0) > 0, points.std(axis=0), 1.0)
+    middle = int(np.argmin(np.linalg.norm((points - points.mean(axis=0)) / spread, axis=1)))
+    features, names, hz = base["features"], base["feature_names"], base["physics_hz"]
+    return [plot_capture_comparison(out, features, names, hz, capture, file_name=f"naturalness_fig4{suffix}.png"),
+            plot_stick_strip(out, features[middle], names, hz, capture[0], file_name=f"naturalness_strip{suffix}.png")]
 
 
 def run_eval(args: EvalArgs, progress: bool = True, *, backend: Backend = LOCAL) -> tuple[Path, dict[str, Any]]:
@@ -176,8 +213,8 @@ def run_eval(args: EvalArgs, progress: bool = True, *, backend: Backend = LOCAL)
         raise ReplayError("--baseline must be trained for the same reward as --policy")
     if progress:
         print(f"punching at {len(still)} held-out placements, sigma 0 ...", flush=True)
-    bases = [runs[0] for runs in run_conditions([{"policy": policy, "bags": still, "sigmas": [0.0], "reward": reward, "keep_actions": True}
-                                                  for policy in policies], backend)]
+    bases = [runs[0] for runs in run_conditions([{"policy": policy, "bags": still, "sigmas": [0.0], "reward": reward, "keep_actions": True,
+                                                   "keep_features": True} for policy in policies], backend)]
     best = None
     if args.search_iterations > 0:
         if progress:
@@ -190,14 +227,17 @@ def run_eval(args: EvalArgs, progress: bool = True, *, backend: Backend = LOCAL)
         if progress:
             print(f"evaluating {policy} ...", flush=True)
         evaluations.append(evaluate_policy(policy, args, still, moving, base, best, backend))
+    capture = capture_figures()
     report = {"seed": args.seed, "placements": [bag.to_wire() for bag in still], "moving_placements": [bag.to_wire() for bag in moving], "reach": json.loads(reach.to_json()),
               "search_best": best.tolist() if best is not None else None, "evaluations": evaluations,
+              "captured_naturalness": [punch.to_json() for punch in capture] if capture else None,
               "wall_s": round(time.perf_counter() - started, 1)}
     (out / "eval.json").write_text(json.dumps(report, indent=2) + "\n")
 
     from punch_trainer.report.plots import plot_eval
 
     plots = plot_eval(out, report["placements"], evaluations)
+    naturalness_plots = {index: plot_naturalness(out, base, still, "" if index == 0 else "_baseline") for index, base in enumerate(bases)}
     lines = [f"# punch eval: {args.policy}", "",
              f"{len(still)} held-out placements drawn from the reach volume with seed {args.seed} (a seed no training "
              f"stage uses); {args.noisy_episodes} punches per placement at each sigma > 0; every punch through "
@@ -205,14 +245,17 @@ def run_eval(args: EvalArgs, progress: bool = True, *, backend: Backend = LOCAL)
              f"right fist touched the bag. Return: the mean of return / the best return known at that placement (a "
              f"{args.search_iterations}-iteration search warm-started from the first policy's punch, or a policy's own "
              "noise-free punch if better); placements where nothing scores are left out.", ""]
-    for evaluation in evaluations:
+    for index, evaluation in enumerate(evaluations):
         lines += [f"## {evaluation['policy']} (reward `{evaluation['reward']}`)", "",
                   "| noise on | sigma | punches | success | return / best known | impact spread (cm) |", "|---|---|---|---|---|---|"]
         for row in evaluation["rows"]:
             fraction = f"{row['return_fraction_of_search_best']:.2f}" if row["return_fraction_of_search_best"] is not None else "-"
             lines.append(f"| {row['condition']} | {row['sigma']:.2f} | {row['episodes']} | {100 * row['success_rate']:.1f}% | "
                          f"{fraction} | {100 * row['impact_spread_m']:.1f} |")
-        lines.append("")
+        lines += ["", "Naturalness (docs/naturalness.md): medians over the punches, noise on every decision; the captured "
+                  "punches' range from movement onset to full reach.", ""]
+        lines += naturalness_table([(f"sigma {row['sigma']:g}", NaturalnessSummary.from_json(row)) for row in evaluation["naturalness"]], capture)
+        lines += ["", *[f"![{p.stem}]({p.name})" for p in naturalness_plots[index]], ""]
     lines += [f"![{p.stem}]({p.name})" for p in plots]
     (out / "report.md").write_text("\n".join(lines) + "\n")
     return out, report

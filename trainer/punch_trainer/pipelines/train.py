@@ -30,6 +30,7 @@ from punch_trainer.learn.volume import EpisodeConditions, VolumeArgs, distributi
 from punch_trainer.pipelines.search import run_search
 from punch_trainer.report.a2c_report import write_a2c_report
 from punch_trainer.report.motion import motion_report
+from punch_trainer.report.naturalness import capture_figures, naturalness_table, punch_naturalness, summarise
 from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.rewards import Reward, load_reward, score
@@ -258,10 +259,16 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
         f"metadata: spec hash {data['policy_metadata']['punch_spec_hash']})",
         "", "Search details: [search/report.md](search/report.md)",
     ]
+    naturalness = punch_naturalness(features, env.feature_names, float(env.info.physics_hz))
+    lines += ["", "## Naturalness of the exported policy's punch (docs/naturalness.md)", "",
+              "The exported policy at sigma 0 in the simulator (the punch above); `punch eval` gives the same table over "
+              "held-out placements and under noise. The captured punches: from movement onset to full reach.", "",
+              *naturalness_table([("exported policy, sigma 0", summarise([naturalness]))], capture_figures())]
     if a2c_plots:
         lines += ["", "## A2C per update (a2c_metrics.csv)", ""] + [f"![{p.stem}]({p.name})" for p in a2c_plots]
     (out / "report.md").write_text("\n".join(lines) + "\n")
     (out / "summary.json").write_text(json.dumps({"search_best_return": search.best_return, "pretrained_return": pretrained_return,
-                                                  "exported_return": exported_return, "ratio": ratio, "motion": motion, **timings}, indent=2) + "\n")
+                                                  "exported_return": exported_return, "ratio": ratio, "motion": motion,
+                                                  "naturalness": naturalness.to_json(), **timings}, indent=2) + "\n")
     return out
 
