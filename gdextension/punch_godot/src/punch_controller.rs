@@ -435,7 +435,7 @@ impl PunchController {
     /// once for all controllers that ask it, then each drives its joints and emits its signals.
     fn frame_pass() {
         let started = Instant::now();
-        let ids = PunchInference::active();
+        let Some(ids) = PunchInference::begin_frame(started) else { return };
         let mut requests: Vec<DecisionRequest> = Vec::new();
         let mut askers: Vec<InstanceId> = Vec::new();
         for &id in &ids {

@@ -41,6 +41,13 @@ impl PunchInference {
         if frames == 0 { 0.0 } else { usec / frames as f64 }
     }
 
+    /// How many controllers the frame pass runs now (punching, recovering, or with a last command to give):
+    /// for tests and benchmarks.
+    #[func]
+    pub fn active_count(&self) -> i64 {
+        self.active.len() as i64
+    }
+
     /// How batched the inference was since the last call, over all controllers: `calls` to ONNX Runtime,
     /// the `rows` (controller decisions) they ran, and the time they took, `usec` (for benchmarks).
     #[func]
@@ -58,6 +65,18 @@ impl PunchInference {
     /// The active controllers, in the order they became active.
     pub fn active() -> Vec<InstanceId> {
         Self::singleton().bind().active.clone()
+    }
+
+    /// The active controllers at the start of a frame pass (begun at `started`), or None when there are none:
+    /// the frame is then counted, and this one lookup is all that idle characters cost a frame.
+    pub fn begin_frame(started: std::time::Instant) -> Option<Vec<InstanceId>> {
+        let mut hub = Self::singleton();
+        let mut hub = hub.bind_mut();
+        if hub.active.is_empty() {
+            hub.count(started, &[]);
+            return None;
+        }
+        Some(hub.active.clone())
     }
 
     /// Puts a controller on the list run every physics frame of `tree`, whose `physics_frame` signal then
@@ -128,13 +147,15 @@ impl PunchInference {
 
     /// Counts one frame of controller work that began at `started`, and its policy calls.
     pub fn count_frame(started: std::time::Instant, calls: &[PolicyCall]) {
-        let mut hub = Self::singleton();
-        let mut hub = hub.bind_mut();
-        let (usec, frames) = hub.cost;
-        hub.cost = (usec + started.elapsed().as_secs_f64() * 1e6, frames + 1);
+        Self::singleton().bind_mut().count(started, calls);
+    }
+
+    fn count(&mut self, started: std::time::Instant, calls: &[PolicyCall]) {
+        let (usec, frames) = self.cost;
+        self.cost = (usec + started.elapsed().as_secs_f64() * 1e6, frames + 1);
         for call in calls {
-            let (count, rows, usec) = hub.inference;
-            hub.inference = (count + 1, rows + call.rows as u64, usec + call.usec);
+            let (count, rows, usec) = self.inference;
+            self.inference = (count + 1, rows + call.rows as u64, usec + call.usec);
         }
     }
 }
