@@ -13,15 +13,15 @@ use std::os::fd::AsRawFd;
 use std::time::{Duration, Instant};
 
 use crate::access::{Access, ClientId, Verdict};
-use crate::protocol::{FrameReader, Message, ProtocolError, error_reply};
+use crate::protocol::{FrameReader, Message, ProtocolError, error_reply, release_spare};
 
 /// The server's limits on its clients.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Limits {
     /// Open connections at most; more are answered with an error and closed.
     pub max_connections: usize,
-    /// Bytes all connections together may hold, received and not yet handled or to be sent (half-sent
-    /// frames included); a connection whose next read would go over it is closed.
+    /// Bytes all connections together may keep (their buffers' capacity: received and not yet handled, or to
+    /// be sent, half-sent frames included); a connection whose next read would go over it is closed.
     pub memory_budget_bytes: usize,
     /// Bytes read from a client at most per poll round (a rollout request of 64 characters is about 26 kB).
     pub receive_chunk_bytes: usize,
@@ -73,6 +73,7 @@ impl Connection {
                 Ok(0) => return Err(ErrorKind::WriteZero.into()),
                 Ok(written) => {
                     self.outbox.drain(..written);
+                    release_spare(&mut self.outbox);
                     self.stalled_since = (!self.outbox.is_empty()).then(Instant::now);
                 }
                 Err(error) if error.kind() == ErrorKind::WouldBlock => {
@@ -85,6 +86,11 @@ impl Connection {
         }
         self.stalled_since = None;
         Ok(())
+    }
+
+    /// Memory it keeps, bytes.
+    fn held_bytes(&self) -> usize {
+        self.frames.held_bytes() + self.outbox.capacity()
     }
 
     /// Whether its next message may be handled: nothing of an earlier reply is waiting.
@@ -131,6 +137,11 @@ impl Connections {
     /// Open connections.
     pub fn count(&self) -> usize {
         self.connections.len()
+    }
+
+    /// Memory all connections keep together, bytes (what the memory budget limits).
+    pub fn held_bytes(&self) -> usize {
+        self.connections.iter().map(Connection::held_bytes).sum()
     }
 
     /// Time since a client last sent something (or since `note_activity`).
@@ -257,9 +268,13 @@ impl Connections {
     /// Reads what a readable client has sent (poll said it is readable, so this does not block), within the
     /// memory budget of all connections together.
     fn receive_bytes(&mut self, client: ClientId) {
-        let held: usize = self.connections.iter().map(|c| c.frames.buffered_bytes() + c.outbox.len()).sum();
         let (chunk, budget) = (self.limits.receive_chunk_bytes, self.limits.memory_budget_bytes);
-        if held + chunk > budget {
+        let held_elsewhere: usize =
+            self.connections.iter().filter(|c| c.id != client).map(Connection::held_bytes).sum();
+        let Some(connection) = self.connection(client) else { return };
+        // After the read its buffer may keep up to twice what it then holds (a Vec doubles as it grows).
+        let after_read = connection.frames.held_bytes().max(2 * (connection.frames.buffered_bytes() + chunk));
+        if held_elsewhere + after_read + connection.outbox.capacity() > budget {
             let reason = format!("the server's memory budget ({budget} bytes for all connections) is full");
             self.close_after(client, &error_reply(&format!("{reason}; closing the connection")));
             return;

@@ -197,7 +197,8 @@ fn frame_lengths(prefix: &[u8], payload_limit: usize) -> Result<(usize, usize), 
 }
 
 /// Collects a stream's bytes as they arrive and cuts them into messages, so that a server never blocks on a
-/// peer that sent half a frame. It holds only the bytes received.
+/// peer that sent half a frame. It holds only the bytes received: once a large message is taken, the memory it
+/// took goes back (`held_bytes` counts what is kept, not what is in use).
 #[derive(Debug)]
 pub struct FrameReader {
     buffer: Vec<u8>,
@@ -226,6 +227,11 @@ impl FrameReader {
         self.buffer.len()
     }
 
+    /// Memory the reader keeps, bytes: its buffer's capacity, at least what is buffered.
+    pub fn held_bytes(&self) -> usize {
+        self.buffer.capacity()
+    }
+
     /// One `read` of at most `max_bytes` from `reader`, straight into the buffer (call it when the stream is
     /// readable, so that it does not block). `Ok(0)` is the end of the stream.
     pub fn read_available(&mut self, reader: &mut impl Read, max_bytes: usize) -> std::io::Result<usize> {
@@ -249,7 +255,20 @@ impl FrameReader {
         }
         let result = Message::decode_parts(&self.buffer[8..8 + header_len], &self.buffer[8 + header_len..total]);
         self.buffer.drain(..total);
+        release_spare(&mut self.buffer);
         Some(result)
+    }
+}
+
+/// Capacity a connection's buffer keeps between messages, bytes: enough for the usual requests and replies
+/// of a training run, so that they are not reallocated each time.
+pub const KEPT_BUFFER_BYTES: usize = 256 * 1024;
+
+/// Gives back the memory of a buffer that holds far less than it took (after a large message), keeping at
+/// least `KEPT_BUFFER_BYTES`.
+pub fn release_spare(buffer: &mut Vec<u8>) {
+    if buffer.capacity() > KEPT_BUFFER_BYTES && buffer.len() < buffer.capacity() / 4 {
+        buffer.shrink_to(buffer.len().max(KEPT_BUFFER_BYTES));
     }
 }
 
@@ -304,6 +323,18 @@ mod tests {
             .with("slot_count", json!(2))
             .with_array(Array::new("actions", vec![2, 3], vec![0.5, -1.0, 0.25, 1.0, 0.0, -0.5]))
             .with_array(Array::new("empty", vec![0, 3], vec![]))
+    }
+
+    #[test]
+    fn a_reader_gives_back_the_memory_of_a_large_message_once_it_is_taken() {
+        let big = Message::new("step").with_array(Array::new("actions", vec![2_000_000], vec![0.5; 2_000_000]));
+        let bytes = big.encode();
+        let mut reader = FrameReader::default();
+        let mut stream = &bytes[..];
+        while reader.read_available(&mut stream, 64 * 1024).expect("reads") > 0 {}
+        assert!(reader.held_bytes() >= bytes.len());
+        assert!(matches!(reader.next_message(), Some(Ok(_))));
+        assert!(reader.held_bytes() <= KEPT_BUFFER_BYTES, "kept {} bytes", reader.held_bytes());
     }
 
     #[test]

@@ -8,7 +8,7 @@ use std::net::{Shutdown, TcpStream};
 use std::time::{Duration, Instant};
 
 use punch_core::connections::{Connections, Limits};
-use punch_core::protocol::{Array, Message, PROTOCOL_VERSION};
+use punch_core::protocol::{Array, KEPT_BUFFER_BYTES, Message, PROTOCOL_VERSION};
 use serde_json::json;
 
 const SECRET: &str = "0123456789abcdef-test";
@@ -182,4 +182,43 @@ fn a_request_waits_while_its_clients_reply_is_unsent_then_comes() {
     assert_eq!((id, message.message_type()), (slow_id, "ping"), "its request comes once its reply is taken");
     let (_slow, kind) = reader.join().expect("reader thread");
     assert_eq!(kind, "rollout_done");
+}
+
+#[test]
+fn the_memory_of_large_messages_goes_back_once_they_are_handled() {
+    let mut server = server(Limits { unread_reply_timeout: Duration::from_secs(5), ..quick_limits() });
+    let mut clients: Vec<(TcpStream, u64)> = (0..3).map(|_| authenticated(&mut server)).collect();
+    // Each sends a request of 4 MB and gets a reply of 4 MB (a message type any connection may send): the
+    // budget must count what the server keeps, not what it is using.
+    let request = Message::new("echo").with_array(Array::new("actions", vec![1_000_000], vec![0.25; 1_000_000]));
+    let readers: Vec<_> = clients
+        .drain(..)
+        .map(|(mut stream, id)| {
+            let request = request.clone();
+            let thread = std::thread::spawn(move || {
+                request.write_to(&mut stream).expect("sends");
+                let reply = Message::read_from(&mut stream).expect("the whole reply");
+                (stream, reply.message_type().to_string())
+            });
+            (thread, id)
+        })
+        .collect();
+    for _ in 0..readers.len() {
+        let (id, message) = next_request(&mut server);
+        assert_eq!(message.message_type(), "echo");
+        server.send(id, &message.clone().with("type", json!("echo_done")));
+    }
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while server.held_bytes() > 3 * 2 * KEPT_BUFFER_BYTES && Instant::now() < deadline {
+        server.next_request();
+    }
+    for (thread, _) in readers {
+        assert_eq!(thread.join().expect("reader").1, "echo_done");
+    }
+    server.flush_all();
+    assert!(
+        server.held_bytes() <= 3 * 2 * KEPT_BUFFER_BYTES,
+        "kept {} bytes after 24 MB went through",
+        server.held_bytes()
+    );
 }
