@@ -48,7 +48,9 @@ class PunchNaturalness:
     off_fist_peak_speed_whole_mps: float
     """the same over the whole punch"""
     trunk_flexion_deg: float
-    """largest waist flexion (simulated: angle_waist_flexion; captured: trunk lean from vertical)"""
+    """largest waist flexion until contact (simulated: angle_waist_flexion; captured: trunk lean from vertical)"""
+    trunk_flexion_whole_deg: float
+    """the same over the whole punch"""
     fist_peak_speed_mps: float
     """punching fist's peak speed until contact"""
     proximal_to_distal: bool
@@ -78,7 +80,8 @@ FIGURES = (
     Figure("off_fist_from_guard_whole_m", "off fist's largest distance from its guard, whole punch", 100.0, " cm", 1),
     Figure("off_fist_peak_speed_mps", "off fist peak speed, by contact", 1.0, " m/s", 2),
     Figure("off_fist_peak_speed_whole_mps", "off fist peak speed, whole punch", 1.0, " m/s", 2),
-    Figure("trunk_flexion_deg", "largest waist flexion (captured: trunk lean from vertical)", 1.0, "°", 1),
+    Figure("trunk_flexion_deg", "largest waist flexion (captured: trunk lean from vertical), by contact", 1.0, "°", 1),
+    Figure("trunk_flexion_whole_deg", "largest waist flexion (captured: trunk lean), whole punch", 1.0, "°", 1),
     Figure("fist_peak_speed_mps", "punching fist peak speed", 1.0, " m/s", 2),
     Figure("time_to_contact_s", "time to contact (captured: onset to full reach)", 1.0, " s", 3),
 )
@@ -153,6 +156,7 @@ def punch_naturalness(features: np.ndarray, names: list[str], physics_hz: float)
         off_fist_peak_speed_mps=float(off_speed[until].max()),
         off_fist_peak_speed_whole_mps=float(off_speed.max()),
         trunk_flexion_deg=float(np.degrees(f[until, col("angle_waist_flexion")].max())),
+        trunk_flexion_whole_deg=float(np.degrees(f[:, col("angle_waist_flexion")].max())),
         fist_peak_speed_mps=float(fist_speed[until].max()),
         proximal_to_distal=in_proximal_to_distal_order(f[until, col("speed_waist_rotation")], shoulder[until],
                                                         f[until, col("speed_elbow_r_extension")]),
@@ -302,6 +306,7 @@ def captured_naturalness(punch: CapturedPunch) -> PunchNaturalness:
         off_fist_peak_speed_mps=float(off_speed[punch.onset:punch.reach].max()),
         off_fist_peak_speed_whole_mps=float(off_speed[punch.onset:].max()),
         trunk_flexion_deg=float(trunk_lean_deg(punch)[until].max()),
+        trunk_flexion_whole_deg=float(trunk_lean_deg(punch)[punch.onset:].max()),
         fist_peak_speed_mps=float(hand_speed[punch.onset:punch.reach].max()),
         proximal_to_distal=in_proximal_to_distal_order(waist[until], shoulder[until], elbow[until]),
         time_to_contact_s=(punch.reach - punch.onset) * dt,

@@ -105,7 +105,7 @@ def _frames_across(first: int, last: int, count: int) -> list[int]:
 
 def plot_stick_strip(out: Path, features: np.ndarray, names: list[str], physics_hz: float, capture: CapturedPunch, *, columns: int = 5,
                      file_name: str = "naturalness_strip.png") -> Path:
-    """Stick figures, seen from the front right: the captured punch (movement onset to full reach) above the
+    """Stick figures, seen from the right and a little in front: the captured punch (movement onset to full reach) above the
     policy's (first frame to first contact), at `columns` evenly spaced moments of each."""
     policy = policy_skeleton(features, names)
     end, touched = contact_frame(np.asarray(features, dtype=np.float64), names)
@@ -130,12 +130,12 @@ def plot_stick_strip(out: Path, features: np.ndarray, names: list[str], physics_
             axis.set_ylim(-0.55, 0.55)
             axis.set_zlim(0.0, 1.75)
             axis.set_box_aspect((1.1, 1.1, 1.75))
-            axis.view_init(elev=10, azim=-55)
+            axis.view_init(elev=12, azim=-72)
             axis.set_axis_off()
             fraction = moments.index(frame) / max(columns - 1, 1)
             axis.set_title(f"{100 * fraction:.0f}%", fontsize=9, y=0.92)
         figure.text(0.5, 0.97 - 0.48 * row, title, ha="center", fontsize=11)
-    figure.text(0.5, 0.01, "Seen from the front right; thin red: the right fist's path so far, blue: the left fist's", ha="center", fontsize=9)
+    figure.text(0.5, 0.01, "Seen from the right, a little in front; thin red: the right fist's path so far, blue: the left fist's", ha="center", fontsize=9)
     figure.subplots_adjust(left=0.0, right=1.0, bottom=0.03, top=0.95, wspace=0.0, hspace=0.12)
     path = out / file_name
     figure.savefig(path, dpi=90)
