@@ -3,6 +3,7 @@ goes on serving (a broken frame closes that connection only; a new one is served
 
 import socket
 import struct
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -132,6 +133,14 @@ def test_a_client_without_the_secret_is_refused_and_closed(server, hello):
             assert intruder.recv(1) == b"", "closed after the refusal: the step behind it is never run"
     # The trainer's episode went on untouched: its next step is the episode's first.
     assert server.step(np.zeros((2, 10))).type == "step_done"
+    still_serving(server)
+
+
+def test_the_secret_is_not_left_where_other_processes_of_the_user_can_read_it(server):
+    """The server's initial environment (/proc/PID/environ, readable by the same user) no longer holds it."""
+    environ = Path(f"/proc/{server.pid}/environ").read_bytes()
+    assert server.secret.encode() not in environ
+    assert server.secret not in Path(f"/proc/{server.pid}/cmdline").read_text(errors="replace")
     still_serving(server)
 
 

@@ -91,6 +91,41 @@ impl Access {
     }
 }
 
+/// Overwrites the value of the environment variable `name` where this process received it, so that
+/// `/proc/PID/environ` (which shows the environment a process started with, whatever it unset since) no
+/// longer holds the run's secret. Call it once the value has been read; returns whether the variable was
+/// there. Linux with glibc only (the training server's platform); elsewhere it does nothing.
+pub fn scrub_environment_variable(name: &str) -> bool {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    {
+        let prefix = format!("{name}=");
+        let mut found = false;
+        // SAFETY: `environ` is the process's null-terminated array of NUL-terminated strings, which point into
+        // the memory the kernel set up at start (what /proc/PID/environ reads) for variables nobody set since.
+        // The bytes are overwritten in place, never past their terminating NUL, and no pointer is kept.
+        unsafe {
+            let mut entry = libc::environ;
+            while !entry.is_null() && !(*entry).is_null() {
+                let text = std::ffi::CStr::from_ptr(*entry).to_bytes();
+                if text.starts_with(prefix.as_bytes()) {
+                    let value = (*entry).cast::<u8>().add(prefix.len());
+                    for offset in 0..text.len() - prefix.len() {
+                        value.add(offset).write_volatile(0);
+                    }
+                    found = true;
+                }
+                entry = entry.add(1);
+            }
+        }
+        found
+    }
+    #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+    {
+        let _ = name;
+        false
+    }
+}
+
 /// Compares in time independent of where the bytes differ, so a local user cannot find the secret byte by
 /// byte from reply times.
 fn same_bytes(a: &[u8], b: &[u8]) -> bool {

@@ -127,6 +127,8 @@ impl PunchTrainingServer {
         // The run's secret comes in the environment (which other users cannot read), never as an argument.
         let os = Os::singleton();
         let secret = os.get_environment(SECRET_VARIABLE).to_string();
+        // Unsetting alone leaves it where /proc/PID/environ shows the environment the process started with.
+        punch_core::access::scrub_environment_variable(SECRET_VARIABLE);
         os.unset_environment(SECRET_VARIABLE);
         if secret.is_empty() {
             return Err(format!(
