@@ -6,6 +6,8 @@
 //!   it senses each frame, the policy's observation, Eq. 1 smoothing, and the motor law.
 //! - `punch`: one punch in a game (decision clock, runtime noise, hits, its end); `session`: the training
 //!   server's episodes over N slots; `protocol`: the trainer's wire format; `access`: who may use a server.
+//! - `bone_map`: finds the punching body's bones (hips, spine to chest, neck, head, shoulders, arms, hands) in a
+//!   user's skeleton from its bone names and hierarchy (Godot humanoid, Mixamo, Unreal, CMU, MakeHuman, Blender).
 //! - `policy`, `model_check`, `runtime`, `noise`: ONNX Runtime inference (of files checked to be plain
 //!   feed-forward graphs) and seeded Gaussian noise.
 //!
@@ -13,6 +15,7 @@
 //! engine); the Godot layer (`punch_godot`) only moves engine data in and out and reports errors.
 
 pub mod access;
+pub mod bone_map;
 pub mod character;
 // The training server runs on Linux (the trainer starts headless Linux Godot).
 #[cfg(unix)]
