@@ -29,6 +29,11 @@
 //!   and neck bones above the chest), and the neck the `Neck` nearest the root between chest and head (else the
 //!   first bone between them).
 //!
+//! Bones chosen by hand (`map_bones_with`, the inspector's edits) hold their roles whatever their names; the
+//! other roles are found around them, and a chosen bone that does not fit the hierarchy is refused by name.
+//! `BoneMap::unmapped` lists the optional roles left empty (for the node's configuration warnings); a missing
+//! required role is a `BoneMapError::Missing` naming each role, what was looked for and below which bone.
+//!
 //! How the spine shares the waist: the waist joint's rotation (flexion about X, rotation about Y, one rotation
 //! vector `v` of the torso relative to the pelvis) is split evenly along the chain: each of its `n` bones turns
 //! by `v / n` about the same axis expressed in its own rest frame. Rotations about one axis commute, so the
@@ -245,6 +250,12 @@ pub enum BoneMapError {
     /// Bones the punching body needs are not in the skeleton (twist, roll, IK and finger bones never count).
     #[error("the skeleton lacks bones the punching body needs: {}", list(.0))]
     Missing(Vec<MissingRole>),
+    /// A bone chosen by hand for a role is not in the skeleton.
+    #[error("the bone `{name}` chosen as the {role} is not in the skeleton")]
+    UnknownBone { role: Role, name: String },
+    /// A bone chosen by hand does not fit where its role sits (a chest not above the arms, hips not below it).
+    #[error("the bone `{name}` chosen as the {role} does not fit: {reason}")]
+    Misplaced { role: Role, name: String, reason: String },
 }
 
 fn list(missing: &[MissingRole]) -> String {
@@ -256,6 +267,7 @@ impl BoneMapError {
     pub fn missing_roles(&self) -> Vec<Role> {
         match self {
             BoneMapError::Malformed(_) => Vec::new(),
+            BoneMapError::UnknownBone { role, .. } | BoneMapError::Misplaced { role, .. } => vec![*role],
             BoneMapError::Missing(missing) => missing.iter().map(|m| m.role).collect(),
         }
     }
@@ -264,12 +276,31 @@ impl BoneMapError {
 /// Finds the punching body's bones in a skeleton given as bone names and parent indices (-1 for a root), in
 /// `Skeleton3D`'s order.
 pub fn map_bones<S: AsRef<str>>(names: &[S], parents: &[i32]) -> Result<BoneMap, BoneMapError> {
+    map_bones_with(names, parents, &[])
+}
+
+/// `map_bones` with some roles' bones chosen by hand (by exact bone name, as the inspector edits them): a chosen
+/// bone holds its role whatever its name, and the other roles are found around it (a chosen upper arm decides
+/// which forearm is below it). A chosen bone that does not fit the hierarchy is an error naming it.
+pub fn map_bones_with<S: AsRef<str>>(
+    names: &[S],
+    parents: &[i32],
+    chosen: &[(Role, &str)],
+) -> Result<BoneMap, BoneMapError> {
     let tree = Tree::new(parents)?;
     if names.len() != tree.len() {
         return Err(BoneMapError::Malformed(format!("{} names but {} parents", names.len(), tree.len())));
     }
+    let mut picked = Vec::with_capacity(chosen.len());
+    for &(role, name) in chosen {
+        let bone = names
+            .iter()
+            .position(|n| n.as_ref() == name)
+            .ok_or_else(|| BoneMapError::UnknownBone { role, name: name.to_string() })?;
+        picked.push((role, bone));
+    }
     let words = read_names(names);
-    Matcher { tree, words, names: names.iter().map(|n| n.as_ref().to_string()).collect() }.map()
+    Matcher { tree, words, names: names.iter().map(|n| n.as_ref().to_string()).collect(), chosen: picked }.map()
 }
 
 // ---------------------------------------------------------------------------------------------------------
@@ -576,6 +607,8 @@ struct Matcher {
     tree: Tree,
     words: Vec<Name>,
     names: Vec<String>,
+    /// Bones chosen by hand for their roles.
+    chosen: Vec<(Role, usize)>,
 }
 
 /// Where an arm's search stopped: no upper arm, no forearm below the best upper arm, no hand below the
@@ -597,6 +630,22 @@ struct Chain {
 }
 
 impl Matcher {
+    fn chosen(&self, role: Role) -> Option<usize> {
+        self.chosen.iter().find(|(r, _)| *r == role).map(|&(_, b)| b)
+    }
+
+    /// The bones that may hold `role`: the chosen one, else those named like it.
+    fn candidates_for(&self, role: Role, side: Option<Side>, kinds: &[(Kind, u32)]) -> Vec<(usize, u32)> {
+        match self.chosen(role) {
+            Some(bone) => vec![(bone, 0)],
+            None => self.candidates(side, kinds),
+        }
+    }
+
+    fn misplaced(&self, role: Role, bone: usize, reason: String) -> BoneMapError {
+        BoneMapError::Misplaced { role, name: self.names[bone].clone(), reason }
+    }
+
     fn candidates(&self, side: Option<Side>, kinds: &[(Kind, u32)]) -> Vec<(usize, u32)> {
         (0..self.tree.len())
             .filter(|&b| self.words[b].side == side)
@@ -610,9 +659,9 @@ impl Matcher {
     /// the root), or where the search stopped.
     fn chain(&self, side: Side, naming: usize) -> Result<Chain, Lacks> {
         let n = &NAMINGS[naming];
-        let uppers = self.candidates(Some(side), n.upper);
-        let fores = self.candidates(Some(side), n.fore);
-        let hands = self.candidates(Some(side), n.hand);
+        let uppers = self.candidates_for(Role::UpperArm(side), Some(side), n.upper);
+        let fores = self.candidates_for(Role::Forearm(side), Some(side), n.fore);
+        let hands = self.candidates_for(Role::Hand(side), Some(side), n.hand);
         let depth = |b: usize| self.tree.depths[b];
         let mut best: Option<((u32, usize, usize, usize), Chain)> = None;
         let mut stop = match uppers.iter().min_by_key(|&&(b, r)| (r, depth(b), b)) {
@@ -635,8 +684,9 @@ impl Matcher {
         best.map(|(_, chain)| chain).ok_or(stop)
     }
 
-    /// The arm of one side: segment naming first, then joint naming.
-    fn arm(&self, side: Side) -> Result<Chain, MissingRole> {
+    /// The arm of one side: segment naming first, then joint naming. A missing role is a `MissingRole`; a chosen
+    /// bone that does not fit is an error of its own.
+    fn arm(&self, side: Side) -> Result<Chain, Result<MissingRole, BoneMapError>> {
         let segments = match self.chain(side, 0) {
             Ok(chain) => return Ok(chain),
             Err(stop) => stop,
@@ -655,11 +705,14 @@ impl Matcher {
             Lacks::Forearm { below } => (Role::Forearm(side), Some(below)),
             Lacks::Hand { below } => (Role::Hand(side), Some(below)),
         };
+        if let (Some(bone), Some(below)) = (self.chosen(role), below) {
+            return Err(Err(self.misplaced(role, bone, format!("it is not below `{}`", self.names[below]))));
+        }
         let mut detail = role.looked_for();
         if let Some(below) = below {
             detail.push_str(&format!("; none below `{}`", self.names[below]));
         }
-        Err(MissingRole { role, detail })
+        Err(Ok(MissingRole { role, detail }))
     }
 
     fn map(self) -> Result<BoneMap, BoneMapError> {
@@ -668,50 +721,70 @@ impl Matcher {
         let (left, right) = match (left, right) {
             (Ok(l), Ok(r)) => (l, r),
             (l, r) => {
-                let mut missing: Vec<MissingRole> = [l.err(), r.err()].into_iter().flatten().collect();
+                let mut missing = Vec::new();
+                for failure in [l.err(), r.err()].into_iter().flatten() {
+                    missing.push(failure?);
+                }
                 if self.candidates(None, &[(Kind::Head, 0)]).is_empty() {
                     missing.push(MissingRole { role: Role::Head, detail: Role::Head.looked_for() });
                 }
                 return Err(BoneMapError::Missing(missing));
             }
         };
-        let chest = self
-            .tree
-            .common_ancestor(left.upper, right.upper)
-            .filter(|&c| c != left.upper && c != right.upper)
-            .ok_or_else(|| {
+        let above_arms = |b: usize| self.tree.is_above(b, left.upper) && self.tree.is_above(b, right.upper);
+        let chest = match self.chosen(Role::Chest) {
+            Some(chest) if above_arms(chest) => chest,
+            Some(chest) => {
+                return Err(self.misplaced(Role::Chest, chest, "it is not above both upper arms".to_string()));
+            }
+            None => self.tree.common_ancestor(left.upper, right.upper).filter(|&c| above_arms(c)).ok_or_else(|| {
                 BoneMapError::Missing(vec![MissingRole {
                     role: Role::Chest,
                     detail: format!("{}; the two upper arms share no ancestor", Role::Chest.looked_for()),
                 }])
-            })?;
-        let hips = self.hips(chest)?;
+            })?,
+        };
+        let hips = match self.chosen(Role::Hips) {
+            Some(hips) if self.tree.is_above(hips, chest) => hips,
+            Some(hips) => {
+                let reason = format!("it is not below the chest `{}`", self.names[chest]);
+                return Err(self.misplaced(Role::Hips, hips, reason));
+            }
+            None => self.hips(chest)?,
+        };
         let mut spine: Vec<usize> =
             std::iter::once(chest).chain(self.tree.ancestors(chest).take_while(|&b| b != hips)).collect();
         spine.reverse();
-        let head = self.head(hips, chest, &[left.upper, right.upper]).ok_or_else(|| {
-            BoneMapError::Missing(vec![MissingRole { role: Role::Head, detail: Role::Head.looked_for() }])
-        })?;
+        let head = self.chosen(Role::Head).or_else(|| self.head(hips, chest, &[left.upper, right.upper])).ok_or_else(
+            || BoneMapError::Missing(vec![MissingRole { role: Role::Head, detail: Role::Head.looked_for() }]),
+        )?;
         // The neck: the `Neck` nearest the root between chest and head, else the first bone on that path.
         let between: Vec<usize> = self.tree.ancestors(head).take_while(|&b| b != hips && !spine.contains(&b)).collect();
-        let neck = between
-            .iter()
-            .rev()
-            .copied()
-            .find(|&b| rank(&self.words[b], Kind::Neck).is_some())
-            .or_else(|| between.last().copied().filter(|&b| !self.words[b].refused));
-        let arm = |chain: Chain, side: Side| ArmBones {
-            shoulder: self
-                .candidates(Some(side), NAMINGS[chain.naming].clavicle)
+        let neck = self.chosen(Role::Neck).or_else(|| {
+            between
+                .iter()
+                .rev()
+                .copied()
+                .find(|&b| rank(&self.words[b], Kind::Neck).is_some())
+                .or_else(|| between.last().copied().filter(|&b| !self.words[b].refused))
+        });
+        let arm = |chain: Chain, side: Side| -> Result<ArmBones, BoneMapError> {
+            let role = Role::Shoulder(side);
+            let fits = |b: usize| self.tree.is_above(chest, b) && self.tree.is_above(b, chain.upper);
+            let shoulder = self
+                .candidates_for(role, Some(side), NAMINGS[chain.naming].clavicle)
                 .into_iter()
-                .filter(|&(b, _)| self.tree.is_above(chest, b) && self.tree.is_above(b, chain.upper))
+                .filter(|&(b, _)| fits(b) || self.chosen(role) == Some(b))
                 .min_by_key(|&(b, r)| (r, self.tree.depths[b]))
-                .map(|(b, _)| b),
-            upper_arm: chain.upper,
-            forearm: chain.fore,
-            hand: chain.hand,
+                .map(|(b, _)| b);
+            if let Some(bone) = shoulder.filter(|&b| !fits(b)) {
+                let reason =
+                    format!("it is not between the chest `{}` and the {} upper arm", self.names[chest], side.word());
+                return Err(self.misplaced(role, bone, reason));
+            }
+            Ok(ArmBones { shoulder, upper_arm: chain.upper, forearm: chain.fore, hand: chain.hand })
         };
-        Ok(BoneMap { hips, spine, neck, head, left: arm(left, Side::Left), right: arm(right, Side::Right) })
+        Ok(BoneMap { hips, spine, neck, head, left: arm(left, Side::Left)?, right: arm(right, Side::Right)? })
     }
 
     /// The unsided `Head` nearest the root above the hips and outside the arms; else (Rigify's `spine.006`) the

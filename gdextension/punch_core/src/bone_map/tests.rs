@@ -1033,3 +1033,55 @@ fn twist_roll_ik_and_finger_bones_match_no_role() {
         assert_eq!(rank(&read_words(&words(name)), Kind::UpperArm), None, "{name}");
     }
 }
+
+#[test]
+fn bones_chosen_by_hand_win_and_the_rest_is_found_around_them() {
+    // A name the matcher cannot read, chosen by hand: the forearm and hand below it are found as usual.
+    let (names, parents) = skeleton(&GODOT_HUMANOID.replace("LeftUpperArm", "LeftBicep"), "");
+    assert!(map_bones(&names, &parents).is_err());
+    let map = map_bones_with(&names, &parents, &[(Role::UpperArm(Side::Left), "LeftBicep")]).expect("maps");
+    assert_eq!(names[map.left.upper_arm], "LeftBicep");
+    assert_eq!(names[map.left.forearm], "LeftLowerArm");
+    assert_eq!(names[map.left.shoulder.expect("clavicle")], "LeftShoulder");
+
+    // A chosen chest shortens the spine chain; a chosen neck replaces the found one.
+    let (names, parents) = skeleton(MIXAMO, "mixamorig:");
+    let chosen = [(Role::Chest, "mixamorig:Spine1"), (Role::Neck, "mixamorig:Spine2")];
+    let map = map_bones_with(&names, &parents, &chosen).expect("maps");
+    assert_eq!(
+        map.spine.iter().map(|&b| names[b].as_str()).collect::<Vec<_>>(),
+        ["mixamorig:Spine", "mixamorig:Spine1"]
+    );
+    assert_eq!(names[map.neck.expect("chosen")], "mixamorig:Spine2");
+    assert_eq!(names[map.left.shoulder.expect("clavicle")], "mixamorig:LeftShoulder");
+
+    // Choosing what the matcher finds anyway changes nothing.
+    let found = map_bones(&names, &parents).expect("maps");
+    let all: Vec<(Role, &str)> =
+        Role::ALL.iter().filter_map(|&r| found.bone(r).map(|b| (r, names[b].as_str()))).collect();
+    assert_eq!(map_bones_with(&names, &parents, &all).expect("maps"), found);
+}
+
+#[test]
+fn bones_chosen_by_hand_that_do_not_fit_are_named() {
+    let (names, parents) = skeleton(MIXAMO, "");
+    let error = |chosen: &[(Role, &str)]| map_bones_with(&names, &parents, chosen).expect_err("refused");
+
+    let e = error(&[(Role::Hand(Side::Right), "Hnad_R")]);
+    assert_eq!(e, BoneMapError::UnknownBone { role: Role::Hand(Side::Right), name: "Hnad_R".to_string() });
+    assert_eq!(e.to_string(), "the bone `Hnad_R` chosen as the right hand is not in the skeleton");
+
+    let e = error(&[(Role::Hand(Side::Right), "LeftHand")]);
+    assert!(matches!(&e, BoneMapError::Misplaced { role: Role::Hand(Side::Right), name, .. } if name == "LeftHand"));
+    assert!(e.to_string().contains("not below `RightForeArm`"), "{e}");
+
+    let e = error(&[(Role::Chest, "LeftArm")]);
+    assert_eq!(e.missing_roles(), vec![Role::Chest]);
+    assert!(e.to_string().contains("`LeftArm` chosen as the chest does not fit"), "{e}");
+
+    let e = error(&[(Role::Hips, "Head")]);
+    assert_eq!(e.missing_roles(), vec![Role::Hips]);
+
+    let e = error(&[(Role::Shoulder(Side::Left), "RightShoulder")]);
+    assert!(matches!(e, BoneMapError::Misplaced { role: Role::Shoulder(Side::Left), .. }), "{e}");
+}
