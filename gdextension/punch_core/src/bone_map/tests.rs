@@ -1085,3 +1085,56 @@ fn bones_chosen_by_hand_that_do_not_fit_are_named() {
     let e = error(&[(Role::Shoulder(Side::Left), "RightShoulder")]);
     assert!(matches!(e, BoneMapError::Misplaced { role: Role::Shoulder(Side::Left), .. }), "{e}");
 }
+
+#[test]
+fn daz_genesis_names() {
+    // Daz Genesis 8: `l`/`r` glued to camelCase, Bend/Twist halves, `hip` above both `pelvis` (legs) and the back,
+    // two neck bones named neckLower/neckUpper.
+    let daz = "
+    hip -
+    pelvis hip
+    lThighBend pelvis
+    rThighBend pelvis
+    abdomenLower hip
+    abdomenUpper abdomenLower
+    chestLower abdomenUpper
+    chestUpper chestLower
+    neckLower chestUpper
+    neckUpper neckLower
+    head neckUpper
+    lPectoral chestUpper
+    lCollar chestUpper
+    lShldrBend lCollar
+    lShldrTwist lShldrBend
+    lForearmBend lShldrTwist
+    lForearmTwist lForearmBend
+    lHand lForearmTwist
+    lThumb1 lHand
+    lCarpal1 lHand
+    rCollar chestUpper
+    rShldrBend rCollar
+    rShldrTwist rShldrBend
+    rForearmBend rShldrTwist
+    rForearmTwist rForearmBend
+    rHand rForearmTwist
+    ";
+    check(
+        daz,
+        "",
+        &[
+            ("hips", "hip"),
+            ("chest", "chestUpper"),
+            ("neck", "neckLower"),
+            ("head", "head"),
+            ("shoulder_l", "lCollar"),
+            ("upper_arm_l", "lShldrBend"),
+            ("forearm_l", "lForearmBend"),
+            ("hand_l", "lHand"),
+            ("shoulder_r", "rCollar"),
+            ("upper_arm_r", "rShldrBend"),
+            ("forearm_r", "rForearmBend"),
+            ("hand_r", "rHand"),
+        ],
+        &["abdomenLower", "abdomenUpper", "chestLower", "chestUpper"],
+    );
+}
