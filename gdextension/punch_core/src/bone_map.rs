@@ -7,7 +7,7 @@
 //! forearm and the hand (the forearm body ends in the fist).
 //!
 //! How bones are found:
-//! - A name is read as words: a namespace (`mixamorig:`, `mixamorig1:`, anything before the last `:`) is
+//! - A name is read as words: a namespace (`mixamorig:`, `mixamorig1:`, anything before the last `:` or `|`) is
 //!   dropped, then the name splits at separators (`_ . - :` and spaces), at camelCase and at digits; case does
 //!   not matter. A prefix every bone shares (`Character1_`, `Bip01 `, `J_Bip_`) and filler words (`DEF`, `jnt`,
 //!   `mixamorig`, `C`, `M`) are dropped; unknown leading words (`CC_Base_`) are dropped at a lower rank.
@@ -248,7 +248,7 @@ pub enum BoneMapError {
     #[error("the skeleton's bone list is malformed: {0}")]
     Malformed(String),
     /// Bones the punching body needs are not in the skeleton (twist, roll, IK and finger bones never count).
-    #[error("the skeleton lacks bones the punching body needs: {}", list(.0))]
+    #[error("the skeleton lacks bones the punching body needs: {} (twist, roll, IK and finger bones never count)", list(.0))]
     Missing(Vec<MissingRole>),
     /// A bone chosen by hand for a role is not in the skeleton.
     #[error("the bone `{name}` chosen as the {role} is not in the skeleton")]
@@ -346,7 +346,7 @@ const REFUSED_PARTS: &[&str] = &["twist", "roll", "thumb", "index", "pinky", "pi
 struct Name {
     side: Option<Side>,
     refused: bool,
-    /// The role words joined (`upperarm`), then, at rank 1, with unknown leading words dropped.
+    /// The role words joined (`upperarm`) at penalty 0, then with unknown leading words dropped at penalty 1.
     cores: Vec<(String, u32)>,
 }
 
