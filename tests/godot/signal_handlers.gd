@@ -5,6 +5,8 @@
 ##   inside `hit` / `punch_finished` (its victims: "victim_hit", "victim_finished");
 ## - "free_self_in_hit": free() its own holder (controller, character and sandbag) inside `hit`;
 ## - "free_character_in_hit" / "free_target_in_hit": free() only its character / its target's sandbag;
+## - "removed_in_hit": remove_child() of the controller inside `hit`, then queue_free() of it inside its
+##   `punch_finished`;
 ## - "same_policy_every_frame": `policy = policy` every frame; "new_policy_in_started": the hook set in
 ##   `punch_started` (this punch plays on with the straight, the next one plays the hook);
 ## - "sigma_seed_in_hit": noise_sigma set to INF, then 1e30, and a new seed, inside `hit`;
@@ -19,7 +21,7 @@ extends SceneTree
 const STRAIGHT := "res://addons/punch_controller/policies/straight.onnx"
 const HOOK := "res://addons/punch_controller/policies/hook.onnx"
 const CASES := ["free_other_in_hit", "victim_hit", "free_other_in_finished", "victim_finished",
-	"free_self_in_hit", "free_character_in_hit", "free_target_in_hit", "same_policy_every_frame",
+	"free_self_in_hit", "free_character_in_hit", "free_target_in_hit", "removed_in_hit", "same_policy_every_frame",
 	"new_policy_in_started", "sigma_seed_in_hit", "punch_in_hit", "punch_in_started", "taken_over", "bystander"]
 
 var _holders := {}
@@ -107,6 +109,8 @@ func _on_hit(name: String, controller: Node) -> void:
 			_holders[name].get_node("Character").free()
 		"free_target_in_hit":
 			_holders[name].get_node("Sandbag").free()
+		"removed_in_hit":
+			_holders[name].remove_child(controller)
 		"sigma_seed_in_hit":
 			for sigma in [INF, 1e30]:
 				controller.set("noise_sigma", sigma)
@@ -118,6 +122,10 @@ func _on_hit(name: String, controller: Node) -> void:
 
 func _on_finished(name: String, controller: Node, metrics: Dictionary) -> void:
 	_events(name).append("F:" + metrics.ended)
+	if name == "removed_in_hit":
+		_report[name]["in_tree_when_finished"] = controller.is_inside_tree()
+		controller.queue_free()  # (Godot refuses free() of an object emitting a signal)
+		return
 	if is_instance_valid(controller) and controller.is_inside_tree():
 		var record: Dictionary = controller.call("last_punch_record")
 		if record.decisions > 0:

@@ -196,6 +196,8 @@ def test_whatever_signal_handlers_do_every_start_gets_one_finish_and_other_punch
     for name in ("free_other_in_hit", "free_other_in_finished", "same_policy_every_frame", "sigma_seed_in_hit", "bystander"):
         assert endings[name] == ["S", "F:completed"] and "H" in events[name], f"{name}: {events[name]}"
     assert endings["free_self_in_hit"] == ["S", "F:interrupted"], "freed with its scene: interrupted"
+    # Taken out of the tree: its end comes with the next frame, when a handler may free it.
+    assert endings["removed_in_hit"] == ["S", "F:interrupted"] and not report["removed_in_hit"]["in_tree_when_finished"]
     assert endings["free_character_in_hit"] == ["S", "F:error"] and "the character was freed" in run.log
     assert endings["free_target_in_hit"] == ["S", "F:error"] and "the target was freed" in run.log
     # Values that are not numbers are refused, huge ones clamped.

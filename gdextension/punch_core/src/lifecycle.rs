@@ -134,9 +134,9 @@ impl<P: Clone> Lifecycle<P> {
     }
 
     /// True while the controller drives its character, or has something left to say or do: the game must
-    /// keep calling `begin_frame` and `act`.
+    /// keep calling `begin_frame` and `act`, and taking the events.
     pub fn is_active(&self) -> bool {
-        !matches!(self.phase, Phase::Idle) || self.hold_next
+        !matches!(self.phase, Phase::Idle) || self.hold_next || !self.events.is_empty()
     }
 
     /// The record of the last finished punch (empty unless its `Punch` was made to record).
@@ -562,8 +562,8 @@ mod tests {
             prop_assert_eq!(open, lifecycle.is_punching());
             // However it got here, a game that lets frames run hears the end.
             for _ in 0..200 { frame(&mut lifecycle, &mut world, CALM, forward); }
-            prop_assert!(!lifecycle.is_active());
             let finishes = events(&mut lifecycle).iter().filter(|e| matches!(e, Event::Finished(..))).count();
+            prop_assert!(!lifecycle.is_active(), "done, and nothing left to say");
             prop_assert_eq!(finishes, usize::from(open));
         }
     }

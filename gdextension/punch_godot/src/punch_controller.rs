@@ -126,6 +126,8 @@ pub struct PunchController {
     sensed: bool,
     /// The controller is leaving the scene tree (a `punch_finished` handler may not start another punch).
     leaving_tree: bool,
+    /// The controller is being freed (its events cannot wait for a frame).
+    being_freed: bool,
     base: Base<Node>,
 }
 
@@ -140,14 +142,21 @@ impl INode for PunchController {
     fn on_notification(&mut self, what: NodeNotification) {
         match what {
             NodeNotification::ENTER_TREE => self.leaving_tree = false,
-            // Leaving the tree (removed, or freed with its scene): no frame will come, so the punch ends now.
+            // Leaving the tree: no frame will drive it, so the punch ends now. Its events wait for the next
+            // frame pass, which emits them with no borrow held (a handler may free this controller), unless
+            // the controller is being freed: then they go out now, as no frame will come.
             NodeNotification::EXIT_TREE => {
                 self.leaving_tree = true;
                 self.lifecycle.cancel();
                 self.act_now();
-                while let Some(event) = self.lifecycle.next_event() {
-                    emit(self.signals(), event);
+                if self.being_freed {
+                    self.emit_now();
                 }
+            }
+            // Freed (itself, or with its scene after it left the tree): what it has not said yet goes out now.
+            NodeNotification::PREDELETE => {
+                self.being_freed = true;
+                self.emit_now();
             }
             _ => {}
         }
@@ -457,10 +466,14 @@ impl PunchController {
             }
         }
         for &id in &ids {
-            let Some(mut controller) = running(id) else { continue };
-            let mean = askers.iter().position(|asker| *asker == id).map(|row| batch.means[row].clone());
-            controller.bind_mut().act_frame(mean);
-            Self::emit_events(&mut controller);
+            if let Some(mut controller) = running(id) {
+                let mean = askers.iter().position(|asker| *asker == id).map(|row| batch.means[row].clone());
+                controller.bind_mut().act_frame(mean);
+            }
+            // Also what a controller that left the tree (or is paused) has to say.
+            if let Ok(mut controller) = Gd::<Self>::try_from_instance_id(id) {
+                Self::emit_events(&mut controller);
+            }
         }
         PunchInference::retain_active(|id| {
             Gd::<Self>::try_from_instance_id(id).is_ok_and(|controller| controller.bind().lifecycle.is_active())
@@ -536,6 +549,13 @@ impl PunchController {
             }
         };
         self.apply(drive);
+    }
+
+    /// Emits the queued events from inside the controller (it is being freed, so no frame pass will).
+    fn emit_now(&mut self) {
+        while let Some(event) = self.lifecycle.next_event() {
+            emit(self.signals(), event);
+        }
     }
 
     /// Emits the controller's queued events one at a time, with no borrow held, so that a handler may do
