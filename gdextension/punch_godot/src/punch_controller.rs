@@ -11,9 +11,9 @@ use std::time::Instant;
 use glam::Vec3;
 use godot::builtin::{PackedFloat32Array, VarDictionary, Vector2, Vector3};
 use godot::classes::notify::NodeNotification;
-use godot::classes::{INode, Node, Node3D, PhysicsShapeQueryParameters3D, SphereShape3D};
+use godot::classes::{Engine, INode, Node, Node3D, PhysicsShapeQueryParameters3D, SceneTree, SphereShape3D};
 use godot::global::{godot_error, godot_warn};
-use godot::obj::{Base, Gd, InstanceId, NewGd, WithBaseField, WithSignals, WithUserSignals};
+use godot::obj::{Base, Gd, InstanceId, NewGd, Singleton, WithBaseField, WithSignals, WithUserSignals};
 use godot::prelude::{GodotClass, godot_api};
 use punch_core::character::{Body, DEFAULT_DECISION_PERIOD};
 use punch_core::lifecycle::{Drive, Ending, Event, FrameNeeds, Lifecycle, NoiseSettings, PunchStart};
@@ -153,7 +153,9 @@ impl INode for PunchController {
                     self.emit_now();
                 }
             }
-            // Freed (itself, or with its scene after it left the tree): what it has not said yet goes out now.
+            // Freed (itself, or with its scene after it left the tree): what it has not said yet goes out now,
+            // unless the game is quitting (the whole tree is being torn down: nobody is left to tell, and
+            // handlers would meet freed nodes).
             NodeNotification::PREDELETE => {
                 self.being_freed = true;
                 self.emit_now();
@@ -551,8 +553,12 @@ impl PunchController {
         self.apply(drive);
     }
 
-    /// Emits the queued events from inside the controller (it is being freed, so no frame pass will).
+    /// Emits the queued events from inside the controller (it is being freed, so no frame pass will), unless
+    /// the scene tree is being torn down as the game quits.
     fn emit_now(&mut self) {
+        if tree_is_quitting() {
+            return;
+        }
         while let Some(event) = self.lifecycle.next_event() {
             emit(self.signals(), event);
         }
@@ -589,6 +595,12 @@ fn emit(mut signals: Signals<'_>, event: Event) {
         Event::Finished(summary, ending) => signals.punch_finished().emit(&finish_metrics(&summary, &ending)),
         Event::Recovered => signals.recovered().emit(),
     }
+}
+
+/// True while the game's scene tree is being torn down (its root has left the tree: the game quits).
+fn tree_is_quitting() -> bool {
+    let tree = Engine::singleton().get_main_loop().and_then(|main_loop| main_loop.try_cast::<SceneTree>().ok());
+    tree.and_then(|tree| tree.get_root()).is_none_or(|root| !root.is_inside_tree())
 }
 
 /// The controller with this id, if it still exists and is processing (not paused).
