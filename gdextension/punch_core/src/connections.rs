@@ -13,13 +13,24 @@ use std::os::fd::AsRawFd;
 use std::time::{Duration, Instant};
 
 use crate::access::{Access, ClientId, Verdict};
+use crate::log_budget::LogBudget;
 use crate::protocol::{FrameReader, Message, ProtocolError, error_reply, release_spare};
 
 /// The server's limits on its clients.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Limits {
-    /// Open connections at most; more are answered with an error and closed.
+    /// Connections of this run (that said hello with the secret) at most; a hello with the secret over it is
+    /// answered that the server is busy, and closed.
     pub max_connections: usize,
+    /// Connections that have not yet said hello with the secret, at most. A new connection over it closes the
+    /// oldest of them (told that the server is busy): whoever holds them, the run's own client, which says
+    /// hello at once, still gets in.
+    pub max_waiting: usize,
+    /// Lines about clients (refusals, closures) the server's log takes at most per `log_interval`; the rest
+    /// are counted in one line per interval, so that no one can flood the log.
+    pub log_lines_per_interval: usize,
+    /// See `log_lines_per_interval`.
+    pub log_interval: Duration,
     /// Bytes all connections together may keep (their buffers' capacity: received and not yet handled, or to
     /// be sent, half-sent frames included); a connection whose next read would go over it is closed.
     pub memory_budget_bytes: usize,
@@ -39,6 +50,9 @@ impl Default for Limits {
     fn default() -> Self {
         Self {
             max_connections: 8,
+            max_waiting: 16,
+            log_lines_per_interval: 20,
+            log_interval: Duration::from_secs(60),
             memory_budget_bytes: 512 * 1024 * 1024,
             receive_chunk_bytes: 64 * 1024,
             hello_timeout: Duration::from_secs(10),
@@ -109,6 +123,8 @@ pub struct Connections {
     last_activity: Instant,
     /// What happened to clients that the server's log should say (refusals, closures and why).
     notices: Vec<String>,
+    /// How many of those lines the log takes (outsiders can cause them).
+    log_budget: LogBudget,
 }
 
 impl Connections {
@@ -126,6 +142,7 @@ impl Connections {
             limits,
             last_activity: Instant::now(),
             notices: Vec::new(),
+            log_budget: LogBudget::new(limits.log_lines_per_interval, limits.log_interval, Instant::now()),
         })
     }
 
@@ -154,9 +171,16 @@ impl Connections {
         self.last_activity = Instant::now();
     }
 
-    /// What happened to clients since the last call, one line each, for the server's log.
+    /// What happened to clients since the last call, one line each, for the server's log (within the log
+    /// budget of `Limits::log_lines_per_interval`, with a line that counts what it left out).
     pub fn take_notices(&mut self) -> Vec<String> {
+        self.notices.extend(self.log_budget.summary(Instant::now()));
         std::mem::take(&mut self.notices)
+    }
+
+    fn notice(&mut self, line: String) {
+        let lines = self.log_budget.admit(line, Instant::now());
+        self.notices.extend(lines);
     }
 
     /// The next request a client sent and `access` admitted, waiting at most `Limits::poll_wait` for one to
@@ -195,6 +219,15 @@ impl Connections {
                     continue;
                 }
             };
+            if message.message_type() == "hello" && self.is_full_with_run_clients(client) {
+                let limit = self.limits.max_connections;
+                let reply = error_reply(&format!(
+                    "the server is busy: {limit} connections of this run are open; closing the connection"
+                ));
+                self.notice(format!("closing client {client}: {}", error_text(&reply)));
+                self.close_after(client, &reply);
+                continue;
+            }
             match self.access.admit(client, &message) {
                 Verdict::Pass => {}
                 Verdict::Refuse(reply) => {
@@ -202,7 +235,7 @@ impl Connections {
                     continue;
                 }
                 Verdict::Close(reply) => {
-                    self.notices.push(format!("closing client {client}: {}", error_text(&reply)));
+                    self.notice(format!("closing client {client}: {}", error_text(&reply)));
                     self.close_after(client, &reply);
                     continue;
                 }
@@ -253,6 +286,13 @@ impl Connections {
         }
     }
 
+    /// Whether `client`, not yet admitted, would be one connection of this run too many.
+    fn is_full_with_run_clients(&self, client: ClientId) -> bool {
+        !self.access.is_authenticated(client)
+            && self.connections.iter().filter(|c| self.access.is_authenticated(c.id)).count()
+                >= self.limits.max_connections
+    }
+
     fn connection(&mut self, client: ClientId) -> Option<&mut Connection> {
         self.connections.iter_mut().find(|c| c.id == client)
     }
@@ -293,19 +333,13 @@ impl Connections {
         }
     }
 
-    /// Takes every client waiting in the listen queue, up to `Limits::max_connections` open at once.
+    /// Takes every client waiting in the listen queue; with `Limits::max_waiting` connections waiting to say
+    /// hello, each new one closes the oldest of those.
     fn accept_pending(&mut self) {
         loop {
             match self.listener.accept() {
-                Ok((mut stream, _)) => {
-                    let limit = self.limits.max_connections;
-                    if self.connections.len() >= limit {
-                        // Best effort, never blocking: the refusal fits in any socket buffer.
-                        let refusal = error_reply(&format!("the server has {limit} connections open"));
-                        let _ = stream.set_nonblocking(true).and_then(|()| stream.write(&refusal.encode()));
-                        self.notices.push(format!("refused a connection: {limit} are open"));
-                        continue;
-                    }
+                Ok((stream, _)) => {
+                    self.make_room_for_a_new_connection();
                     if stream.set_nonblocking(true).is_ok() && stream.set_nodelay(true).is_ok() {
                         self.next_client += 1;
                         self.connections.push(Connection {
@@ -321,11 +355,30 @@ impl Connections {
                 }
                 Err(error) if error.kind() == ErrorKind::WouldBlock => return,
                 Err(error) => {
-                    self.notices.push(format!("accept failed: {error}"));
+                    self.notice(format!("accept failed: {error}"));
                     return;
                 }
             }
         }
+    }
+
+    /// Closes the oldest connection not yet admitted with the secret while `Limits::max_waiting` are open: the
+    /// run's own client says hello as soon as it connects, so holding connections keeps no one out.
+    fn make_room_for_a_new_connection(&mut self) {
+        let limit = self.limits.max_waiting;
+        let waiting = self.connections.iter().filter(|c| !self.access.is_authenticated(c.id));
+        if waiting.clone().count() < limit {
+            return;
+        }
+        let Some(oldest) = waiting.min_by_key(|c| (c.opened, c.id)).map(|c| c.id) else { return };
+        let refusal = error_reply(&format!(
+            "the server is busy: {limit} connections are waiting to say hello with the secret; closing the oldest"
+        ));
+        if let Some(connection) = self.connection(oldest) {
+            // Best effort, never blocking: the refusal fits in any socket buffer.
+            let _ = connection.stream.write(&refusal.encode());
+        }
+        self.disconnect(oldest, Some(&format!("{limit} connections were waiting to say hello; it was the oldest")));
     }
 
     /// Closes the clients that broke a time limit: no hello with the secret in time, or a reply left unread
@@ -389,7 +442,7 @@ impl Connections {
         let Some(index) = self.connections.iter().position(|c| c.id == client) else { return };
         self.connections.remove(index);
         if let Some(reason) = reason {
-            self.notices.push(format!("closed client {client}: {reason}"));
+            self.notice(format!("closed client {client}: {reason}"));
         }
         self.access.disconnected(client);
     }

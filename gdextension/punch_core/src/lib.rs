@@ -25,6 +25,7 @@ pub mod error;
 #[cfg(test)]
 mod fake_world;
 pub mod lifecycle;
+pub mod log_budget;
 pub mod model_check;
 pub mod noise;
 pub mod observation;

@@ -133,16 +133,50 @@ fn the_memory_budget_closes_the_connection_that_would_go_over_it() {
 }
 
 #[test]
-fn a_connection_over_the_limit_is_refused_with_the_reason() {
+fn a_hello_with_the_secret_over_the_limit_is_told_the_server_is_busy() {
     let mut server = server(Limits { max_connections: 2, ..quick_limits() });
     let _first = authenticated(&mut server);
     let _second = authenticated(&mut server);
     let mut third = client(&server);
+    hello().write_to(&mut third).expect("sends hello");
     let notices = poll_for(&mut server, Duration::from_millis(50));
-    assert!(notices.iter().any(|n| n.contains("refused a connection")), "{notices:?}");
+    assert!(notices.iter().any(|n| n.contains("busy")), "{notices:?}");
     let errors = errors_until_closed(&mut third);
-    assert_eq!(errors, ["the server has 2 connections open"]);
+    assert_eq!(errors, ["the server is busy: 2 connections of this run are open; closing the connection"]);
     assert_eq!(server.count(), 2);
+}
+
+#[test]
+fn connections_held_without_a_hello_do_not_keep_the_runs_client_out() {
+    let mut server = server(Limits { max_connections: 2, max_waiting: 4, ..quick_limits() });
+    // Outsiders hold twice every slot there is, saying nothing.
+    let mut held: Vec<TcpStream> = (0..8).map(|_| client(&server)).collect();
+    poll_for(&mut server, Duration::from_millis(50));
+    assert_eq!(server.count(), 4, "at most max_waiting connections wait for their hello");
+    let (_run, _) = authenticated(&mut server);
+    let errors: Vec<String> = held.iter_mut().take(5).flat_map(errors_until_closed).collect();
+    assert!(errors.iter().all(|e| e.starts_with("the server is busy: 4 connections are waiting")), "{errors:?}");
+    assert_eq!(errors.len(), 5, "the oldest ones were closed, each told why: {errors:?}");
+}
+
+#[test]
+fn a_flood_of_refused_clients_logs_a_bounded_number_of_lines() {
+    let limits = Limits { log_lines_per_interval: 5, log_interval: Duration::from_millis(400), ..quick_limits() };
+    let mut server = server(limits);
+    let mut notices = Vec::new();
+    for _ in 0..60 {
+        let mut intruder = client(&server);
+        Message::new("hello")
+            .with("protocol_version", json!(PROTOCOL_VERSION))
+            .with("secret", json!("wrong-wrong-wrong-wrong"))
+            .write_to(&mut intruder)
+            .expect("sends");
+        notices.extend(poll_for(&mut server, Duration::from_millis(2)));
+    }
+    notices.extend(poll_for(&mut server, Duration::from_millis(500)));
+    assert!(notices.len() <= 5 * 3 + 3, "{} lines: {notices:?}", notices.len());
+    assert!(notices.iter().any(|n| n.contains("more such lines")), "{notices:?}");
+    let (_run, _) = authenticated(&mut server);
 }
 
 #[test]
