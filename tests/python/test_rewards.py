@@ -1,5 +1,7 @@
 """Rewards: presets against hand-computed values, user reward files, and clear errors."""
 
+import os
+
 import numpy as np
 import pytest
 
@@ -91,3 +93,85 @@ def test_misbehaving_user_rewards_get_an_error_naming_them(tmp_path, monkeypatch
     assert "bad.py:reward" in str(error.value)
     np.testing.assert_array_equal(f, before)
     assert f.flags.writeable, "the caller's own array stays writable"
+
+
+ATTACKS = {
+    "os._exit bound at import": ("from os import _exit as quit_\ndef reward(f):\n    quit_(3)\n",
+                                 r"tried to exit the process \(exit code 3\)"),
+    "bare except retry loop": ("import time\ndef reward(f):\n    while True:\n        try:\n            time.sleep(30)\n"
+                               "        except:\n            pass\n", "took longer than 0.5 s"),
+    "SIGALRM ignored": ("import signal, time\ndef reward(f):\n    signal.signal(signal.SIGALRM, signal.SIG_IGN)\n"
+                        "    time.sleep(30)\n", "took longer than 0.5 s"),
+    "timer switched off": ("import signal, time\ndef reward(f):\n    signal.setitimer(signal.ITIMER_REAL, 0)\n"
+                           "    signal.signal(signal.SIGALRM, lambda *a: None)\n    time.sleep(30)\n", "took longer than 0.5 s"),
+    "kills itself": ("import os, signal\ndef reward(f):\n    os.kill(os.getpid(), signal.SIGKILL)\n", "signal SIGKILL"),
+    "writes re-enabled": ("def reward(f):\n    f.features.flags.writeable = True\n    f.features[...] = 0\n"
+                          "    return f['fist_r_vel_z']\n", "WRITEABLE|read-only"),
+    "writes through .base": ("import numpy as np\ndef reward(f):\n    base = f.features\n    while getattr(base, 'base', None) is not None:\n"
+                             "        base = base.base\n    np.frombuffer(base, dtype=np.uint8)[:] = 0\n"
+                             "    return f['fist_r_vel_z']\n", "read-only"),
+    "complex": ("def reward(f):\n    return f['fist_r_vel_z'] + 1j\n", r"returned complex numbers \(complex"),
+    "complex term": ("def reward(f):\n    return {'a': f['fist_r_vel_z'] * (1 + 0j)}\n", "term 'a' returned complex"),
+    "strings": ("import numpy as np\ndef reward(f):\n    return np.full(f['fist_r_vel_z'].shape, '1.5')\n", "returned strings"),
+    "objects": ("import numpy as np\nfrom decimal import Decimal\ndef reward(f):\n"
+                "    return np.full(f['fist_r_vel_z'].shape, Decimal(1), dtype=object)\n", "Python objects"),
+    "hangs at import": ("import time\ntime.sleep(60)\ndef reward(f):\n    return f['fist_r_vel_z']\n", "longer than 5.5 s importing"),
+}
+
+
+ENDS_THE_WORKER = {"os._exit bound at import", "bare except retry loop", "SIGALRM ignored", "timer switched off", "kills itself"}
+
+
+@pytest.mark.parametrize("name", list(ATTACKS))
+def test_reward_attacks_end_only_their_worker(tmp_path, monkeypatch, name):
+    """Each way a reward could end, hang or corrupt the run ends with a RewardError saying what it did; the
+    caller's features are unchanged and the trainer goes on (the worker is gone)."""
+    import punch_trainer.sim.reward_worker as worker
+    import punch_trainer.sim.rewards as rewards
+
+    source, message = ATTACKS[name]
+    monkeypatch.setattr(rewards, "REWARD_TIME_LIMIT_S", 0.5)
+    if name == "hangs at import":
+        monkeypatch.setattr(worker, "STARTUP_ALLOWANCE_S", 5.0)
+    path = tmp_path / "attack.py"
+    path.write_text(source)
+    f = features(0.2, 1.0, 8.0)
+    before = f.copy()
+    with pytest.raises(RewardError, match=message) as error:
+        reward = load_reward(f"{path}:reward")
+        pid = reward.function._process.pid
+        evaluate(reward, f, NAMES)
+    assert "attack.py:reward" in str(error.value)
+    np.testing.assert_array_equal(f, before)
+    if name in ENDS_THE_WORKER:
+        with pytest.raises(ProcessLookupError):
+            os.kill(pid, 0)  # reaped: no worker left running
+
+
+def test_a_worker_that_died_is_replaced_and_results_match_in_process(tmp_path):
+    """A user's reward in its worker gives bitwise the values the same function gives in-process."""
+    path = tmp_path / "mine.py"
+    path.write_text("import numpy as np\ndef reward(f):\n    return {'a': np.sqrt(np.abs(f['fist_r_vel_z'])) * 1.1, "
+                    "'b': f['fist_r_bag_distance'] > 0.1}\n")
+    reward = load_reward(f"{path}:reward")
+    rng = np.random.default_rng(0)
+    f = rng.standard_normal((7, 5, len(NAMES))).astype(np.float32)
+    f[..., -1] = 0
+    first = evaluate(reward, f, NAMES)
+    assert np.array_equal(first["a"], (np.sqrt(np.abs(f[..., 2])) * 1.1).astype(np.float64))
+    assert np.array_equal(first["b"], (f[..., 0] > 0.1).astype(np.float64))
+    reward.function._process.kill()
+    reward.function._process.wait()
+    again = evaluate(reward, f, NAMES)
+    assert all(np.array_equal(first[k], again[k]) for k in first)
+
+
+def test_reward_source_is_fingerprinted(tmp_path):
+    from punch_trainer.sim.rewards import reward_fingerprint
+
+    path = tmp_path / "mine.py"
+    path.write_text("def reward(f):\n    return f['fist_r_vel_z']\n")
+    first = reward_fingerprint(load_reward(f"{path}:reward"))
+    path.write_text("def reward(f):\n    return 2 * f['fist_r_vel_z']\n")
+    assert first.startswith("sha256:") and first != reward_fingerprint(load_reward(f"{path}:reward"))
+    assert reward_fingerprint(load_reward("hook")) == "preset:hook"

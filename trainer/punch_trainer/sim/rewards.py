@@ -15,19 +15,18 @@ and v the right fist's velocity (z toward the bag, x the character's left).
 
 from __future__ import annotations
 
-import importlib
-import importlib.util
+import hashlib
 import os
-import signal
-import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from punch_trainer.errors import PunchError
+from punch_trainer.sim.reward_worker import Frames as Frames
+from punch_trainer.sim.reward_worker import IsolatedFunction, result_terms
+from punch_trainer.sim.reward_worker import RewardError as RewardError
+from punch_trainer.sim.reward_worker import Terms as Terms
 
 CONTACT_IMPULSE_NS = 1e-3
 """A right-fist impulse on the bag above this (N s) counts as contact."""
@@ -41,30 +40,7 @@ def first_right_contact(features: np.ndarray, names: list[str]) -> tuple[np.ndar
     return touched.any(axis=-1), touched.argmax(axis=-1)
 
 
-Terms = dict[str, np.ndarray]
-RewardFunction = Callable[["Frames"], "np.ndarray | Terms"]
-
-
-class RewardError(PunchError):
-    """A reward could not be loaded, raised, or returned something that is not a per-frame reward."""
-
-
-class Frames:
-    """Named access to features [..., frames, F]: `f["fist_r_vel_z"]` is [..., frames]."""
-
-    def __init__(self, features: np.ndarray, feature_names: list[str]):
-        self.features = features
-        self._index = {name: i for i, name in enumerate(feature_names)}
-
-    def __getitem__(self, name: str) -> np.ndarray:
-        try:
-            return self.features[..., self._index[name]]
-        except KeyError:
-            raise KeyError(f"no feature '{name}'; features are: {', '.join(self._index)}") from None
-
-    @property
-    def names(self) -> list[str]:
-        return list(self._index)
+RewardFunction = Callable[[Frames], "np.ndarray | Terms"]
 
 
 def _near(f: Frames) -> np.ndarray:
@@ -118,26 +94,28 @@ def load_reward(spec: str, frames: int | None = None) -> Reward:
     if ":" not in spec:
         raise RewardError(f"unknown reward '{spec}': use a preset ({', '.join(PRESETS)}) or FILE.py:FUNCTION")
     location, function_name = spec.rsplit(":", 1)
-    try:
-        if location.endswith(".py"):
-            path = Path(location)
-            if not path.is_file():
-                raise RewardError(f"reward file not found: {path}")
-            module_spec = importlib.util.spec_from_file_location(f"punch_user_reward_{path.stem}", path)
-            if module_spec is None or module_spec.loader is None:
-                raise RewardError(f"reward file {path} cannot be imported as a Python module")
-            module = importlib.util.module_from_spec(module_spec)
-            module_spec.loader.exec_module(module)
-        else:
-            module = importlib.import_module(location)
-    except RewardError:
-        raise
-    except Exception as error:  # the user's module may fail in any way; say so, with its message
-        raise RewardError(f"reward '{spec}': importing {location} failed: {type(error).__name__}: {error}") from error
-    function = getattr(module, function_name, None)
-    if not callable(function):
-        raise RewardError(f"reward '{spec}': {location} has no function '{function_name}'")
+    if location.endswith(".py"):
+        path = Path(location)
+        if not path.is_file():
+            raise RewardError(f"reward file not found: {path}")
+        location = str(path.resolve())
+    # The user's code is imported and called in a worker process, never in the trainer (sim/reward_worker.py).
+    function = IsolatedFunction(spec, location, function_name, reward_time_limit_s)
+    function.load()
     return Reward(spec, function, frames or 50)
+
+
+def reward_fingerprint(reward: Reward) -> str:
+    """What a run directory records of its reward, so that a resume can tell it is the same code: a preset's
+    name, or the SHA-256 of the user's source as the worker imported it."""
+    if isinstance(reward.function, IsolatedFunction):
+        return f"sha256:{reward.function.source_sha256}"
+    preset = PRESETS.get(reward.name)
+    if preset is not None and preset.function is reward.function:
+        return f"preset:{reward.name}"
+    code = getattr(reward.function, "__code__", None)
+    digest = hashlib.sha256(code.co_code).hexdigest() if code is not None else ""
+    return f"python:{getattr(reward.function, '__qualname__', type(reward.function).__name__)}:{digest}"
 
 
 def metadata_reward(metadata: dict[str, str], source: str, explicit: str | None = None) -> Reward:
@@ -160,32 +138,22 @@ def metadata_reward(metadata: dict[str, str], source: str, explicit: str | None 
 
 def evaluate(reward: Reward, features: np.ndarray, feature_names: list[str]) -> Terms:
     """Per-frame reward terms [..., frames] of `features` [..., frames, F], with guarded frames zeroed.
-    Raises RewardError naming the reward when it raises, returns the wrong shape, or returns NaN."""
-    # The reward sees a read-only view: writing into it would corrupt the dataset and the report silently.
+    Raises RewardError naming the reward when it raises, exits, hangs past its time limit, returns the wrong
+    shape, NaN, or anything but real numbers."""
+    # A preset sees a read-only view; a user's reward (IsolatedFunction) gets a copy in its own process.
     view = np.asarray(features).view()
     view.flags.writeable = False
     frames = Frames(view, feature_names)
-    result = _call_guarded(reward, frames)
-    if isinstance(result, dict):
-        terms = result
-    elif isinstance(result, (np.ndarray, float, int, np.floating)):
-        terms = {"reward": result}
+    if isinstance(reward.function, IsolatedFunction):
+        result: object = reward.function(frames)
     else:
-        raise RewardError(f"reward '{reward.name}' returned {type(result).__name__}; it must return an array of "
-                          "per-frame rewards or a dict of such arrays")
-    if not terms:
-        raise RewardError(f"reward '{reward.name}' returned an empty dict; it must name at least one term")
-    expected = features.shape[:-1]
+        try:
+            result = reward.function(frames)
+        except Exception as error:  # a Python function handed to Reward may fail in any way; say which and why
+            raise RewardError(f"reward '{reward.name}' raised {type(error).__name__}: {error}") from error
+    terms = result_terms(reward.name, result, features.shape[:-1])
     guarded = frames["exploit_flags"] != 0
-    out = {}
-    for name, values in terms.items():
-        values = np.asarray(values, dtype=np.float64)
-        if values.shape != expected:
-            raise RewardError(f"reward '{reward.name}' term '{name}' has shape {values.shape}; expected {expected} (one value per frame)")
-        if not np.all(np.isfinite(values)):
-            raise RewardError(f"reward '{reward.name}' term '{name}' returned NaN or infinity")
-        out[name] = np.where(guarded, 0.0, values)
-    return out
+    return {name: np.where(guarded, 0.0, values) for name, values in terms.items()}
 
 
 def _time_limit_s(text: str | None, default_s: float = 60.0) -> float:
@@ -193,60 +161,19 @@ def _time_limit_s(text: str | None, default_s: float = 60.0) -> float:
         value = float(text) if text else default_s
     except ValueError:
         raise RewardError(f"PUNCH_REWARD_TIME_LIMIT_S={text!r} is not a number of seconds") from None
-    if not value > 0:
-        raise RewardError(f"PUNCH_REWARD_TIME_LIMIT_S={text!r} must be positive")
+    if not 0 < value <= 86400:
+        raise RewardError(f"PUNCH_REWARD_TIME_LIMIT_S={text!r} must be more than 0 and at most 86400 s")
     return value
 
 
 REWARD_TIME_LIMIT_S: float | None = None
 """Longest one reward evaluation may take (a batch of trajectories), seconds; None: PUNCH_REWARD_TIME_LIMIT_S,
-else 60 s."""
+else 60 s. A user's reward past it has its worker killed."""
 
 
-class _RewardExit(BaseException):
-    """Raised in place of exiting the process when a reward calls os._exit."""
-
-
-class _RewardTimeout(BaseException):
-    """Raised by the timer signal when a reward runs past its time limit (not an Exception, so the reward's
-    own `except Exception` cannot swallow it, and its own TimeoutErrors stay its own)."""
-
-
-def _call_guarded(reward: Reward, frames: Frames) -> object:
-    """Calls the user's reward: its exceptions, `sys.exit` and `os._exit` become a RewardError naming it, and a
-    call longer than REWARD_TIME_LIMIT_S is stopped (in the main thread, where a timer signal can interrupt
-    it; elsewhere it is only measured)."""
-    def refuse_exit(code: int) -> None:
-        raise _RewardExit(code)
-
-    def too_slow(_signum: int, _frame: object) -> None:
-        raise _RewardTimeout
-
-    limit_s = REWARD_TIME_LIMIT_S or _time_limit_s(os.environ.get("PUNCH_REWARD_TIME_LIMIT_S"))
-    timed = threading.current_thread() is threading.main_thread() and hasattr(signal, "setitimer")
-    previous_handler = signal.signal(signal.SIGALRM, too_slow) if timed else None
-    real_exit, os._exit = os._exit, refuse_exit  # type: ignore[assignment]
-    started = time.monotonic()
-    try:
-        if timed:
-            signal.setitimer(signal.ITIMER_REAL, limit_s)
-        result = reward.function(frames)
-    except _RewardTimeout:
-        raise RewardError(f"reward '{reward.name}' took longer than {limit_s:g} s on one batch and was "
-                          "stopped (set PUNCH_REWARD_TIME_LIMIT_S to allow more)") from None
-    except (SystemExit, _RewardExit) as error:
-        raise RewardError(f"reward '{reward.name}' tried to exit the process (exit code {error.args[0] if error.args else 0}); "
-                          "a reward must return its values") from None
-    except Exception as error:  # the user's code may fail in any way; say which reward and why
-        raise RewardError(f"reward '{reward.name}' raised {type(error).__name__}: {error}") from error
-    finally:
-        os._exit = real_exit
-        if timed:
-            signal.setitimer(signal.ITIMER_REAL, 0)
-            signal.signal(signal.SIGALRM, previous_handler)
-    if time.monotonic() - started > limit_s:
-        raise RewardError(f"reward '{reward.name}' took longer than {limit_s:g} s on one batch")
-    return result
+def reward_time_limit_s() -> float:
+    """REWARD_TIME_LIMIT_S, read at each call (tests set it)."""
+    return REWARD_TIME_LIMIT_S or _time_limit_s(os.environ.get("PUNCH_REWARD_TIME_LIMIT_S"))
 
 
 def total(terms: Terms) -> np.ndarray:
