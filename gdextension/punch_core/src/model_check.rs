@@ -1,15 +1,48 @@
-//! What a policy file may hold before ONNX Runtime sees it: a file is data, so its graph may use only the
-//! plain operators the exporter emits (no control flow such as Loop, If or Scan, no custom domains, no
-//! model-local functions), within size limits. Every allowed operator does work bounded by the sizes of its
-//! tensors, so with the file size bounded an inference call's time is bounded too.
+//! What a policy file may hold before ONNX Runtime sees it. A file is data: whatever its bytes, the check
+//! refuses it with one clear error, or ONNX Runtime loads it and runs a decision within a bounded time and
+//! memory.
 //!
-//! The ONNX protobuf is read directly (only the few fields needed): ModelProto.graph (7) and .functions
-//! (25); GraphProto.node (1); NodeProto.op_type (4) and .domain (7).
+//! - The file is read strictly (`proto`, `onnx`): a singular field that occurs twice (protobuf readers merge
+//!   the copies, so a checker that reads one copy can be bypassed), an unknown field, or a refused construct
+//!   (subgraphs, functions, sparse, external or string data, training info) is an error.
+//! - The graph may use only the plain operators the exporter emits (`ALLOWED_OPERATORS`: no control flow
+//!   such as Loop, If or Scan, no custom domains), of ONNX opset `MIN_OPSET` to `MAX_OPSET`.
+//! - Every value's shape is inferred statically (`shapes`) from the one input [batch, n]; a shape the check
+//!   cannot compute is refused. The batch dimension stays a whole dimension of its own (rows never mix), so
+//!   a call of B rows does B times a row's work plus the batch-independent work.
+//! - Allowed operators alone can still make unbounded work (a Concat of copies grows a 1x1 value to
+//!   16384x16384 and a MatMul multiplies it), so the largest value and the total work are bounded:
+//!   `MAX_ROW_ELEMENTS` and `MAX_ROW_WORK` per row, `MAX_SHARED_ELEMENTS` and `MAX_SHARED_WORK` for what does
+//!   not depend on the batch (initializers, constants, and what ONNX Runtime folds from them at load).
+//!
+//! The bounds leave a wide margin above the shipped policies (45 -> 128 -> 128 -> 2 x 10: largest value
+//! 128 elements per row and 16384 shared, work 25 344 per row, 0 shared). The worst file that passes them,
+//! measured: see `MAX_ROW_WORK`.
+
+mod onnx;
+mod proto;
+mod shapes;
+
+pub use shapes::ModelCost;
 
 /// Largest policy file accepted, bytes (the shipped policies are about 120 kB).
 pub const MAX_MODEL_BYTES: usize = 16 * 1024 * 1024;
-/// Most graph nodes accepted (the shipped policies have about 20).
+/// Most graph nodes accepted (the shipped policies have 12).
 pub const MAX_NODES: usize = 2000;
+/// Oldest ONNX opset accepted (13 moved Squeeze's, Unsqueeze's and Split's arguments to inputs).
+pub const MIN_OPSET: i64 = 13;
+/// Newest ONNX opset accepted: the check knows its operators' semantics up to this one.
+pub const MAX_OPSET: i64 = 24;
+/// Most elements of one value with the batch dimension, per row (shipped policies: 128).
+pub const MAX_ROW_ELEMENTS: u64 = 1 << 16;
+/// Most work per row: multiply-adds of Gemm and MatMul plus every element any node writes (shipped
+/// policies: 25 344). A file at this bound decided one row in WORST_ROW_MS (see the module docs).
+pub const MAX_ROW_WORK: u64 = 1 << 21;
+/// Most elements of one batch-independent value (16 MiB of float32; shipped policies: 16 384).
+pub const MAX_SHARED_ELEMENTS: u64 = 1 << 22;
+/// Most batch-independent work (done once per call, or once at load where ONNX Runtime folds constants;
+/// shipped policies: 0).
+pub const MAX_SHARED_WORK: u64 = 1 << 24;
 
 /// Operators a policy graph may use: what the exporter emits for a feed-forward actor, and the plain
 /// tensor operators an equivalent export could use instead.
@@ -26,7 +59,6 @@ pub const ALLOWED_OPERATORS: &[&str] = &[
     "Flatten",
     "Gather",
     "Gemm",
-    "HardTanh",
     "Identity",
     "LeakyRelu",
     "Log",
@@ -55,165 +87,217 @@ pub const ALLOWED_OPERATORS: &[&str] = &[
 
 /// Checks a policy file's bytes; the error says what is refused and why.
 pub fn check_model(bytes: &[u8]) -> Result<(), String> {
+    measure_model(bytes).map(|_| ())
+}
+
+/// Checks a policy file's bytes (`check_model`) and returns what it costs.
+pub fn measure_model(bytes: &[u8]) -> Result<ModelCost, String> {
     if bytes.len() > MAX_MODEL_BYTES {
         return Err(format!("the file has {} bytes, more than the {MAX_MODEL_BYTES} a policy may have", bytes.len()));
     }
-    let mut graph = None;
-    for field in Fields::new(bytes) {
-        match field? {
-            (7, Value::Bytes(body)) => graph = Some(body),
-            (25, _) => return Err("the model defines functions of its own; a policy may not".into()),
-            _ => {}
-        }
+    let model = onnx::read_model(bytes, MAX_NODES)?;
+    if !(MIN_OPSET..=MAX_OPSET).contains(&model.opset) {
+        return Err(format!(
+            "the model uses ONNX opset {}; a policy uses opset {MIN_OPSET} to {MAX_OPSET} (export again)",
+            model.opset
+        ));
     }
-    let graph = graph.ok_or("the file holds no ONNX graph")?;
-    let mut nodes = 0;
-    for field in Fields::new(graph) {
-        let (1, Value::Bytes(node)) = field? else { continue };
-        nodes += 1;
-        if nodes > MAX_NODES {
-            return Err(format!("the graph has more than {MAX_NODES} nodes"));
-        }
-        let (mut operator, mut domain) = (String::new(), String::new());
-        for field in Fields::new(node) {
-            match field? {
-                (4, Value::Bytes(text)) => operator = String::from_utf8_lossy(text).into_owned(),
-                (7, Value::Bytes(text)) => domain = String::from_utf8_lossy(text).into_owned(),
-                _ => {}
-            }
-        }
-        if !(domain.is_empty() || domain == "ai.onnx") {
-            return Err(format!(
-                "the graph uses operator '{operator}' of domain '{domain}'; a policy may use only ONNX's own"
-            ));
-        }
-        if !ALLOWED_OPERATORS.contains(&operator.as_str()) {
-            return Err(format!(
-                "the graph uses operator '{operator}', which a policy may not (control flow and other operators \
-                 whose work is not bounded by the file are refused; allowed: {})",
-                ALLOWED_OPERATORS.join(", ")
-            ));
-        }
-    }
-    if nodes == 0 {
-        return Err("the graph has no nodes".into());
-    }
-    Ok(())
+    let bounds = shapes::Bounds {
+        row_elements: MAX_ROW_ELEMENTS,
+        shared_elements: MAX_SHARED_ELEMENTS,
+        row_work: MAX_ROW_WORK,
+        shared_work: MAX_SHARED_WORK,
+    };
+    shapes::infer(&model.graph, model.opset, ALLOWED_OPERATORS, &bounds)
 }
 
-/// A protobuf field's value (fixed-width values are skipped; a policy check needs none of them).
-enum Value<'a> {
-    Number,
-    Bytes(&'a [u8]),
-}
-
-/// The fields of one protobuf message, in order.
-struct Fields<'a> {
-    bytes: &'a [u8],
-    at: usize,
-}
-
-impl<'a> Fields<'a> {
-    fn new(bytes: &'a [u8]) -> Self {
-        Self { bytes, at: 0 }
-    }
-
-    fn varint(&mut self) -> Result<u64, String> {
-        let mut value = 0u64;
-        for shift in (0..64).step_by(7) {
-            let byte = *self.bytes.get(self.at).ok_or("the file is not a valid ONNX model (truncated)")?;
-            self.at += 1;
-            value |= u64::from(byte & 0x7f) << shift;
-            if byte & 0x80 == 0 {
-                return Ok(value);
-            }
-        }
-        Err("the file is not a valid ONNX model (bad varint)".into())
-    }
-
-    fn skip(&mut self, count: u64) -> Result<&'a [u8], String> {
-        let end = usize::try_from(count)
-            .ok()
-            .and_then(|n| self.at.checked_add(n))
-            .filter(|&end| end <= self.bytes.len())
-            .ok_or("the file is not a valid ONNX model (a field runs past its end)")?;
-        let slice = &self.bytes[self.at..end];
-        self.at = end;
-        Ok(slice)
-    }
-}
-
-impl<'a> Iterator for Fields<'a> {
-    type Item = Result<(u64, Value<'a>), String>;
-
-    fn next(&mut self) -> Option<Self::Item> {
-        if self.at >= self.bytes.len() {
-            return None;
-        }
-        let field = (|| {
-            let key = self.varint()?;
-            let value = match key & 7 {
-                0 => self.varint().map(|_| Value::Number)?,
-                1 => self.skip(8).map(|_| Value::Number)?,
-                2 => {
-                    let length = self.varint()?;
-                    Value::Bytes(self.skip(length)?)
-                }
-                5 => self.skip(4).map(|_| Value::Number)?,
-                other => return Err(format!("the file is not a valid ONNX model (wire type {other})")),
-            };
-            Ok((key >> 3, value))
-        })();
-        if field.is_err() {
-            self.at = self.bytes.len(); // one error, then the end
-        }
-        Some(field)
-    }
-}
+/// The tests' ONNX writer, shared with the integration tests.
+#[cfg(test)]
+#[path = "../tests/common/onnx_bytes.rs"]
+mod onnx_bytes;
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    fn varint(mut value: u64, out: &mut Vec<u8>) {
-        while value >= 0x80 {
-            out.push((value as u8) | 0x80);
-            value >>= 7;
-        }
-        out.push(value as u8);
+    use super::onnx_bytes::*;
+
+    /// obs [batch, 4] -> Gemm 4x3 -> Tanh -> Clip: a policy's shape.
+    fn policy_graph() -> Vec<u8> {
+        graph(
+            &[
+                node("Gemm", &["obs", "w", "b"], &["h"], &[attr_int("transB", 1)]),
+                node("Tanh", &["h"], &["t"], &[]),
+                node("Clip", &["t", "lo", "hi"], &["mean"], &[]),
+            ],
+            &[
+                tensor_fill("w", &[3, 4], 0.5),
+                tensor_fill("b", &[3], 0.0),
+                tensor_f32("lo", &[], &[-1.0]),
+                tensor_f32("hi", &[], &[1.0]),
+            ],
+            4,
+            &["mean"],
+        )
     }
 
-    fn field(number: u64, body: &[u8]) -> Vec<u8> {
-        let mut out = Vec::new();
-        varint((number << 3) | 2, &mut out);
-        varint(body.len() as u64, &mut out);
-        out.extend_from_slice(body);
-        out
+    /// A graph whose `mean` comes from a Loop of 2^40 iterations.
+    fn loop_graph() -> Vec<u8> {
+        let body = graph(&[node("Identity", &["obs"], &["mean"], &[])], &[], 4, &["mean"]);
+        let subgraph = [text(1, "body"), field(6, &body), int(20, 5)].concat();
+        graph(
+            &[node("Loop", &["trips", "", "obs"], &["mean"], &[subgraph])],
+            &[tensor_i64("trips", &[], &[1 << 40])],
+            4,
+            &["mean"],
+        )
     }
 
-    fn model(operators: &[(&str, &str)]) -> Vec<u8> {
-        let graph: Vec<u8> = operators
-            .iter()
-            .flat_map(|(op, domain)| field(1, &[field(4, op.as_bytes()), field(7, domain.as_bytes())].concat()))
-            .collect();
-        field(7, &graph)
+    fn refused(bytes: &[u8], expected: &str) {
+        let error = check_model(bytes).expect_err(expected);
+        assert!(error.contains(expected), "expected '{expected}' in: {error}");
     }
 
     #[test]
-    fn the_exporters_operators_pass() {
-        assert_eq!(check_model(&model(&[("Gemm", ""), ("Tanh", ""), ("Clip", "ai.onnx")])), Ok(()));
+    fn a_plain_policy_passes_and_its_work_is_counted() {
+        let cost = measure_model(&model(&policy_graph(), 17)).expect("passes");
+        // Per row: the input 4, Gemm 3x4 multiply-adds + 3 written, Tanh 3, Clip 3.
+        assert_eq!((cost.largest_row_elements, cost.row_work), (4, 4 + 12 + 3 + 3 + 3));
+        // Batch-independent: the initializers, written once.
+        assert_eq!((cost.largest_shared_elements, cost.shared_work), (12, 12 + 3 + 1 + 1));
     }
 
     #[test]
     fn control_flow_custom_domains_and_functions_are_refused() {
-        for (op, domain, expected) in
-            [("Loop", "", "'Loop'"), ("If", "", "'If'"), ("Scan", "", "'Scan'"), ("Tanh", "com.evil", "domain")]
-        {
-            let error = check_model(&model(&[("Gemm", ""), (op, domain)])).expect_err(op);
-            assert!(error.contains(expected), "{error}");
+        refused(&model(&loop_graph(), 17), "a subgraph");
+        let scan = graph(&[node("Scan", &["obs"], &["mean"], &[])], &[], 4, &["mean"]);
+        refused(&model(&scan, 17), "'Scan'");
+        let custom =
+            [policy_graph(), field(1, &[text(1, "obs"), text(2, "x"), text(4, "Tanh"), text(7, "com.evil")].concat())]
+                .concat();
+        refused(&model(&custom, 17), "domain 'com.evil'");
+        refused(&[model(&policy_graph(), 17), field(25, b"")].concat(), "functions");
+    }
+
+    #[test]
+    fn a_field_written_twice_is_refused_whichever_copy_comes_first() {
+        let (good, evil) = (field(7, &policy_graph()), field(7, &loop_graph()));
+        let opset = field(8, &[text(1, ""), int(2, 17)].concat());
+        for graphs in [[&evil, &good], [&good, &evil], [&good, &good]] {
+            refused(
+                &[opset.clone(), graphs[0].clone(), graphs[1].clone()].concat(),
+                "ModelProto.graph field more than once",
+            );
         }
-        let with_function = [model(&[("Gemm", "")]), field(25, b"")].concat();
-        assert!(check_model(&with_function).expect_err("functions").contains("functions"));
+        // Inside a node, a tensor and an opset import too.
+        let doubled_op = graph(
+            &[field(1, &[text(1, "obs"), text(2, "mean"), text(4, "Tanh"), text(4, "Loop")].concat())],
+            &[],
+            4,
+            &["mean"],
+        );
+        refused(&model(&doubled_op, 17), "NodeProto.op_type field more than once");
+        let doubled_type = [tensor_fill("w", &[3, 4], 0.5), int(2, 7)].concat();
+        let graph_with =
+            |w: &[u8]| graph(&[node("MatMul", &["obs", "w"], &["mean"], &[])], &[w.to_vec()], 4, &["mean"]);
+        refused(&model(&graph_with(&doubled_type), 17), "TensorProto.data_type field more than once");
+        refused(
+            &[field(8, &[text(1, ""), int(2, 17), int(2, 1)].concat()), field(7, &policy_graph())].concat(),
+            "version field more than once",
+        );
+    }
+
+    #[test]
+    fn unknown_fields_wrong_encodings_and_external_data_are_refused() {
+        refused(&[model(&policy_graph(), 17), int(99, 1)].concat(), "field 99");
+        refused(&[model(&policy_graph(), 17), int(7, 1)].concat(), "wrong encoding");
+        let external = [tensor_fill("w", &[3, 4], 0.5), int(14, 1)].concat();
+        let graph_with = graph(&[node("MatMul", &["obs", "w"], &["mean"], &[])], &[external], 4, &["mean"]);
+        refused(&model(&graph_with, 17), "outside the file");
+        let short = [int(1, 3), int(1, 4), int(2, 1), text(8, "w"), field(9, &[0; 8])].concat();
+        let graph_with = graph(&[node("MatMul", &["obs", "w"], &["mean"], &[])], &[short], 4, &["mean"]);
+        refused(&model(&graph_with, 17), "8 bytes for 12 elements");
+        refused(&model(&policy_graph(), 11), "opset 11");
+    }
+
+    /// obs [batch, 4] sliced to [batch, 1] then doubled `doublings` times by Concat: [batch, 2^doublings].
+    fn concat_growth(doublings: usize) -> Vec<u8> {
+        let mut nodes = vec![node("Slice", &["obs", "zero", "one", "one"], &["v0"], &[])];
+        for i in 0..doublings {
+            let (from, to) = (format!("v{i}"), format!("v{}", i + 1));
+            nodes.push(node("Concat", &[&from, &from], &[&to], &[attr_int("axis", 1)]));
+        }
+        nodes.push(node("Identity", &[&format!("v{doublings}")], &["mean"], &[]));
+        let ints = [tensor_i64("zero", &[1], &[0]), tensor_i64("one", &[1], &[1])];
+        model(&graph(&nodes, &ints, 4, &["mean"]), 17)
+    }
+
+    #[test]
+    fn a_value_grown_by_concat_passes_up_to_the_bound_and_not_beyond() {
+        let at_bound = measure_model(&concat_growth(16)).expect("2^16 elements per row pass");
+        assert_eq!(at_bound.largest_row_elements, MAX_ROW_ELEMENTS);
+        refused(&concat_growth(17), "elements per row, more than the 65536");
+    }
+
+    #[test]
+    fn unbounded_work_from_allowed_operators_is_refused() {
+        // A 1x1 constant grown to 2^11 x 2^11 by Concat (at the bound) and multiplied by itself: 2^33 multiply-adds.
+        let mut nodes = Vec::new();
+        for i in 0..22 {
+            let (from, to) = (format!("c{i}"), format!("c{}", i + 1));
+            nodes.push(node("Concat", &[&from, &from], &[&to], &[attr_int("axis", (i % 2) as i64)]));
+        }
+        nodes.push(node("MatMul", &["c22", "c22"], &["square"], &[]));
+        nodes.push(node("Gemm", &["obs", "w"], &["mean"], &[]));
+        let seed = [tensor_fill("c0", &[1, 1], 1.0), tensor_fill("w", &[4, 3], 0.5)];
+        refused(&model(&graph(&nodes, &seed, 4, &["mean"]), 17), "batch-independent work");
+        // Per row: [batch, 256] x [256, 256] sixty times is over the work bound.
+        let mut nodes = vec![node("MatMul", &["obs", "wide"], &["h0"], &[])];
+        for i in 0..60 {
+            nodes.push(node("MatMul", &[&format!("h{i}"), "square"], &[&format!("h{}", i + 1)], &[]));
+        }
+        nodes.push(node("Identity", &["h60"], &["mean"], &[]));
+        let weights = [tensor_fill("wide", &[4, 256], 0.01), tensor_fill("square", &[256, 256], 0.01)];
+        refused(&model(&graph(&nodes, &weights, 4, &["mean"]), 17), "work per row");
+    }
+
+    #[test]
+    fn shapes_the_check_cannot_infer_or_that_mix_rows_are_refused() {
+        let runtime_shape = graph(
+            &[
+                node("Shape", &["obs"], &["s"], &[]),
+                node("Mul", &["s", "s"], &["s2"], &[]),
+                node("Reshape", &["obs", "s2"], &["mean"], &[]),
+            ],
+            &[],
+            4,
+            &["mean"],
+        );
+        refused(&model(&runtime_shape, 17), "constant the check can read");
+        let outer = graph(
+            &[
+                node("Transpose", &["obs"], &["t"], &[]),
+                node("MatMul", &["t", "obs"], &["x"], &[]),
+                node("MatMul", &["obs", "t"], &["mean"], &[]),
+            ],
+            &[],
+            4,
+            &["mean"],
+        );
+        refused(&model(&outer, 17), "combine rows");
+        // Reshape to [batch, -1] through Shape and Gather passes: the batch size is followed as a symbol.
+        let flatten = graph(
+            &[
+                node("Shape", &["obs"], &["s"], &[]),
+                node("Gather", &["s", "zero"], &["rows"], &[]),
+                node("Concat", &["rows", "minus_one"], &["target"], &[attr_int("axis", 0)]),
+                node("Reshape", &["obs", "target"], &["mean"], &[]),
+            ],
+            &[tensor_i64("zero", &[1], &[0]), tensor_i64("minus_one", &[1], &[-1])],
+            4,
+            &["mean"],
+        );
+        assert_eq!(measure_model(&model(&flatten, 17)).map(|c| c.largest_row_elements), Ok(4));
     }
 
     #[test]
@@ -222,7 +306,10 @@ mod tests {
         assert!(check_model(&[0x3a, 0x7f, 0x01]).is_err(), "a field longer than the file");
         assert!(check_model(&[0xff; 12]).is_err(), "an endless varint");
         assert!(check_model(&vec![0u8; MAX_MODEL_BYTES + 1]).expect_err("size").contains("more than"));
-        let truncated = model(&[("Gemm", "")]);
-        assert!(check_model(&truncated[..truncated.len() - 2]).is_err());
+        let whole = model(&policy_graph(), 17);
+        for cut in 0..whole.len() {
+            let _ = check_model(&whole[..cut]); // no panic at any length
+        }
+        assert!(check_model(&whole[..whole.len() - 2]).is_err());
     }
 }

@@ -1,5 +1,7 @@
 //! Shared test helpers: the project's fixtures and the ONNX Runtime library the build installed.
 
+pub mod onnx_bytes;
+
 use std::path::PathBuf;
 
 pub fn project_root() -> PathBuf {
