@@ -1,0 +1,77 @@
+"""The motion style (punch_trainer.sim.style): what it costs, how it discounts a reward, its names."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from punch_trainer.sim.style import Style, StyleError, style_from_label, style_label, style_named
+
+FRAMES = 50
+
+
+def features(**columns: np.ndarray) -> dict[str, np.ndarray]:
+    """Per-frame features of one punch: every feature the style reads, 0 unless given."""
+    names = [f"{stem}_{axis}" for stem in ("fist_l_pos", "fist_l_vel", "fist_r_vel") for axis in "xyz"]
+    values = {name: np.zeros(FRAMES) for name in [*names, "angle_waist_flexion"]}
+    values.update(columns)
+    return values
+
+
+def frames_of(values: dict[str, np.ndarray]):  # noqa: ANN201 - a FramesLike
+    return values.__getitem__
+
+
+def test_a_punch_within_the_free_ranges_costs_nothing_and_keeps_its_reward() -> None:
+    style = Style("boxing")
+    calm = features(fist_l_pos_x=np.linspace(0, 0.07, FRAMES), fist_r_vel_z=np.full(FRAMES, 8.0),
+                    angle_waist_flexion=np.full(FRAMES, np.radians(10.0)))
+    assert np.all(style.cost(frames_of(calm)) == 0.0)
+    reward = {"forward": np.linspace(-1.0, 1.0, FRAMES)}
+    styled = style.apply(reward, frames_of(calm))
+    np.testing.assert_array_equal(styled["forward"], reward["forward"])
+    np.testing.assert_array_equal(styled["style"], np.zeros(FRAMES))
+
+
+def test_each_excess_costs_and_the_discount_grows_with_the_cost_so_far() -> None:
+    style = Style("boxing")
+    for column, value in (("fist_l_pos_y", 0.3), ("fist_l_vel_x", 5.0), ("fist_r_vel_z", 12.0),
+                          ("angle_waist_flexion", np.radians(30.0))):
+        flailing = features(**{column: np.where(np.arange(FRAMES) >= 10, value, 0.0)})
+        cost = style.cost(frames_of(flailing))
+        assert np.all(cost[:10] == 0.0) and np.all(cost[10:] > 0.0), column
+        styled = style.apply({"forward": np.ones(FRAMES), "back": -np.ones(FRAMES)}, frames_of(flailing))
+        assert np.all(np.diff(styled["forward"][10:]) < 0.0), column  # discounted more and more
+        assert np.all(styled["forward"] > 0.0), column  # a hit still beats standing still
+        np.testing.assert_array_equal(styled["back"], -np.ones(FRAMES))  # losses are not discounted
+        assert np.all(styled["style"][10:] < 0.0), column
+
+
+def test_the_weight_scales_the_cost() -> None:
+    flailing = frames_of(features(fist_l_pos_y=np.full(FRAMES, 0.3)))
+    once, twice = style_named("boxing", 1.0), style_named("boxing", 2.0)
+    assert once is not None and twice is not None
+    np.testing.assert_allclose(twice.cost(flailing), 2.0 * once.cost(flailing))
+
+
+def test_none_and_a_zero_weight_are_no_style_and_labels_round_trip() -> None:
+    assert style_named("none") is None and style_named("boxing", 0.0) is None
+    assert style_label(None) == "none" and style_from_label("none") is None
+    style = style_named("boxing", 0.5)
+    assert style_label(style) == "boxing@0.5" and style_from_label("boxing@0.5") == style
+
+
+@pytest.mark.parametrize("name, weight", [("gangnam", 1.0), ("boxing", -1.0), ("boxing", float("nan")),
+                                          ("boxing", float("inf")), ("boxing", 1e9)])
+def test_unknown_styles_and_senseless_weights_are_refused(name: str, weight: float) -> None:
+    with pytest.raises(StyleError):
+        style_named(name, weight)
+    with pytest.raises(StyleError):
+        style_from_label("boxing@heavy")
+
+
+def test_the_search_sigma_cap_has_one_value_per_degree_of_freedom() -> None:
+    style = Style("boxing")
+    assert style.search_sigma_cap(10).shape == (10,)
+    with pytest.raises(StyleError):
+        style.search_sigma_cap(12)

@@ -1,0 +1,133 @@
+"""Motion style: a prior, added by the product to any reward, that keeps a punch looking like a person's
+(docs/style.md). The user still writes only their reward; the style decides how a punch may earn it.
+
+A style has two parts, chosen by measurement (docs/experiments.md, "A motion style"):
+
+1. **A discount on what a punch earns.** Every frame has a style cost: the off (left) fist's distance from
+   its guard and its speed, the waist's forward flexion and the punching fist's speed, each counted only
+   beyond a free range that captured punches stay within (../shared/data, CMU 143/23: the other hand moves
+   12-20 cm at 1.2-1.8 m/s, the trunk leans 7-17 degrees, the fist peaks at 6.3-8.4 m/s), and growing with the
+   square of the excess. A frame's positive reward is multiplied by exp(-weight x the cost so far): a punch that
+   flails on its way earns less, but any hit still earns more than standing still. Penalties added to the
+   reward instead made the search settle on standing still, since every exploratory motion then scores below
+   zero (BENCHMARKS.md, "A motion style"). A small part of the cost is also subtracted every frame, so the
+   frames after the last reward (where a discount has nothing to act on) stay calm too.
+2. **A narrower search around the guard** for the degrees of freedom that a punch moves least: the trajectory
+   search's sigma for the waist's flexion and the off arm starts small and never grows past it, so the
+   search explores the punching arm and the trunk's turn, not the guard hand.
+
+`--style none` applies neither, and every command then does what it did before styles existed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from punch_trainer.errors import PunchError
+
+FramesLike = Callable[[str], np.ndarray]
+"""`frames[name]` of punch_trainer.sim.rewards.Frames: a feature's values [..., frames]"""
+
+PHYSICS_HZ = 120.0
+"""frames per second of the features the costs are counted over (punch_core::character::PHYSICS_HZ)"""
+
+
+class StyleError(PunchError):
+    """A style name or weight that the trainer does not know or cannot use."""
+
+
+@dataclass(frozen=True)
+class Style:
+    """What a human-looking punch stays within, and what straying beyond costs. Distances in m, speeds in
+    m/s, angles in rad; each cost coefficient is per frame and per unit of the squared excess."""
+
+    name: str
+    weight: float = 1.0
+    """scales the whole style: 0 is no style, 1 the measured default"""
+    off_fist_free_m: float = 0.08
+    off_fist_cost_per_m2: float = 100.0
+    off_fist_free_mps: float = 1.5
+    off_fist_cost_per_mps2: float = 0.2
+    waist_flexion_free_rad: float = float(np.radians(12.0))
+    waist_flexion_cost_per_rad2: float = 20.0
+    fist_free_mps: float = 9.0
+    fist_cost_per_mps2: float = 0.2
+    subtracted_share: float = 0.02
+    """share of each frame's cost also subtracted from the reward (keeps the frames after the last reward calm)"""
+    search_sigma: tuple[float, ...] = (0.1, 1.0, 1.0, 1.0, 1.0, 1.0, 0.05, 0.05, 0.05, 0.05)
+    """the trajectory search's largest sigma per degree of freedom, in action order (punch_core::character::DOFS:
+    waist flexion, waist rotation, the right shoulder's three and elbow, the left shoulder's three and elbow)"""
+
+    def cost(self, frames: FramesLike) -> np.ndarray:
+        """Each frame's style cost, [..., frames] (0 while everything stays within its free range)."""
+        def vector(stem: str) -> np.ndarray:
+            return np.stack([frames(f"{stem}_x"), frames(f"{stem}_y"), frames(f"{stem}_z")], axis=-1)
+
+        off_fist = vector("fist_l_pos")
+        off_from_guard_m = np.linalg.norm(off_fist - off_fist[..., :1, :], axis=-1)
+        off_speed_mps = np.linalg.norm(vector("fist_l_vel"), axis=-1)
+        fist_speed_mps = np.linalg.norm(vector("fist_r_vel"), axis=-1)
+        waist_flexion_rad = frames("angle_waist_flexion")
+
+        def beyond(value: np.ndarray, free: float) -> np.ndarray:
+            return np.asarray(np.maximum(0.0, value - free) ** 2)
+
+        cost = (self.off_fist_cost_per_m2 * beyond(off_from_guard_m, self.off_fist_free_m)
+                + self.off_fist_cost_per_mps2 * beyond(off_speed_mps, self.off_fist_free_mps)
+                + self.waist_flexion_cost_per_rad2 * beyond(waist_flexion_rad, self.waist_flexion_free_rad)
+                + self.fist_cost_per_mps2 * beyond(fist_speed_mps, self.fist_free_mps))
+        return np.asarray(self.weight * cost, dtype=np.float64)
+
+    def apply(self, terms: Mapping[str, np.ndarray], frames: FramesLike) -> dict[str, np.ndarray]:
+        """The reward's terms with the style: positive values discounted by the cost so far, and the
+        subtracted share as its own term `style` (so that reports show what the style took)."""
+        cost = self.cost(frames)
+        discount = np.exp(-np.cumsum(cost, axis=-1))
+        styled = {name: np.where(values > 0, values * discount, values) for name, values in terms.items()}
+        styled["style"] = -self.subtracted_share * cost
+        return styled
+
+    def search_sigma_cap(self, action_size: int) -> np.ndarray:
+        """The search's sigma cap per degree of freedom, [action_size]."""
+        if len(self.search_sigma) != action_size:
+            raise StyleError(f"style '{self.name}' gives {len(self.search_sigma)} search sigmas for {action_size} "
+                             "degrees of freedom")
+        return np.asarray(self.search_sigma, dtype=np.float64)
+
+    def to_json(self) -> dict[str, object]:
+        return asdict(self)
+
+
+STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing")}
+"""the styles by name; `none` is the paper's reward alone"""
+DEFAULT_STYLE = "boxing"
+MAX_WEIGHT = 100.0
+
+
+def style_named(name: str, weight: float = 1.0) -> Style | None:
+    """The style `name` at `weight`; None for `none` (or a weight of 0)."""
+    if name not in STYLES:
+        raise StyleError(f"unknown style '{name}': use one of {', '.join(STYLES)}")
+    if not np.isfinite(weight) or not 0.0 <= weight <= MAX_WEIGHT:
+        raise StyleError(f"style weight {weight} must be a number from 0 to {MAX_WEIGHT:g}")
+    style = STYLES[name]
+    if style is None or weight == 0.0:
+        return None
+    return Style(**{**asdict(style), "weight": float(weight), "search_sigma": style.search_sigma})
+
+
+def style_label(style: Style | None) -> str:
+    """How runs, reports and policy metadata name a style: `none` or `NAME@WEIGHT`."""
+    return "none" if style is None else f"{style.name}@{style.weight:g}"
+
+
+def style_from_label(label: str) -> Style | None:
+    """The inverse of `style_label`."""
+    name, _, weight = label.partition("@")
+    try:
+        return style_named(name, float(weight) if weight else 1.0)
+    except ValueError:
+        raise StyleError(f"style '{label}': its weight is not a number") from None
