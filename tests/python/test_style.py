@@ -75,3 +75,21 @@ def test_the_search_sigma_cap_has_one_value_per_degree_of_freedom() -> None:
     assert style.search_sigma_cap(10).shape == (10,)
     with pytest.raises(StyleError):
         style.search_sigma_cap(12)
+
+
+def test_a_reward_with_a_style_is_scored_with_it() -> None:
+    from dataclasses import replace
+
+    from punch_trainer.sim.rewards import load_reward, score_terms
+
+    names = ["fist_l_pos_x", "fist_l_pos_y", "fist_l_pos_z", "fist_l_vel_x", "fist_l_vel_y", "fist_l_vel_z",
+             "fist_r_vel_x", "fist_r_vel_y", "fist_r_vel_z", "angle_waist_flexion", "fist_r_bag_distance", "exploit_flags"]
+    values = np.zeros((2, FRAMES, len(names)))
+    values[..., names.index("fist_r_vel_z")] = 5.0  # toward the bag, close to it: the straight earns every frame
+    values[1, 10:, names.index("fist_l_pos_y")] = 0.4  # the second punch's guard hand flies off
+    plain = load_reward("straight")
+    styled = replace(plain, style=style_named("boxing"))
+    plain_returns, _ = score_terms(plain, values, names)
+    styled_returns, terms = score_terms(styled, values, names)
+    assert plain_returns[0] == plain_returns[1] and styled_returns[0] == pytest.approx(plain_returns[0])
+    assert styled_returns[1] < 0.5 * plain_returns[1] and "style" in terms
