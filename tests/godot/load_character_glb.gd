@@ -53,15 +53,18 @@ func _report(path: String, scene: Node, state: GLTFState) -> Dictionary:
 	var roles: Dictionary = state.json.get("extras", {}).get("punch_character", {}).get("roles", {})
 	var role_bones := {}
 	var rest_positions := {}
+	var rest_axes := {}
 	for role in roles:
 		var bone := _find_bone(skeleton, roles[role])
 		role_bones[role] = bone
 		if bone >= 0:
-			var position := skeleton.global_transform * skeleton.get_bone_global_rest(bone).origin
-			rest_positions[role] = [position.x, position.y, position.z]
+			var rest := skeleton.global_transform * skeleton.get_bone_global_rest(bone)
+			rest_positions[role] = [rest.origin.x, rest.origin.y, rest.origin.z]
+			rest_axes[role] = [rest.basis.x.x, rest.basis.x.y, rest.basis.x.z, rest.basis.y.x, rest.basis.y.y, rest.basis.y.z,
+					rest.basis.z.x, rest.basis.z.y, rest.basis.z.z]
 	var report := {
 		"path": path, "skeleton_name": String(skeleton.name), "bone_count": skeleton.get_bone_count(), "bone_names": names,
-		"bone_parents": parents, "roles_found": role_bones, "rest_m": rest_positions,
+		"bone_parents": parents, "roles_found": role_bones, "rest_m": rest_positions, "rest_axes": rest_axes,
 		"has_skin": mesh_instance.skin != null, "skin_binds": mesh_instance.skin.get_bind_count() if mesh_instance.skin else 0,
 		"mesh_skeleton_is_skeleton": mesh_instance.get_node_or_null(mesh_instance.skeleton) == skeleton,
 	}
