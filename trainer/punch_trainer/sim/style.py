@@ -10,8 +10,8 @@ A style has two parts, chosen by measurement (docs/experiments.md, "A motion sty
    square of the excess. A frame's positive reward is multiplied by exp(-weight x the cost so far): a punch that
    flails on its way earns less, but any hit still earns more than standing still. Penalties added to the
    reward instead made the search settle on standing still, since every exploratory motion then scores below
-   zero (BENCHMARKS.md, "A motion style"). A small part of the cost is also subtracted every frame, so the
-   frames after the last reward (where a discount has nothing to act on) stay calm too.
+   zero (docs/experiments.md, "A motion style"); subtracting even 2% of the cost as well made the punching
+   arm wind up and missed a far target.
 2. **A narrower search around the guard** for the degrees of freedom that a punch moves least: the trajectory
    search's sigma for the waist's flexion and the off arm starts small and never grows past it, so the
    search explores the punching arm and the trunk's turn, not the guard hand.
@@ -55,8 +55,6 @@ class Style:
     waist_flexion_cost_per_rad2: float = 20.0
     fist_free_mps: float = 9.0
     fist_cost_per_mps2: float = 0.2
-    subtracted_share: float = 0.02
-    """share of each frame's cost also subtracted from the reward (keeps the frames after the last reward calm)"""
     search_sigma: tuple[float, ...] = (0.1, 1.0, 1.0, 1.0, 1.0, 1.0, 0.05, 0.05, 0.05, 0.05)
     """the trajectory search's largest sigma per degree of freedom, in action order (punch_core::character::DOFS:
     waist flexion, waist rotation, the right shoulder's three and elbow, the left shoulder's three and elbow)"""
@@ -82,13 +80,9 @@ class Style:
         return np.asarray(self.weight * cost, dtype=np.float64)
 
     def apply(self, terms: Mapping[str, np.ndarray], frames: FramesLike) -> dict[str, np.ndarray]:
-        """The reward's terms with the style: positive values discounted by the cost so far, and the
-        subtracted share as its own term `style` (so that reports show what the style took)."""
-        cost = self.cost(frames)
-        discount = np.exp(-np.cumsum(cost, axis=-1))
-        styled = {name: np.where(values > 0, values * discount, values) for name, values in terms.items()}
-        styled["style"] = -self.subtracted_share * cost
-        return styled
+        """The reward's terms with the style: every positive value discounted by exp(-the cost so far)."""
+        discount = np.exp(-np.cumsum(self.cost(frames), axis=-1))
+        return {name: np.where(values > 0, values * discount, values) for name, values in terms.items()}
 
     def search_sigma_cap(self, action_size: int) -> np.ndarray:
         """The search's sigma cap per degree of freedom, [action_size]."""
