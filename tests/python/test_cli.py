@@ -99,7 +99,7 @@ def test_user_errors_are_punch_messages_not_tracebacks(tmp_path) -> None:
           "--out", str(tmp_path / "run")], "tried to exit the process"),
         (["search", "--reward", "straight", "--iterations", "1", "--rollouts", "8", "--out", str(blocker / "run")],
          "Not a directory"),
-        (["replay", "--policy", str(garbage), "--episodes", "1", "--out", str(tmp_path / "replay")], "invalid input"),
+        (["replay", "--policy", str(garbage), "--episodes", "1", "--out", str(tmp_path / "replay")], "punch_training_summary is not JSON"),
     ]
     for command, message in cases:
         result = subprocess.run([PUNCH, *command], capture_output=True, text=True, timeout=300)

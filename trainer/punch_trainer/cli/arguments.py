@@ -3,7 +3,8 @@ field's docstring (the string right below it), its default the field's own, so e
 
 Types map as argparse would write them by hand: `int`, `float`, `str`, `Path` (and `X | None`, whose default
 None means "see the help"); `bool` is a switch; `Literal[...]` gives choices; `list[X]` takes one or more
-values. A field without a default is a required option.
+values. A field without a default is a required option. Every value is checked against its bounds
+(`punch_trainer/options.py`, stated in the help) before a command starts.
 """
 
 from __future__ import annotations
@@ -18,6 +19,9 @@ import typing
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any, ClassVar, Protocol, TypeVar
+
+from punch_trainer.errors import PunchError
+from punch_trainer.options import check_options, field_bounds
 
 
 class DataclassType(Protocol):
@@ -82,7 +86,7 @@ def add_dataclass_arguments(parser: argparse.ArgumentParser, args_type: type[Dat
         else:
             options["default"] = default
         if field.name in value_parsers:
-            options["type"] = value_parsers[field.name]
+            options["type"] = _usage_errors(value_parsers[field.name])
         elif annotation is bool:
             options["action"] = "store_true"
         elif typing.get_origin(annotation) is typing.Literal:
@@ -96,6 +100,9 @@ def add_dataclass_arguments(parser: argparse.ArgumentParser, args_type: type[Dat
         else:
             raise ArgumentsError(f"{args_type.__name__}.{field.name}: no command-line option for the type {hints[field.name]}")
         help_text = docs.get(field.name, "")
+        limits = field_bounds(field)
+        if limits is not None and annotation is not str and typing.get_origin(annotation) is not typing.Literal:
+            help_text += f" ({limits.describe(typing.get_origin(annotation) in (list, tuple))})"
         if field.name in default_notes:
             help_text += f" (default: {default_notes[field.name]})"
         elif default is not None and default is not dataclasses.MISSING and not isinstance(default, bool) and default != "":
@@ -108,4 +115,18 @@ def add_dataclass_arguments(parser: argparse.ArgumentParser, args_type: type[Dat
 def dataclass_from_arguments(args_type: type[ArgsT], namespace: argparse.Namespace) -> ArgsT:
     """The dataclass of the parsed options (fields left out of the parser keep their defaults)."""
     values = {field.name: getattr(namespace, field.name) for field in dataclasses.fields(args_type) if hasattr(namespace, field.name)}
-    return args_type(**values)
+    args = args_type(**values)
+    check_options(args)
+    return args
+
+
+def _usage_errors(parse: Callable[[str], Any]) -> Callable[[str], Any]:
+    """A field's own parser whose refusals argparse reports as a usage error (one line), not a traceback."""
+    def parse_or_refuse(text: str) -> Any:
+        try:
+            return parse(text)
+        except PunchError as error:
+            raise argparse.ArgumentTypeError(str(error)) from None
+
+    parse_or_refuse.__name__ = getattr(parse, "__name__", "value")
+    return parse_or_refuse

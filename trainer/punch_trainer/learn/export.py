@@ -23,6 +23,8 @@ import torch
 from punch_trainer import __version__
 from punch_trainer.errors import ExportError
 from punch_trainer.learn.policy import Actor, ActorCritic
+from punch_trainer.learn.reach import METADATA_KEY as REACH_KEY
+from punch_trainer.learn.reach import ReachVolume
 
 EXPORT_TOLERANCE = 1e-5
 
@@ -38,6 +40,8 @@ def export_policy(model: ActorCritic, path: Path, *, contract: dict[str, str], r
     contract holds is punch_core's business (the game checks them), so it is copied whole, not re-listed here."""
     if not contract:
         raise ExportError("no policy contract: pass the `policy_metadata` of the training server's reset reply (a dataset's)")
+    if REACH_KEY in contract:  # a dataset's contract is a file's: a reach of no sense never reaches a policy
+        ReachVolume.from_json(contract[REACH_KEY])
     metadata = {**contract, "punch_reward": reward, "punch_trainer_version": __version__,
                 "punch_training_summary": json.dumps(summary)}
     return export_onnx(Actor(model), int(model.obs_mean.shape[0]), path, metadata=metadata, verify=verify)

@@ -10,14 +10,23 @@ a seed no training stage uses.
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
 
+from punch_trainer.errors import PunchError
 from punch_trainer.sim.placement import BagPlacement
 
 METADATA_KEY = "punch_reach_volume"
+REACH_LIMIT_M = 3.0
+"""No reach volume extends beyond this from the character (m): a human arm's reach is under 1 m."""
+TARGET_SPEED_LIMIT_MPS = 10.0
+
+
+class ReachError(PunchError, ValueError):
+    """A reach volume (from a handshake, a dataset or a policy's metadata) that is malformed or of no sense."""
 HELD_OUT_SEED = 2_147_483_647
 """the seed of `punch eval`'s placements (training seeds are small integers and their +1, +2)"""
 
@@ -34,15 +43,33 @@ class ReachVolume:
     max_target_speed_mps: float
     any_start_pose: bool
 
+    def __post_init__(self) -> None:
+        for name, (low, high), lowest in (("distance_m", self.distance_m, 0.0), ("height_m", self.height_m, 0.0),
+                                          ("side_m", self.side_m, -REACH_LIMIT_M)):
+            if not (math.isfinite(low) and math.isfinite(high) and lowest <= low <= high <= REACH_LIMIT_M):
+                raise ReachError(f"reach volume {name} [{low}, {high}] is not a range from {lowest:g} to {REACH_LIMIT_M:g} m")
+        if not 0.0 <= self.max_target_speed_mps <= TARGET_SPEED_LIMIT_MPS:  # NaN fails too
+            raise ReachError(f"reach volume max_target_speed_mps {self.max_target_speed_mps} is not from 0 to "
+                             f"{TARGET_SPEED_LIMIT_MPS:g} m/s")
+
     @classmethod
     def from_json(cls, value: dict[str, Any] | str) -> ReachVolume:
-        data = json.loads(value) if isinstance(value, str) else value
+        """A reach volume from its JSON (text or parsed); ReachError for one malformed or out of bounds."""
+        try:
+            data = json.loads(value) if isinstance(value, str) else value
 
-        def pair(key: str) -> tuple[float, float]:
-            return round(float(data[key][0]), 4), round(float(data[key][1]), 4)  # the handshake's f32s
+            def pair(key: str) -> tuple[float, float]:
+                low, high = data[key]
+                return round(float(low), 4), round(float(high), 4)  # the handshake's f32s
 
-        return cls(pair("distance_m"), pair("height_m"), pair("side_m"), round(float(data["max_target_speed_mps"]), 4),
-                   bool(data["any_start_pose"]))
+            any_start = data["any_start_pose"]
+            if not isinstance(any_start, bool):
+                raise ReachError(f"reach volume any_start_pose {any_start!r} is not true or false")
+            return cls(pair("distance_m"), pair("height_m"), pair("side_m"), round(float(data["max_target_speed_mps"]), 4), any_start)
+        except ReachError:
+            raise
+        except (KeyError, TypeError, ValueError, IndexError, OverflowError) as error:
+            raise ReachError(f"malformed reach volume {str(value)[:200]!r}: {type(error).__name__}: {error}") from None
 
     @classmethod
     def spot(cls, bag: BagPlacement) -> ReachVolume:

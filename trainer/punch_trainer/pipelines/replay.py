@@ -14,6 +14,7 @@ this module scores it with the policy's reward (named in its metadata) and repor
 from __future__ import annotations
 
 import json
+import math
 import os
 import selectors
 import time
@@ -26,6 +27,7 @@ import onnx
 from tqdm import tqdm
 
 from punch_trainer.errors import GodotRunError, PunchError
+from punch_trainer.options import SIGMA
 from punch_trainer.sim.godot import FATAL_LOG_PATTERNS, GODOT_PROJECT, start_godot, stop_godot, tail
 from punch_trainer.sim.rewards import Reward, first_right_contact, metadata_reward, score
 
@@ -69,16 +71,39 @@ class ReplayArgs:
 
 
 def parse_sigmas(text: str) -> list[float]:
-    """`0.1:0.9:0.1` (start:stop:step, inclusive) or `0,0.3,0.5`."""
+    """`0.1:0.9:0.1` (start:stop:step, inclusive) or `0,0.3,0.5`; at most SIGMA.max_items of them (their bounds
+    are checked with every option's, punch_trainer/options.py)."""
     try:
         if ":" in text:
             start, stop, step = (float(v) for v in text.split(":"))
-            if step <= 0:
-                raise ValueError("step must be > 0")
-            return [round(v, 6) for v in np.arange(start, stop + step / 2, step)]
+            if not all(map(math.isfinite, (start, stop, step))) or step <= 0:
+                raise ValueError("start, stop and step must be finite, and step > 0")
+            count = math.floor((stop - start) / step + 0.5) + 1
+            if not 1 <= count <= (SIGMA.max_items or 0):
+                raise ValueError(f"that is {max(count, 0)} sigmas; at least 1 and at most {SIGMA.max_items}")
+            return [round(start + i * step, 6) for i in range(count)]
         return [float(v) for v in text.split(",")]
     except ValueError as error:
         raise ReplayError(f"bad --sigmas '{text}' (use start:stop:step or a,b,c): {error}") from None
+
+
+def training_best_return(metadata: dict[str, str], source: str) -> float | None:
+    """The search's best return from a policy's `punch_training_summary` (None when it has none), checked
+    before Godot runs: the summary must be a JSON object and the return a finite number."""
+    try:
+        summary = json.loads(metadata.get("punch_training_summary", "{}"), parse_constant=_no_constant)
+    except ValueError as error:
+        raise ReplayError(f"{source}: its metadata's punch_training_summary is not JSON ({error})") from None
+    if not isinstance(summary, dict):
+        raise ReplayError(f"{source}: its metadata's punch_training_summary is a {type(summary).__name__}, not an object")
+    best = summary.get("search_best_return")
+    if best is not None and (isinstance(best, bool) or not isinstance(best, (int, float)) or not math.isfinite(best)):
+        raise ReplayError(f"{source}: its metadata's search_best_return {best!r} is not a finite number")
+    return None if best is None else float(best)
+
+
+def _no_constant(name: str) -> float:
+    raise ValueError(f"{name} is not a number")
 
 
 def policy_metadata(path: Path) -> dict[str, str]:
@@ -161,8 +186,7 @@ def run_replay(args: ReplayArgs, progress: bool = True) -> tuple[Path, list[dict
     if args.episodes < 1:
         raise ReplayError("--episodes must be at least 1")
     reward = metadata_reward(metadata, str(args.policy), args.reward)
-    summary = json.loads(metadata.get("punch_training_summary", "{}"))
-    best = summary.get("search_best_return")
+    best = training_best_return(metadata, str(args.policy))
     out = Path(args.out or Path(args.policy).parent / f"replay_{int(time.time())}")
     frames_dir = out / "frames"
     frames_dir.mkdir(parents=True, exist_ok=True)
