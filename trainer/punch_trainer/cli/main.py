@@ -6,7 +6,9 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+import signal
 import sys
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, ClassVar, Protocol, TypeVar
@@ -155,10 +157,29 @@ def _run_args(args: argparse.Namespace, args_type: type[RunArgsT]) -> RunArgsT:
     """The arguments of `punch search` or `punch train`: the run's own when resuming, else the command line's,
     with the run directory fixed now, so that an interruption can name it."""
     if args.resume is not None:
-        return read_config(args.resume, args_type)
+        resumed = read_config(args.resume, args_type)
+        _check_resumed_reward(args.resume, str(getattr(resumed, "reward", "")), args.reward)
+        return resumed
+    if args.reward is None:
+        args.reward = args_type.__dataclass_fields__["reward"].default
     run_args = dataclass_from_arguments(args_type, args)
     run_args.out = run_args.run_dir()
     return run_args
+
+
+def _check_resumed_reward(run_dir: Path, recorded: str, named: str | None) -> None:
+    """A resume runs no code the command line did not name: a run whose reward is a file or module needs
+    `--reward` naming it again (and the search checks its source's SHA-256 against the run's); a --reward
+    that is not the run's is refused."""
+    from punch_trainer.learn.checkpoint import CheckpointError
+    from punch_trainer.sim.rewards import PRESETS
+
+    if named is not None and named != recorded:
+        raise CheckpointError(f"{run_dir} is a run of the reward {recorded!r}; --resume continues it with that reward, "
+                              f"not {named!r}")
+    if named is None and recorded not in PRESETS:
+        raise CheckpointError(f"{run_dir}'s reward {recorded!r} is code; a resume runs only code the command line names: "
+                              f"add --reward {recorded} (its source must be the one the run started with)")
 
 
 @contextlib.contextmanager
@@ -255,15 +276,19 @@ def build_parser() -> argparse.ArgumentParser:
 
     search = commands.add_parser("search", help="trajectory search (TTR) for a reward; writes a run directory")
     add_dataclass_arguments(search, SearchArgs, exclude=["decision_period"])
+    search.set_defaults(reward=None)  # to tell a --reward given with --resume; _run_args fills the default in
     search.add_argument("--resume", type=Path, metavar="RUN_DIR",
-                        help="continue an interrupted search from its checkpoint, with its own arguments (other options are ignored)")
+                        help="continue an interrupted search from its checkpoint, with its own arguments (other options are ignored; "
+                             "a reward that is a file must be named again with --reward)")
     add_ray_option(search)
     search.set_defaults(run=_search)
 
     train = commands.add_parser("train", help="search, pretraining, A2C and ONNX export for a reward")
     add_dataclass_arguments(train, TrainArgs, default_notes=reach_default_notes())
+    train.set_defaults(reward=None)  # to tell a --reward given with --resume; _run_args fills the default in
     train.add_argument("--resume", type=Path, metavar="RUN_DIR",
-                       help="continue an interrupted run from its checkpoints, with its own arguments (other options are ignored)")
+                       help="continue an interrupted run from its checkpoints, with its own arguments (other options are ignored; "
+                            "a reward that is a file must be named again with --reward)")
     add_ray_option(train)
     train.set_defaults(run=_train)
 
@@ -328,10 +353,24 @@ def add_ray_option(command: argparse.ArgumentParser) -> None:
                               "this machine, to try it); docs/cluster.md")
 
 
+def _interrupt(signum: int, _frame: object) -> None:
+    """SIGTERM and SIGHUP end a command as Ctrl-C does: every `with` unwinds, so temporary folders are removed,
+    Godot is stopped and a run directory is left with its last whole checkpoint."""
+    raise KeyboardInterrupt(signal.Signals(signum).name)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    if threading.current_thread() is threading.main_thread():
+        for number in (signal.SIGTERM, signal.SIGHUP):
+            signal.signal(number, _interrupt)
     try:
         return int(args.run(args))
+    except KeyboardInterrupt as interrupt:
+        if args.debug:
+            raise
+        print(f"punch: interrupted{f' ({interrupt})' if str(interrupt) else ''}", file=sys.stderr)
+        return 130
     except PunchError as error:
         if args.debug:
             raise

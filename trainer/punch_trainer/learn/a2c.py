@@ -25,7 +25,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from punch_trainer.learn.checkpoint import load_checkpoint, save_checkpoint
+from punch_trainer.learn.checkpoint import CheckpointError, flag, load_checkpoint, number, save_checkpoint
 from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.volume import validate
 from punch_trainer.sim.env import PunchVectorEnv
@@ -143,6 +143,40 @@ def advantages_and_returns(rewards: torch.Tensor, values: torch.Tensor, best_epi
     return advantages, advantages + values
 
 
+def restore_a2c(saved: dict[str, Any], model: ActorCritic, optimizer: torch.optim.Optimizer, args: A2CArgs
+                ) -> tuple[ActorCritic, float, float, list[dict[str, Any]], tuple[int, float, bool]]:
+    """An A2C checkpoint into `model` and `optimizer`, every value checked first (parameters finite, numbers in
+    range): the best model, best noise-free return, best episode return, history and (update, elapsed s,
+    stopped). CheckpointError for anything that does not fit."""
+    try:
+        update = number(saved, "update", 1, args.updates, integer=True)
+        elapsed_s = number(saved, "elapsed_s", 0.0, 1e9)
+        stopped = flag(saved, "stopped")
+        best_eval = float(number(saved, "best_eval", -1e300, 1e300))
+        best_episode_return = float(number(saved, "best_episode_return", -1e300, 1e300))
+        history = saved["history"]
+        if not isinstance(history, list) or len(history) != update + 1 or not all(isinstance(h, dict) for h in history):
+            raise CheckpointError(f"the checkpoint's history does not hold one entry per update ({update}) and the start")
+        for name in ("model", "best_model"):
+            parameters = saved[name]
+            if not isinstance(parameters, dict) or not all(isinstance(t, torch.Tensor) and bool(torch.isfinite(t).all())
+                                                           for t in parameters.values()):
+                raise CheckpointError(f"the checkpoint's {name} holds parameters that are not finite numbers")
+        rng_state = saved["torch_rng_state"]
+        if not isinstance(rng_state, torch.Tensor) or rng_state.dtype != torch.uint8:
+            raise CheckpointError("the checkpoint's random state is not a random state")
+        model.load_state_dict(saved["model"])
+        optimizer.load_state_dict(saved["optimizer"])
+        best_model = copy.deepcopy(model)
+        best_model.load_state_dict(saved["best_model"])
+        torch.set_rng_state(rng_state)
+    except CheckpointError:
+        raise
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError, RuntimeError) as error:  # any other shape of damage
+        raise CheckpointError(f"the checkpoint is not what A2C writes: {type(error).__name__}: {error}") from None
+    return best_model, best_eval, best_episode_return, history, (update, elapsed_s, stopped)
+
+
 def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVectorEnv, progress: bool = True,
               start_rollouts: int = 0, run_dir: Path | None = None, max_restarts: int = 3,
               conditions: Callable[[int, int], EpisodeStart] | None = None,
@@ -175,13 +209,8 @@ def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVecto
                                           "mean_return": float("nan"), "eval_return": best_eval, "eval_success": eval_success}]
         done_updates, elapsed_before, stopped = 0, 0.0, False
     else:
-        model.load_state_dict(saved["model"])
-        optimizer.load_state_dict(saved["optimizer"])
-        best_model = copy.deepcopy(model)
-        best_model.load_state_dict(saved["best_model"])
-        best_eval, best_episode_return, history = saved["best_eval"], saved["best_episode_return"], saved["history"]
-        done_updates, elapsed_before, stopped = saved["update"], saved["elapsed_s"], saved["stopped"]
-        torch.set_rng_state(saved["torch_rng_state"])
+        best_model, best_eval, best_episode_return, history, (done_updates, elapsed_before, stopped) = restore_a2c(
+            saved, model, optimizer, args)
     if stopped:
         return best_model, history
 

@@ -23,6 +23,7 @@ in one step. The convergence plot (sigma over iterations) in every run shows the
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,7 +32,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from punch_trainer.learn.checkpoint import CheckpointError, default_run_dir, load_checkpoint, save_checkpoint
+from punch_trainer.learn.checkpoint import CheckpointError, array, default_run_dir, flag, load_checkpoint, number, save_checkpoint
 from punch_trainer.sim.placement import BagPlacement
 from punch_trainer.sim.rewards import Reward, Terms, score_terms
 from punch_trainer.sim.rollouts import RolloutPool
@@ -108,6 +109,53 @@ def evaluate_actions(pool: RolloutPool, reward: Reward, actions: np.ndarray,
     return returns, terms, features, executed
 
 
+SearchCounters = tuple[int, int, int, float, bool]
+
+
+def restore_search(saved: dict[str, Any], args: SearchArgs, rng: np.random.Generator, table_shape: tuple[int, int, int],
+                   feature_count: int, names: list[str], characters_per_process: int
+                   ) -> tuple[np.ndarray, np.ndarray, list[SearchResult], list[dict[str, Any]], SearchCounters]:
+    """A search's checkpoint, every value checked (types, shapes, ranges, finiteness) before it is used:
+    the tables mu and sigma, the bests, the history and (iteration, rollouts, last improvement, elapsed s,
+    stopped). CheckpointError for anything that does not fit; `rng` takes the saved sampler state."""
+    count, decisions, action_size = table_shape
+    try:
+        mu = array(saved, "mu", table_shape, -1.0, 1.0)
+        sigma = array(saved, "sigma", table_shape, 0.0, 1e6)
+        iteration = number(saved, "iteration", 1, args.iterations, integer=True)
+        rollouts = number(saved, "rollouts", 1, 1e15, integer=True)
+        last_improvement = number(saved, "last_improvement", 0, iteration, integer=True)
+        elapsed_s = number(saved, "elapsed_s", 0.0, 1e9)
+        stopped = flag(saved, "stopped")
+        history = saved["history"]
+        if not isinstance(history, list) or len(history) != iteration or not all(isinstance(h, dict) for h in history):
+            raise CheckpointError(f"the checkpoint's history does not hold one entry per iteration ({iteration})")
+        for entry in history:
+            for key, value in entry.items():
+                if not isinstance(key, str) or isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                    raise CheckpointError(f"the checkpoint's history holds {key!r}: {value!r}, not a finite number")
+        saved_bests = saved["bests"]
+        if not isinstance(saved_bests, list) or len(saved_bests) != count:
+            raise CheckpointError(f"the checkpoint holds {len(saved_bests) if isinstance(saved_bests, list) else 'no'} bests; "
+                                  f"this search has {count} placements")
+        bests = []
+        for best in saved_bests:
+            if not isinstance(best, dict) or not isinstance(best.get("terms"), dict):
+                raise CheckpointError("the checkpoint's bests are not what a search writes")
+            terms = {str(k): number(best["terms"], k, -1e300, 1e300) for k in best["terms"]}
+            bests.append(SearchResult(array(best, "actions", (decisions, action_size), -1.0, 1.0),
+                                      array(best, "executed", (decisions, action_size), -1.0, 1.0),
+                                      float(number(best, "return", -1e300, 1e300)),
+                                      array(best, "features", (decisions * args.decision_period, feature_count)),
+                                      terms, history, names, number(best, "slot", 0, characters_per_process - 1, integer=True)))
+        rng.bit_generator.state = saved["rng_state"]
+    except CheckpointError:
+        raise
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError, RuntimeError) as error:  # any other shape of damage
+        raise CheckpointError(f"the checkpoint is not what a search writes: {type(error).__name__}: {error}") from None
+    return mu, sigma, bests, history, (iteration, rollouts, last_improvement, elapsed_s, stopped)
+
+
 def trajectory_search(args: SearchArgs, reward: Reward, pool: RolloutPool, progress: bool = True,
                       run_dir: Path | None = None) -> SearchResult:
     """Runs TTR at the spec's default placement on `pool` until a stopping rule fires (`placement_search`
@@ -160,16 +208,8 @@ def placement_search(args: SearchArgs, reward: Reward, pool: RolloutPool, progre
         bests = [best_of(p, mu, returns, terms, features, executed, history) for p in range(count)]
         done_iterations, rollouts_done, last_improvement, elapsed_before, stopped = 0, count, 0, 0.0, False
     else:
-        mu, sigma = saved["mu"].numpy(), saved["sigma"].numpy()
-        if mu.shape != (count, decisions, action_size):
-            raise CheckpointError(f"the checkpoint in {run_dir} holds tables of shape {tuple(mu.shape)}; this search needs "
-                                  f"{(count, decisions, action_size)}")
-        rng.bit_generator.state = saved["rng_state"]
-        history = saved["history"]
-        bests = [SearchResult(b["actions"].numpy(), b["executed"].numpy(), b["return"], b["features"].numpy(), b["terms"],
-                              history, names, b["slot"]) for b in saved["bests"]]
-        done_iterations, rollouts_done, last_improvement = saved["iteration"], saved["rollouts"], saved["last_improvement"]
-        elapsed_before, stopped = saved["elapsed_s"], saved["stopped"]
+        mu, sigma, bests, history, (done_iterations, rollouts_done, last_improvement, elapsed_before, stopped) = restore_search(
+            saved, args, rng, (count, decisions, action_size), len(names), names, pool.characters_per_process)
     if stopped:
         return bests
 
