@@ -36,6 +36,7 @@ pub mod punch;
 pub mod runtime;
 pub mod sensing;
 pub mod session;
+pub mod skeleton_pose;
 pub mod smoothing;
 pub mod spec;
 

@@ -8,6 +8,7 @@ mod punch_controller;
 mod punch_inference;
 mod punch_policy;
 mod punch_runtime;
+mod punch_skeleton_modifier;
 mod punch_spec;
 // Training runs on Linux (the trainer starts headless Linux Godot); the game classes build everywhere.
 #[cfg(unix)]

@@ -1,0 +1,421 @@
+//! Posing a user's rigged skeleton from the simulated upper body (`character::Body`), and blending that pose
+//! with the skeleton's animation. `PunchSkeletonModifier` (punch_godot) feeds it the engine's data.
+//!
+//! Rest frames are read from the skeleton, never assumed: each driven bone's rest direction is the line from its
+//! head to its child's head in the global rest (an arm bone along +Y, +X or any roll gives the same result),
+//! and the rig's own front comes from its bones: left minus right upper arm is its left, hips to head its up,
+//! and their cross product its front. Every driven segment, on the rig and on the simulated body, gets an
+//! anatomical frame made of its direction `d` (Y) and a normal `n` (Z) perpendicular to it:
+//! - the chest: `d` up, `n` the front (the simulated torso: the character frame, +Y up, +Z ahead);
+//! - the upper arm: `d` shoulder to elbow, `n` the side the elbow folds to (on the rig at rest, where arms are
+//!   straight in a T- or A-pose, the front, as an elbow bends forward; on the simulated arm, the forearm's
+//!   direction, which the 1-DOF elbow keeps fixed in the upper arm's frame);
+//! - the forearm: `d` elbow to fist (on the rig, elbow to wrist), `n` the side that faces the upper arm
+//!   when the elbow bends (the rig at rest: the front again).
+//!
+//! A bone's global rotation is then the simulated segment's frame now, times the inverse of the bone's rest
+//! frame, times the bone's rest rotation: `G = (Q_body · F_body) · F_rest⁻¹ · R_rest`. So the bone points
+//! exactly along the simulated segment, and turns about its own axis as the segment does (a rotation about the
+//! bone that keeps the elbow's fold on the side it folds to, whatever axis the rig's bones use). The upper arm
+//! and forearm frames differ only by a rotation about the elbow's hinge, so the rig's elbow bends as a hinge
+//! too, with no twist between the two bones. Bones between the chest and the upper arm (the clavicle), between
+//! the upper arm and forearm, and the hand follow their driving bone rigidly, as in their rest (the
+//! simulated torso and forearm are rigid, fist included).
+//!
+//! The spine: the chest's rotation from the animation's chest to the target is split evenly along the spine
+//! chain, as `bone_map::BoneMap::waist_share` says (each of the `n` bones turns by the same `1/n` of it about
+//! one global axis; rotations about one axis compose, so the chest lands exactly on its target). The hips,
+//! legs, neck and head keep the animation.
+//!
+//! Blending: the skeleton's local rotations are `slerp(animation, target, w)` with `w` eased in and out
+//! (smoothstep of the elapsed fraction of the blend time: no step in the weight, nor in its rate, at either
+//! end), so a blend adds no jump to a bone beyond the animation's and the simulation's own motion.
+
+use glam::{Mat3, Quat, Vec3};
+
+use crate::bone_map::{BoneMap, Side};
+use crate::character::{Body, JOINTS};
+use crate::sensing::CharacterGeometry;
+
+/// Why a skeleton's rest cannot be posed from the simulated body.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum PoseError {
+    /// The rest pose is degenerate: two bones that set a direction sit at the same place.
+    #[error("the skeleton's rest pose is degenerate: {0}")]
+    Degenerate(String),
+    /// The bone lists do not agree with the map.
+    #[error("the skeleton's bone list does not fit its map: {0}")]
+    Malformed(String),
+}
+
+/// An anatomical frame from a direction (its Y) and a normal hint (its Z, made perpendicular). `None` when
+/// the direction is zero or along the hint.
+pub fn frame(direction: Vec3, hint: Vec3) -> Option<Quat> {
+    let y = direction.try_normalize()?;
+    let z = (hint - hint.dot(y) * y).try_normalize()?;
+    Some(Quat::from_mat3(&Mat3::from_cols(y.cross(z), y, z)).normalize())
+}
+
+/// A frame with a fallback hint when the direction lies along the first one.
+fn frame_or(direction: Vec3, hint: Vec3, fallback: Vec3, what: &str) -> Result<Quat, PoseError> {
+    frame(direction, hint)
+        .filter(|_| direction.normalize_or_zero().dot(hint.normalize_or_zero()).abs() < 0.98)
+        .or_else(|| frame(direction, fallback))
+        .ok_or_else(|| PoseError::Degenerate(what.to_string()))
+}
+
+/// The simulated body's anatomical frames in each body's own frame (constant: the bodies are rigid and the
+/// elbows are hinges).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BodyFrames {
+    pub torso: Quat,
+    /// [right, left], as `CharacterGeometry::fist_offsets`.
+    pub upper_arm: [Quat; 2],
+    pub forearm: [Quat; 2],
+    /// Shoulder joints in the character's frame (relative to its root) at rest: [right, left] (`with_shoulders`).
+    pub shoulders: [Vec3; 2],
+}
+
+impl BodyFrames {
+    /// From the character's rest geometry (rest rotations, joint anchors and fist offsets).
+    pub fn from_geometry(geometry: &CharacterGeometry) -> Result<BodyFrames, PoseError> {
+        let rest = geometry.rest_rotations;
+        let torso = rest[Body::Torso.index()].inverse() * geometry.root_rotation;
+        let mut upper_arm = [Quat::IDENTITY; 2];
+        let mut forearm = [Quat::IDENTITY; 2];
+        for (side, (upper, fore, shoulder, elbow)) in
+            [(Body::UpperArmR, Body::ForearmR, 1, 2), (Body::UpperArmL, Body::ForearmL, 3, 4)].into_iter().enumerate()
+        {
+            debug_assert!(JOINTS[shoulder].child == upper && JOINTS[elbow].child == fore);
+            let (q_u, q_f) = (rest[upper.index()], rest[fore.index()]);
+            let shoulder_u = geometry.joint_anchors[shoulder].1;
+            let elbow_u = geometry.joint_anchors[elbow].0;
+            let elbow_f = geometry.joint_anchors[elbow].1;
+            let fist_f = geometry.fist_offsets[side];
+            let upper_dir = elbow_u - shoulder_u;
+            let fore_dir = fist_f - elbow_f;
+            let what = |part: &str| format!("the simulated {part} (its elbow is straight)");
+            upper_arm[side] = frame(upper_dir, q_u.inverse() * (q_f * fore_dir)).ok_or_else(|| {
+                PoseError::Degenerate(what(if side == 0 { "right upper arm" } else { "left upper arm" }))
+            })?;
+            forearm[side] = frame(fore_dir, q_f.inverse() * (q_u * -upper_dir))
+                .ok_or_else(|| PoseError::Degenerate(what(if side == 0 { "right forearm" } else { "left forearm" })))?;
+        }
+        Ok(BodyFrames { torso, upper_arm, forearm, shoulders: [Vec3::ZERO; 2] })
+    }
+
+    /// The same frames with the shoulder joints' rest places (in the character's frame, relative to its root)
+    /// given: `CharacterGeometry` does not hold the bodies' positions.
+    pub fn with_shoulders(mut self, shoulders: [Vec3; 2]) -> BodyFrames {
+        self.shoulders = shoulders;
+        self
+    }
+}
+
+/// How a written bone gets its target global rotation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Drive {
+    /// A spine bone: its share of the chest's turn (index into the chain).
+    Spine(usize),
+    /// Rigidly with a driving segment, as at rest: `G = G_driver · offset`.
+    Follow { driver: Segment, offset: Quat },
+    /// A driving segment itself.
+    Segment(Segment),
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Segment {
+    Chest,
+    UpperArm(usize),
+    Forearm(usize),
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Write {
+    bone: usize,
+    /// The bone's parent; its new global rotation is known when this bone is written (parents come first),
+    /// except for the first spine bone, whose parent (the hips) keeps the animation.
+    parent: usize,
+    drive: Drive,
+}
+
+/// One simulated frame, in the skeleton's space: the rotations of the driving bodies.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BodyRotations {
+    pub torso: Quat,
+    /// [right, left].
+    pub upper_arm: [Quat; 2],
+    pub forearm: [Quat; 2],
+}
+
+/// A skeleton mapped to the simulated body: which bones are written, in which order, from what.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SkeletonPoser {
+    writes: Vec<Write>,
+    hips: usize,
+    spine: Vec<usize>,
+    /// `F_rest⁻¹ · R_rest` of the chest, upper arms and forearms ([right, left]).
+    chest_offset: Quat,
+    upper_offset: [Quat; 2],
+    fore_offset: [Quat; 2],
+    frames: BodyFrames,
+    /// The rig's front-facing frame (character frame to skeleton space: +X its left, +Y up, +Z its front).
+    rig_frame: Quat,
+    /// The rig's upper arms' heads at rest, in skeleton space: [right, left].
+    rig_shoulders: [Vec3; 2],
+    upper_arm_bones: [usize; 2],
+}
+
+const SIDES: [Side; 2] = [Side::Right, Side::Left];
+
+impl SkeletonPoser {
+    /// Maps a skeleton (parents, -1 for a root, and every bone's global rest rotation and position in the
+    /// skeleton's space) onto the simulated body's frames.
+    pub fn new(
+        map: &BoneMap,
+        parents: &[i32],
+        rest: &[(Quat, Vec3)],
+        frames: BodyFrames,
+    ) -> Result<SkeletonPoser, PoseError> {
+        if parents.len() != rest.len() {
+            return Err(PoseError::Malformed(format!("{} parents but {} rest poses", parents.len(), rest.len())));
+        }
+        let in_range = |bone: usize| bone < rest.len();
+        let all = [map.hips, map.head, map.chest()]
+            .into_iter()
+            .chain(map.spine.iter().copied())
+            .chain(SIDES.iter().flat_map(|&s| [map.arm(s).upper_arm, map.arm(s).forearm, map.arm(s).hand]));
+        if let Some(bad) = all.clone().find(|&b| !in_range(b)) {
+            return Err(PoseError::Malformed(format!("bone {bad} is out of range")));
+        }
+        let rot = |b: usize| rest[b].0.normalize();
+        let pos = |b: usize| rest[b].1;
+        let left = pos(map.left.upper_arm) - pos(map.right.upper_arm);
+        let up_raw = pos(map.head) - pos(map.hips);
+        let lateral =
+            left.try_normalize().ok_or_else(|| PoseError::Degenerate("the two upper arms sit at one place".into()))?;
+        let up = (up_raw - up_raw.dot(lateral) * lateral)
+            .try_normalize()
+            .ok_or_else(|| PoseError::Degenerate("the head is not above the hips".into()))?;
+        let front = lateral.cross(up);
+        let rig_frame = Quat::from_mat3(&Mat3::from_cols(lateral, up, front)).normalize();
+        let chest = map.chest();
+        let chest_offset = rig_frame.inverse() * rot(chest);
+        let mut upper_offset = [Quat::IDENTITY; 2];
+        let mut fore_offset = [Quat::IDENTITY; 2];
+        for (i, &side) in SIDES.iter().enumerate() {
+            let arm = map.arm(side);
+            let what = |part: &str| format!("the {side:?} {part} has no length (its child sits on it)");
+            let f_u = frame_or(pos(arm.forearm) - pos(arm.upper_arm), front, -up, &what("upper arm"))?;
+            let f_f = frame_or(pos(arm.hand) - pos(arm.forearm), front, -up, &what("forearm"))?;
+            upper_offset[i] = f_u.inverse() * rot(arm.upper_arm);
+            fore_offset[i] = f_f.inverse() * rot(arm.forearm);
+        }
+
+        let parent_of = |b: usize| -> Result<usize, PoseError> {
+            usize::try_from(parents[b])
+                .ok()
+                .filter(|&p| in_range(p))
+                .ok_or_else(|| PoseError::Malformed(format!("bone {b} has no parent")))
+        };
+        // The bones strictly between `top` and `bottom`, top first.
+        let between = |top: usize, bottom: usize| -> Result<Vec<usize>, PoseError> {
+            let mut path = Vec::new();
+            let mut bone = parent_of(bottom)?;
+            while bone != top {
+                path.push(bone);
+                bone = parent_of(bone)?;
+                if path.len() > rest.len() {
+                    return Err(PoseError::Malformed(format!("bone {top} is not above bone {bottom}")));
+                }
+            }
+            path.reverse();
+            Ok(path)
+        };
+
+        let mut writes = Vec::new();
+        for (k, &bone) in map.spine.iter().enumerate() {
+            writes.push(Write { bone, parent: parent_of(bone)?, drive: Drive::Spine(k) });
+        }
+        for (i, &side) in SIDES.iter().enumerate() {
+            let arm = map.arm(side);
+            let chain = [
+                (chest, Segment::Chest, arm.upper_arm, Segment::UpperArm(i)),
+                (arm.upper_arm, Segment::UpperArm(i), arm.forearm, Segment::Forearm(i)),
+            ];
+            for (top, top_segment, bottom, bottom_segment) in chain {
+                for bone in between(top, bottom)? {
+                    let offset = rot(top).inverse() * rot(bone);
+                    writes.push(Write {
+                        bone,
+                        parent: parent_of(bone)?,
+                        drive: Drive::Follow { driver: top_segment, offset },
+                    });
+                }
+                writes.push(Write { bone: bottom, parent: parent_of(bottom)?, drive: Drive::Segment(bottom_segment) });
+            }
+            let mut hand_path = between(arm.forearm, arm.hand)?;
+            hand_path.push(arm.hand);
+            for bone in hand_path {
+                let offset = rot(arm.forearm).inverse() * rot(bone);
+                writes.push(Write {
+                    bone,
+                    parent: parent_of(bone)?,
+                    drive: Drive::Follow { driver: Segment::Forearm(i), offset },
+                });
+            }
+        }
+        Ok(SkeletonPoser {
+            writes,
+            hips: map.hips,
+            spine: map.spine.clone(),
+            chest_offset,
+            upper_offset,
+            fore_offset,
+            frames,
+            rig_frame,
+            rig_shoulders: [pos(map.right.upper_arm), pos(map.left.upper_arm)],
+            upper_arm_bones: [map.right.upper_arm, map.left.upper_arm],
+        })
+    }
+
+    /// The bones this poser writes, parents first.
+    pub fn written_bones(&self) -> impl Iterator<Item = usize> + '_ {
+        self.writes.iter().map(|w| w.bone)
+    }
+
+    /// How many bones it writes.
+    pub fn len(&self) -> usize {
+        self.writes.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.writes.is_empty()
+    }
+
+    pub fn hips(&self) -> usize {
+        self.hips
+    }
+
+    /// The first bone of the spine chain (the hips' child).
+    pub fn spine_root(&self) -> usize {
+        self.spine[0]
+    }
+
+    /// The upper arms: (right, left).
+    pub fn upper_arms(&self) -> (usize, usize) {
+        (self.upper_arm_bones[0], self.upper_arm_bones[1])
+    }
+
+    /// The rig's front-facing frame in the skeleton's space (+X its left, +Y up, +Z its front).
+    pub fn rig_frame(&self) -> Quat {
+        self.rig_frame
+    }
+
+    /// Where the simulated character's root goes so that it faces the rig's front (turned about +Y only)
+    /// and its shoulder joints' midpoint sits on the rig's (upper arms' heads at rest): `skeleton` is the
+    /// skeleton's global rotation and position (`scale` a uniform scale of the skeleton node). Returns the
+    /// root's rotation and position.
+    pub fn character_placement(&self, skeleton_rotation: Quat, skeleton_origin: Vec3, scale: f32) -> (Quat, Vec3) {
+        let front = skeleton_rotation * (self.rig_frame * Vec3::Z);
+        let yaw = Quat::from_rotation_y(front.x.atan2(front.z));
+        let rig_mid =
+            skeleton_origin + skeleton_rotation * (scale * 0.5 * (self.rig_shoulders[0] + self.rig_shoulders[1]));
+        let sim_mid = 0.5 * (self.frames.shoulders[0] + self.frames.shoulders[1]);
+        (yaw, rig_mid - yaw * sim_mid)
+    }
+
+    /// The target local rotation of every written bone (`written_bones` order), from the simulated bodies'
+    /// rotations (in the skeleton's space) and the animation's pose: `hips_global`, the hips' global rotation,
+    /// and `animated_local(bone)`, a bone's local rotation as the animation left it.
+    pub fn pose(&self, bodies: &BodyRotations, hips_global: Quat, animated_local: impl Fn(usize) -> Quat) -> Vec<Quat> {
+        let f = &self.frames;
+        let chest = bodies.torso * f.torso * self.chest_offset;
+        let upper: [Quat; 2] = std::array::from_fn(|i| bodies.upper_arm[i] * f.upper_arm[i] * self.upper_offset[i]);
+        let fore: [Quat; 2] = std::array::from_fn(|i| bodies.forearm[i] * f.forearm[i] * self.fore_offset[i]);
+        let segment = |s: Segment| match s {
+            Segment::Chest => chest,
+            Segment::UpperArm(i) => upper[i],
+            Segment::Forearm(i) => fore[i],
+        };
+
+        // The spine: the animation's chain, then the turn from its chest to the target shared evenly.
+        let mut animated_globals = Vec::with_capacity(self.spine.len());
+        let mut global = hips_global;
+        for &bone in &self.spine {
+            global = (global * animated_local(bone)).normalize();
+            animated_globals.push(global);
+        }
+        let mut turn = chest * global.inverse();
+        if turn.w < 0.0 {
+            turn = -turn;
+        }
+        let (axis, angle) = turn.to_axis_angle();
+        let share = Quat::from_axis_angle(axis, angle / self.spine.len() as f32);
+
+        // New globals of written bones, parents first.
+        let mut written: Vec<(usize, Quat)> = Vec::with_capacity(self.writes.len());
+        let mut locals = Vec::with_capacity(self.writes.len());
+        for write in &self.writes {
+            let (local, global) = match write.drive {
+                Drive::Spine(k) => {
+                    let g = animated_globals[k];
+                    let local = (animated_local(write.bone) * (g.inverse() * share * g)).normalize();
+                    let parent =
+                        if k == 0 { hips_global } else { new_global(&written, write.parent).unwrap_or(hips_global) };
+                    (local, (parent * local).normalize())
+                }
+                Drive::Follow { driver, offset } => {
+                    self.local_for(&written, write.parent, segment(driver) * offset, hips_global)
+                }
+                Drive::Segment(driver) => self.local_for(&written, write.parent, segment(driver), hips_global),
+            };
+            written.push((write.bone, global));
+            locals.push(local);
+        }
+        locals
+    }
+
+    /// A bone's local rotation that gives it the global rotation `target` under its parent's new global.
+    fn local_for(&self, written: &[(usize, Quat)], parent: usize, target: Quat, hips_global: Quat) -> (Quat, Quat) {
+        let parent = new_global(written, parent).unwrap_or(hips_global);
+        ((parent.inverse() * target).normalize(), target)
+    }
+}
+
+/// The new global rotation of a bone already written (few bones: a linear scan is cheapest).
+fn new_global(written: &[(usize, Quat)], bone: usize) -> Option<Quat> {
+    written.iter().rev().find(|(b, _)| *b == bone).map(|(_, q)| *q)
+}
+
+/// The blend weight between the animation (0) and the simulated body (1), eased in and out.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Blend {
+    /// Elapsed fraction of the blend, 0..1.
+    progress: f32,
+}
+
+impl Blend {
+    /// Advances by `delta_s` toward 1 (`active`, over `in_s`) or 0 (over `out_s`) and returns the weight.
+    /// A blend time of 0 switches at once.
+    pub fn advance(&mut self, active: bool, delta_s: f32, in_s: f32, out_s: f32) -> f32 {
+        let step = |time_s: f32| if time_s > 0.0 { delta_s.max(0.0) / time_s } else { 1.0 };
+        self.progress =
+            if active { (self.progress + step(in_s)).min(1.0) } else { (self.progress - step(out_s)).max(0.0) };
+        self.weight()
+    }
+
+    /// The weight now: smoothstep of the progress (zero slope at both ends).
+    pub fn weight(&self) -> f32 {
+        let p = self.progress;
+        p * p * (3.0 - 2.0 * p)
+    }
+
+    /// Jumps to fully on or off (no blend).
+    pub fn set(&mut self, on: bool) {
+        self.progress = if on { 1.0 } else { 0.0 };
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,289 @@
+use glam::{Quat, Vec3};
+
+use super::*;
+use crate::bone_map::map_bones;
+
+/// A humanoid in a T-pose (or an A-pose, arms `arm_drop_rad` below horizontal), facing +Z, +X its left, with
+/// its bones' rest rotations in one of several axis conventions: 0 identity, 1 each bone's +Y toward its child
+/// with a roll, 2 +X toward its child.
+fn humanoid(arm_drop_rad: f32, convention: u32) -> (Vec<&'static str>, Vec<i32>, Vec<(Quat, Vec3)>) {
+    let mut bones: Vec<(&str, i32, Vec3)> = vec![
+        ("Hips", -1, Vec3::new(0.0, 1.0, 0.0)),
+        ("Spine", 0, Vec3::new(0.0, 1.1, 0.0)),
+        ("Spine1", 1, Vec3::new(0.0, 1.22, 0.0)),
+        ("Spine2", 2, Vec3::new(0.0, 1.34, 0.0)),
+        ("Neck", 3, Vec3::new(0.0, 1.5, 0.0)),
+        ("Head", 4, Vec3::new(0.0, 1.6, 0.0)),
+    ];
+    for (sign, names) in [
+        (1.0, ["LeftShoulder", "LeftArm", "LeftForeArm", "LeftHand", "LeftHandMiddle1"]),
+        (-1.0, ["RightShoulder", "RightArm", "RightForeArm", "RightHand", "RightHandMiddle1"]),
+    ] {
+        let out = Vec3::new(sign * arm_drop_rad.cos(), -arm_drop_rad.sin(), 0.0);
+        let shoulder = Vec3::new(sign * 0.05, 1.45, 0.0);
+        let arm = Vec3::new(sign * 0.18, 1.45, 0.0);
+        let parent = bones.len() as i32;
+        bones.push((names[0], 3, shoulder));
+        bones.push((names[1], parent, arm));
+        bones.push((names[2], parent + 1, arm + 0.28 * out));
+        bones.push((names[3], parent + 2, arm + 0.55 * out));
+        bones.push((names[4], parent + 3, arm + 0.64 * out));
+    }
+    for (sign, names) in [(1.0, ["LeftUpLeg", "LeftLeg", "LeftFoot"]), (-1.0, ["RightUpLeg", "RightLeg", "RightFoot"])]
+    {
+        let parent = bones.len() as i32;
+        bones.push((names[0], 0, Vec3::new(sign * 0.1, 0.95, 0.0)));
+        bones.push((names[1], parent, Vec3::new(sign * 0.1, 0.5, 0.0)));
+        bones.push((names[2], parent + 1, Vec3::new(sign * 0.1, 0.08, 0.0)));
+    }
+    let child_of = |i: usize| bones.iter().position(|b| b.1 == i as i32);
+    let rest = (0..bones.len())
+        .map(|i| {
+            let toward = child_of(i).map(|c| bones[c].2 - bones[i].2).unwrap_or(Vec3::Y).normalize();
+            let roll = 0.3 + i as f32;
+            let rotation = match convention {
+                0 => Quat::IDENTITY,
+                1 => Quat::from_axis_angle(toward, roll) * Quat::from_rotation_arc(Vec3::Y, toward),
+                _ => Quat::from_axis_angle(toward, roll) * Quat::from_rotation_arc(Vec3::X, toward),
+            };
+            (rotation, bones[i].2)
+        })
+        .collect();
+    (bones.iter().map(|b| b.0).collect(), bones.iter().map(|b| b.1).collect(), rest)
+}
+
+/// The simulated body's rest geometry as the addon's scene has it: arms 35 degrees forward of straight down,
+/// elbows bent 120 degrees (forearm bodies with -Y toward the fist).
+fn geometry() -> CharacterGeometry {
+    let upper = Quat::from_rotation_x(-35f32.to_radians());
+    let fore = Quat::from_rotation_x(-155f32.to_radians());
+    CharacterGeometry {
+        rest_rotations: [Quat::IDENTITY, Quat::IDENTITY, upper, fore, upper, fore],
+        fist_offsets: [Vec3::new(0.0, -0.155, 0.0); 2],
+        fist_radius_m: 0.045,
+        joint_anchors: [
+            (Vec3::new(0.0, 0.07, 0.0), Vec3::new(0.0, -0.27, 0.0)),
+            (Vec3::new(-0.18, 0.09, 0.0), Vec3::new(0.0, 0.14, 0.0)),
+            (Vec3::new(0.0, -0.14, 0.0), Vec3::new(0.0, 0.13, 0.0)),
+            (Vec3::new(0.18, 0.09, 0.0), Vec3::new(0.0, 0.14, 0.0)),
+            (Vec3::new(0.0, -0.14, 0.0), Vec3::new(0.0, 0.13, 0.0)),
+        ],
+        bag_radius_m: 0.0,
+        bag_height_m: 0.0,
+        bag_mass_kg: 0.0,
+        root_rotation: Quat::IDENTITY,
+        root_position: Vec3::ZERO,
+    }
+}
+
+fn poser(arm_drop_rad: f32, convention: u32) -> (SkeletonPoser, Vec<i32>, Vec<(Quat, Vec3)>, BoneMap) {
+    let (names, parents, rest) = humanoid(arm_drop_rad, convention);
+    let map = map_bones(&names, &parents).expect("mapped");
+    let frames = BodyFrames::from_geometry(&geometry()).expect("frames");
+    (SkeletonPoser::new(&map, &parents, &rest, frames).expect("poser"), parents, rest, map)
+}
+
+fn rest_local(parents: &[i32], rest: &[(Quat, Vec3)], bone: usize) -> Quat {
+    match usize::try_from(parents[bone]) {
+        Ok(p) => rest[p].0.inverse() * rest[bone].0,
+        Err(_) => rest[bone].0,
+    }
+}
+
+/// Global rotations after writing `locals` over the rest pose.
+fn globals(poser: &SkeletonPoser, parents: &[i32], rest: &[(Quat, Vec3)], locals: &[Quat]) -> Vec<Quat> {
+    let mut local: Vec<Quat> = (0..rest.len()).map(|b| rest_local(parents, rest, b)).collect();
+    for (bone, q) in poser.written_bones().zip(locals) {
+        local[bone] = *q;
+    }
+    let mut global = vec![Quat::IDENTITY; rest.len()];
+    for b in 0..rest.len() {
+        global[b] = match usize::try_from(parents[b]) {
+            Ok(p) => global[p] * local[b],
+            Err(_) => local[b],
+        };
+    }
+    global
+}
+
+/// The angle between two rotations, precise near zero (unlike `2 acos(dot)` in f32).
+fn angle(a: Quat, b: Quat) -> f32 {
+    let d = a.inverse() * b;
+    2.0 * d.xyz().length().atan2(d.w.abs())
+}
+
+fn some_bodies(seed: f32) -> BodyRotations {
+    let r = |k: f32| {
+        Quat::from_euler(
+            glam::EulerRot::YXZ,
+            0.7 * (seed + k).sin(),
+            1.1 * (2.0 * seed + k).cos(),
+            0.4 * (seed * k).sin(),
+        )
+    };
+    BodyRotations { torso: r(0.3) * Quat::from_rotation_y(0.1), upper_arm: [r(1.0), r(2.0)], forearm: [r(3.0), r(4.0)] }
+}
+
+#[test]
+fn frame_points_y_along_the_direction_and_z_toward_the_hint() {
+    let q = frame(Vec3::new(0.0, -2.0, 1.0), Vec3::Z).expect("valid");
+    assert!((q * Vec3::Y - Vec3::new(0.0, -2.0, 1.0).normalize()).length() < 1e-6);
+    assert!((q * Vec3::Z).dot(Vec3::Z) > 0.0 && (q * Vec3::Z).dot(q * Vec3::Y).abs() < 1e-6);
+    assert!(frame(Vec3::Z, Vec3::Z).is_none() && frame(Vec3::ZERO, Vec3::Z).is_none());
+}
+
+#[test]
+fn the_rig_frame_is_read_from_the_bones() {
+    for convention in 0..3 {
+        let (poser, ..) = poser(0.0, convention);
+        assert!(angle(poser.rig_frame(), Quat::IDENTITY) < 1e-5, "a rig facing +Z with +X its left");
+    }
+    // The same rig turned half round: its frame turns with it.
+    let (names, parents, rest) = humanoid(0.0, 1);
+    let turn = Quat::from_rotation_y(std::f32::consts::PI);
+    let turned: Vec<(Quat, Vec3)> = rest.iter().map(|(q, p)| (turn * *q, turn * *p)).collect();
+    let map = map_bones(&names, &parents).expect("valid");
+    let poser = SkeletonPoser::new(&map, &parents, &turned, BodyFrames::from_geometry(&geometry()).expect("valid"))
+        .expect("valid");
+    assert!(angle(poser.rig_frame(), turn) < 1e-5);
+}
+
+#[test]
+fn bones_point_along_the_simulated_segments_in_any_axis_convention_and_rest_pose() {
+    let frames = BodyFrames::from_geometry(&geometry()).expect("valid");
+    for drop in [0.0, 45f32.to_radians()] {
+        let mut deltas: Vec<Vec<Quat>> = Vec::new();
+        for convention in 0..3 {
+            let (poser, parents, rest, map) = poser(drop, convention);
+            let bodies = some_bodies(0.7);
+            let locals = poser.pose(&bodies, rest[map.hips].0, |b| rest_local(&parents, &rest, b));
+            let g = globals(&poser, &parents, &rest, &locals);
+            for (i, side) in [Side::Right, Side::Left].into_iter().enumerate() {
+                let arm = map.arm(side);
+                for (bone, child, body, body_frame) in [
+                    (arm.upper_arm, arm.forearm, bodies.upper_arm[i], frames.upper_arm[i]),
+                    (arm.forearm, arm.hand, bodies.forearm[i], frames.forearm[i]),
+                ] {
+                    let rest_dir = (rest[child].1 - rest[bone].1).normalize();
+                    let now = g[bone] * rest[bone].0.inverse() * rest_dir;
+                    let segment = body * body_frame * Vec3::Y;
+                    assert!((now - segment).length() < 1e-4, "drop {drop} convention {convention} bone {bone}");
+                }
+            }
+            // The chest faces where the simulated torso does.
+            let chest = map.chest();
+            let chest_front = g[chest] * rest[chest].0.inverse() * Vec3::Z;
+            assert!((chest_front - bodies.torso * Vec3::Z).length() < 1e-4);
+            deltas.push(poser.written_bones().map(|b| g[b] * rest[b].0.inverse()).collect());
+        }
+        // The turn of every bone from its rest is the same whatever way its axes point.
+        for other in &deltas[1..] {
+            for (a, b) in deltas[0].iter().zip(other) {
+                assert!(angle(*a, *b) < 1e-4, "drop {drop}: {} rad apart", angle(*a, *b));
+            }
+        }
+    }
+}
+
+#[test]
+fn the_elbow_bends_as_a_hinge_with_no_twist_between_upper_arm_and_forearm() {
+    let (poser, parents, rest, map) = poser(0.0, 1);
+    // Arms as the simulated elbow allows: the forearm turned from its rest relative to the upper arm about
+    // the elbow's axis (the character's X at rest) only.
+    let g0 = geometry().rest_rotations;
+    let mut bodies = some_bodies(1.3);
+    for (i, (u, f)) in [(2, 3), (4, 5)].into_iter().enumerate() {
+        let hinge = Quat::from_axis_angle(g0[u].inverse() * Vec3::X, 0.4 + i as f32 * 0.3);
+        bodies.forearm[i] = bodies.upper_arm[i] * hinge * g0[u].inverse() * g0[f];
+    }
+    let locals = poser.pose(&bodies, rest[map.hips].0, |b| rest_local(&parents, &rest, b));
+    let g = globals(&poser, &parents, &rest, &locals);
+    for side in [Side::Right, Side::Left] {
+        let arm = map.arm(side);
+        // In a T-pose both bones lie on one line: the forearm's turn relative to the upper arm is about an
+        // axis perpendicular to the upper arm (a hinge), never about the arm itself.
+        let relative = (g[arm.upper_arm] * rest[arm.upper_arm].0.inverse()).inverse()
+            * (g[arm.forearm] * rest[arm.forearm].0.inverse());
+        let (axis, turned) = relative.to_axis_angle();
+        let along = (rest[arm.forearm].1 - rest[arm.upper_arm].1).normalize();
+        if turned > 1e-3 {
+            assert!(axis.dot(along).abs() < 1e-3, "{side:?}: twist about the arm {}", axis.dot(along));
+        }
+    }
+}
+
+#[test]
+fn at_the_equivalent_pose_the_rig_keeps_its_rest_and_the_hand_stays_straight() {
+    for convention in 0..3 {
+        let (poser, parents, rest, map) = poser(0.3, convention);
+        let frames = BodyFrames::from_geometry(&geometry()).expect("valid");
+        // Body rotations whose anatomical frames are the rig's rest frames.
+        let f = |bone: usize, child: usize| frame(rest[child].1 - rest[bone].1, Vec3::Z).expect("valid");
+        let bodies = BodyRotations {
+            torso: frames.torso.inverse(),
+            upper_arm: [
+                f(map.right.upper_arm, map.right.forearm) * frames.upper_arm[0].inverse(),
+                f(map.left.upper_arm, map.left.forearm) * frames.upper_arm[1].inverse(),
+            ],
+            forearm: [
+                f(map.right.forearm, map.right.hand) * frames.forearm[0].inverse(),
+                f(map.left.forearm, map.left.hand) * frames.forearm[1].inverse(),
+            ],
+        };
+        let locals = poser.pose(&bodies, rest[map.hips].0, |b| rest_local(&parents, &rest, b));
+        for (bone, local) in poser.written_bones().zip(&locals) {
+            assert!(angle(*local, rest_local(&parents, &rest, bone)) < 1e-4, "convention {convention} bone {bone}");
+        }
+    }
+}
+
+#[test]
+fn the_spine_shares_the_chest_turn_evenly_and_the_chest_lands_on_its_target() {
+    let (poser, parents, rest, map) = poser(0.0, 2);
+    let bodies = some_bodies(2.1);
+    let hips = Quat::from_rotation_y(0.2) * rest[map.hips].0;
+    let locals = poser.pose(&bodies, hips, |b| rest_local(&parents, &rest, b));
+    let mut turns = Vec::new();
+    let mut parent = hips;
+    for (k, &bone) in map.spine.iter().enumerate() {
+        let local = locals[k];
+        turns.push(angle(local, rest_local(&parents, &rest, bone)));
+        parent *= local;
+    }
+    let chest = map.chest();
+    assert!((parent * rest[chest].0.inverse() * Vec3::Z - bodies.torso * Vec3::Z).length() < 1e-4);
+    for t in &turns {
+        assert!((t - turns[0]).abs() < 1e-4, "{turns:?}");
+    }
+    // Legs, neck and head are never written.
+    let written: Vec<usize> = poser.written_bones().collect();
+    assert!(!written.contains(&map.hips) && !written.contains(&map.head));
+    assert_eq!(written.len(), 3 + 2 * 4);
+}
+
+#[test]
+fn blend_weights_ease_in_and_out_without_steps() {
+    let mut blend = Blend::default();
+    let dt = 1.0 / 120.0;
+    let mut weights = vec![blend.weight()];
+    for frame in 0..60 {
+        weights.push(blend.advance(frame < 30, dt, 0.1, 0.2));
+    }
+    assert_eq!(weights[0], 0.0);
+    assert!((weights[15] - 1.0).abs() < 1e-6 && weights[60] == 0.0);
+    let steps: Vec<f32> = weights.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+    // Smoothstep: the largest step is 1.5x the linear one, and the first and last steps are small.
+    assert!(steps.iter().all(|&s| s <= 1.5 * dt / 0.1 + 1e-5));
+    assert!(steps[0] < 0.03 && steps[12] < 0.03);
+    assert_eq!(Blend::default().advance(true, dt, 0.0, 0.0), 1.0);
+}
+
+#[test]
+fn a_rig_without_length_is_refused_by_name() {
+    let (names, parents, mut rest) = humanoid(0.0, 0);
+    let map = map_bones(&names, &parents).expect("valid");
+    rest[map.right.forearm].1 = rest[map.right.upper_arm].1;
+    let error = SkeletonPoser::new(&map, &parents, &rest, BodyFrames::from_geometry(&geometry()).expect("valid"))
+        .expect_err("refused");
+    assert!(error.to_string().contains("Right upper arm"), "{error}");
+}

@@ -1,0 +1,463 @@
+//! `PunchSkeletonModifier`: puts a `PunchController`'s simulated upper body onto a game's own rigged
+//! `Skeleton3D`, after its animation, blended in and out around punches.
+//!
+//! Method (the math is `punch_core::skeleton_pose`, unit-tested there):
+//! - Mapping: `punch_core::bone_map` finds the hips, the spine up to the chest, the head and per side the
+//!   clavicle, upper arm, forearm and hand from bone names and parents (Godot humanoid profile, Mixamo, Unreal,
+//!   CMU, MakeHuman, Blender namings); bones typed into `bone_map` by hand hold their roles.
+//! - Rest frames are read from the skeleton's global rest, never assumed: a bone's direction is the line from
+//!   its head to its child's, and the rig's left, up and front come from its upper arms, hips and head. Each
+//!   segment gets an anatomical frame (its direction, and the side its elbow folds to, which is the front for
+//!   the straight arms of a T- or A-pose); the simulated bodies get the same frames from the character's
+//!   geometry. A bone's global rotation is the simulated segment's frame now times the bone's rest frame's
+//!   inverse times the bone's rest rotation: it points along the segment and turns about itself as the segment
+//!   does, whatever axis convention (+Y, +X, any roll) the rig uses.
+//! - The chest takes the simulated torso's rotation, shared evenly along the spine; the clavicles, twist bones
+//!   on the arm and the hand follow their segment rigidly, as at rest. Hips, legs, neck, head and fingers keep
+//!   the animation's pose. Only rotations are written (`set_bone_pose_rotation`), so the rig keeps its own bone
+//!   lengths.
+//! - Blending: each written bone's local rotation is `slerp(animation, simulated, w)`; `w` eases from 0 to 1
+//!   over `blend_in_s` when a punch (or the recovery after it) starts and back over `blend_out_s` when it is
+//!   over (smoothstep: no step in the weight nor its rate). With `guard_source` Controller, `w` stays 1 and the
+//!   guard between punches is the simulated one.
+//! - The spine bends about other points than the simulated waist joint, so the spine's first bone is shifted
+//!   (by the blend weight's share) until the rig's shoulders sit on the simulated ones.
+//! - Placing: with `follow_rig`, the simulated character is moved, while it is neither punching nor recovering,
+//!   so that it faces the rig's front and its shoulder joints' midpoint sits on the rig's (rest upper-arm heads
+//!   under the skeleton's transform), then reset to its guard there.
+//!
+//! The skeleton's modifier callback is set to physics: the simulated bodies move in physics frames.
+
+use std::cell::Cell;
+use std::time::Instant;
+
+use glam::{Quat, Vec3};
+use godot::builtin::{Basis, GString, PackedStringArray, Quaternion, Transform3D, VarDictionary};
+use godot::classes::skeleton_3d::ModifierCallbackModeProcess;
+use godot::classes::{Engine, ISkeletonModifier3D, Node3D, Skeleton3D, SkeletonModifier3D};
+use godot::global::godot_error;
+use godot::obj::{Base, Gd, InstanceId, Singleton, WithBaseField};
+use godot::prelude::{GodotClass, godot_api};
+use punch_core::bone_map::{BoneMap, Role, map_bones_with};
+use punch_core::character::Body;
+use punch_core::skeleton_pose::{Blend, BodyFrames, BodyRotations, SkeletonPoser};
+
+use crate::convert::{quat, vec3, vector3};
+use crate::punch_character::PunchCharacter;
+use crate::punch_controller::PunchController;
+
+thread_local! {
+    /// Time all modifiers spent writing poses (µs) and the character-frames they wrote, for benchmarks.
+    static COST: Cell<(f64, u64)> = const { Cell::new((0.0, 0)) };
+}
+
+/// Where the guard pose between punches comes from.
+const GUARD_FROM_ANIMATION: i32 = 0;
+const GUARD_FROM_CONTROLLER: i32 = 1;
+
+/// Makes a game's own rigged character punch: add it as a child of the character's `Skeleton3D` (after any
+/// modifier that must run first) and point `controller` at the `PunchController` that drives a
+/// `PunchCharacter`. Every physics frame it writes the simulated upper body (spine to chest, clavicles, arms
+/// and hands) onto the skeleton after the animation, blended with it around punches; the legs, head and
+/// everything else keep the animation. Bones are found by name (`bone_map`, filled in automatically and
+/// editable); a skeleton without the bones it needs gets one error, and then keeps its animation.
+#[derive(GodotClass)]
+#[class(base = SkeletonModifier3D, init, tool)]
+pub struct PunchSkeletonModifier {
+    /// The controller whose character's simulated body this skeleton shows.
+    #[export_group(name = "Controller")]
+    #[export]
+    controller: Option<Gd<PunchController>>,
+    /// Which bone plays each role (keys: hips, chest, neck, head, shoulder_l, upper_arm_l, forearm_l, hand_l
+    /// and the same with _r; values: bone names). Empty or missing roles are found from the skeleton's bone
+    /// names and parents; a name typed here holds its role. Filled in when the skeleton is read.
+    #[export_group(name = "Mapping")]
+    #[export]
+    #[var(set = set_bone_map)]
+    bone_map: VarDictionary,
+    /// Seconds over which a punch's pose blends in from the animation's (eased in and out).
+    #[export_group(name = "Blending")]
+    #[export(range = (0.0, 1.0, 0.01, or_greater, suffix = "s"))]
+    #[init(val = 0.1)]
+    blend_in_s: f32,
+    /// Seconds over which the pose blends back to the animation's once the punch (and its recovery) is over.
+    #[export(range = (0.0, 1.0, 0.01, or_greater, suffix = "s"))]
+    #[init(val = 0.1)]
+    blend_out_s: f32,
+    /// Where the guard between punches comes from: the animation (the simulated body shows only while punching
+    /// and recovering), or the controller (the simulated guard always shows).
+    #[export(enum = (Animation = 0, Controller = 1))]
+    #[init(val = GUARD_FROM_ANIMATION)]
+    guard_source: i32,
+    /// Move the simulated character onto the rig (facing its front, shoulders on its shoulders) whenever it is
+    /// neither punching nor recovering, so the skeleton's fists go where the simulated ones go.
+    #[export_group(name = "Simulated body")]
+    #[export]
+    #[init(val = true)]
+    follow_rig: bool,
+    /// Show the simulated body's capsules (for debugging); hidden otherwise. Physics is the same either way.
+    #[export]
+    #[var(set = set_show_simulated_body)]
+    show_simulated_body: bool,
+
+    /// The skeleton's bones as mapped, with the skeleton version it was read at.
+    mapped: Option<Mapped>,
+    /// Why the skeleton cannot be mapped (for the warnings); logged once per problem.
+    problem: Option<String>,
+    /// The poser for the character it was made for.
+    poser: Option<(InstanceId, SkeletonPoser, [Gd<Node3D>; 5])>,
+    /// The shoulder joints in the upper arms' frames ([right, left]), where the simulated shoulders are.
+    shoulder_anchors: [Vec3; 2],
+    blend: Blend,
+    base: Base<SkeletonModifier3D>,
+}
+
+struct Mapped {
+    skeleton: InstanceId,
+    version: u64,
+    map: BoneMap,
+    parents: Vec<i32>,
+    rest: Vec<(Quat, Vec3)>,
+}
+
+#[godot_api]
+impl ISkeletonModifier3D for PunchSkeletonModifier {
+    fn ready(&mut self) {
+        if let Some(mut skeleton) = self.base().get_skeleton()
+            && !Engine::singleton().is_editor_hint()
+        {
+            skeleton.set_modifier_callback_mode_process(ModifierCallbackModeProcess::PHYSICS);
+        }
+        self.apply_visibility();
+    }
+
+    fn process_modification_with_delta(&mut self, delta: f64) {
+        if Engine::singleton().is_editor_hint() {
+            self.ensure_mapped();
+            return;
+        }
+        let started = Instant::now();
+        if self.modify(delta as f32) {
+            let usec = started.elapsed().as_secs_f64() * 1e6;
+            COST.with(|c| {
+                let (total, frames) = c.get();
+                c.set((total + usec, frames + 1));
+            });
+        }
+    }
+
+    fn skeleton_changed(&mut self, _old: Option<Gd<Skeleton3D>>, _new: Option<Gd<Skeleton3D>>) {
+        self.mapped = None;
+        self.poser = None;
+        self.problem = None;
+        self.ensure_mapped();
+    }
+
+    fn get_configuration_warnings(&self) -> PackedStringArray {
+        self.configuration_warnings()
+    }
+}
+
+#[godot_api]
+impl PunchSkeletonModifier {
+    #[func]
+    fn set_bone_map(&mut self, bone_map: VarDictionary) {
+        self.bone_map = bone_map;
+        self.mapped = None;
+        self.poser = None;
+        self.problem = None;
+        if self.base().is_inside_tree() {
+            self.ensure_mapped();
+        }
+    }
+
+    #[func]
+    fn set_show_simulated_body(&mut self, show: bool) {
+        self.show_simulated_body = show;
+        self.apply_visibility();
+    }
+
+    /// Reads the skeleton again and maps its bones (after renaming bones or editing `bone_map`). Returns true
+    /// when every required role has a bone.
+    #[func]
+    fn remap(&mut self) -> bool {
+        self.mapped = None;
+        self.poser = None;
+        self.problem = None;
+        self.ensure_mapped()
+    }
+
+    /// True when the skeleton's bones are mapped (every required role has a bone).
+    #[func]
+    fn is_mapped(&self) -> bool {
+        self.mapped.is_some()
+    }
+
+    /// What the editor's warning icon says: no skeleton or controller, the roles with no bone (and why).
+    #[func]
+    fn configuration_warnings(&self) -> PackedStringArray {
+        let mut warnings = PackedStringArray::new();
+        if self.base().get_skeleton().is_none() {
+            warnings.push("PunchSkeletonModifier must be a child of a Skeleton3D.");
+        }
+        if self.controller.is_none() {
+            warnings.push("Set `controller` to the PunchController that drives a PunchCharacter.");
+        }
+        if let Some(problem) = &self.problem {
+            warnings.push(problem.as_str());
+        }
+        if let Some(mapped) = &self.mapped {
+            let unmapped: Vec<String> = mapped.map.unmapped().iter().map(|r| format!("{r} ({})", r.key())).collect();
+            if !unmapped.is_empty() {
+                warnings.push(&format!(
+                    "No bone found for: {} (optional; those bones keep the animation).",
+                    unmapped.join(", ")
+                ));
+            }
+        }
+        warnings
+    }
+
+    /// The blend weight now: 0 shows the animation, 1 the simulated body.
+    #[func]
+    fn blend_weight(&self) -> f32 {
+        self.blend.weight()
+    }
+
+    /// Why the skeleton could not be mapped ("" when it is).
+    #[func]
+    fn mapping_problem(&self) -> GString {
+        GString::from(self.problem.as_deref().unwrap_or_default())
+    }
+
+    /// The bones this modifier writes each frame, in order (for tools and tests).
+    #[func]
+    fn written_bones(&self) -> PackedStringArray {
+        let mut names = PackedStringArray::new();
+        if let (Some((_, poser, _)), Some(skeleton)) = (&self.poser, self.base().get_skeleton()) {
+            for bone in poser.written_bones() {
+                names.push(&skeleton.get_bone_name(bone as i32));
+            }
+        }
+        names
+    }
+
+    /// Mean time (µs) all modifiers spent per character-frame writing poses since the last call, and how many
+    /// character-frames that was: for benchmarks.
+    #[func]
+    fn take_cost_usec() -> VarDictionary {
+        let (usec, frames) = COST.with(|c| c.replace((0.0, 0)));
+        let mut cost = VarDictionary::new();
+        cost.set("usec_per_frame", if frames == 0 { 0.0 } else { usec / frames as f64 });
+        cost.set("frames", frames as i64);
+        cost
+    }
+}
+
+impl PunchSkeletonModifier {
+    fn name(&self) -> String {
+        self.base().get_name().to_string()
+    }
+
+    /// Maps the skeleton if it is not (or it changed). Logs one error per problem. True when mapped.
+    fn ensure_mapped(&mut self) -> bool {
+        let Some(skeleton) = self.base().get_skeleton() else {
+            return false;
+        };
+        if let Some(mapped) = &self.mapped
+            && mapped.skeleton == skeleton.instance_id()
+            && mapped.version == skeleton.get_version()
+        {
+            return true;
+        }
+        if self.problem.is_some() {
+            return false;
+        }
+        self.poser = None;
+        match self.read_skeleton(&skeleton) {
+            Ok(mapped) => {
+                let mut filled = VarDictionary::new();
+                for role in Role::ALL {
+                    let name = mapped.map.bone(role).map(|b| skeleton.get_bone_name(b as i32)).unwrap_or_default();
+                    filled.set(role.key(), &name);
+                }
+                if filled != self.bone_map {
+                    self.bone_map = filled;
+                    self.base_mut().notify_property_list_changed();
+                }
+                self.mapped = Some(mapped);
+            }
+            Err(problem) => {
+                godot_error!(
+                    "PunchSkeletonModifier '{}': {problem}. The skeleton keeps its animation; set the missing roles in \
+                     `bone_map`.",
+                    self.name()
+                );
+                self.problem = Some(problem);
+                self.mapped = None;
+            }
+        }
+        self.base_mut().update_configuration_warnings();
+        self.mapped.is_some()
+    }
+
+    fn read_skeleton(&self, skeleton: &Gd<Skeleton3D>) -> Result<Mapped, String> {
+        let count = skeleton.get_bone_count();
+        let names: Vec<String> = (0..count).map(|b| skeleton.get_bone_name(b).to_string()).collect();
+        let parents: Vec<i32> = (0..count).map(|b| skeleton.get_bone_parent(b)).collect();
+        let chosen_names: Vec<(Role, String)> = Role::ALL
+            .into_iter()
+            .filter_map(|role| {
+                let name = self.bone_map.get(role.key()).map(|v| v.to_string()).unwrap_or_default();
+                (!name.is_empty()).then_some((role, name))
+            })
+            .collect();
+        let chosen: Vec<(Role, &str)> = chosen_names.iter().map(|(r, n)| (*r, n.as_str())).collect();
+        let map = map_bones_with(&names, &parents, &chosen).map_err(|e| e.to_string())?;
+        let rest = (0..count)
+            .map(|b| {
+                let t = skeleton.get_bone_global_rest(b);
+                (quat(t.basis.get_quaternion()), vec3(t.origin))
+            })
+            .collect();
+        Ok(Mapped { skeleton: skeleton.instance_id(), version: skeleton.get_version(), map, parents, rest })
+    }
+
+    /// The character the controller drives, if both are alive.
+    fn character(&self) -> Option<Gd<PunchCharacter>> {
+        let controller = self.controller.as_ref().filter(|c| c.is_instance_valid())?;
+        controller.get("character").try_to::<Option<Gd<PunchCharacter>>>().ok().flatten()
+    }
+
+    fn apply_visibility(&mut self) {
+        if Engine::singleton().is_editor_hint() {
+            return;
+        }
+        if let Some(mut character) = self.character() {
+            character.set_visible(self.show_simulated_body);
+        }
+    }
+
+    /// Makes the poser for `character` (its rest geometry must be read: the character is ready).
+    fn ensure_poser(&mut self, character: &Gd<PunchCharacter>) -> Result<(), String> {
+        if self.poser.as_ref().is_some_and(|(id, ..)| *id == character.instance_id()) {
+            return Ok(());
+        }
+        let mapped = self.mapped.as_ref().ok_or("the skeleton is not mapped")?;
+        let root = character.get_global_transform();
+        let (geometry, bodies) = {
+            let bound = character.bind();
+            let rig = bound.rig().ok_or("the PunchCharacter is not ready")?;
+            let bodies: [Gd<Node3D>; 5] =
+                [Body::Torso, Body::UpperArmR, Body::ForearmR, Body::UpperArmL, Body::ForearmL]
+                    .map(|b| rig.bodies[b.index()].clone().upcast::<Node3D>());
+            (rig.geometry_at(root), bodies)
+        };
+        let shoulder = |name: &str| -> Result<Vec3, String> {
+            character
+                .get_node_or_null(name)
+                .and_then(|n| n.try_cast::<Node3D>().ok())
+                .map(|n| vec3(n.get_position()))
+                .ok_or_else(|| format!("the PunchCharacter has no joint '{name}'"))
+        };
+        self.shoulder_anchors = [geometry.joint_anchors[1].1, geometry.joint_anchors[3].1];
+        let frames = BodyFrames::from_geometry(&geometry)
+            .map_err(|e| e.to_string())?
+            .with_shoulders([shoulder("ShoulderR")?, shoulder("ShoulderL")?]);
+        let poser =
+            SkeletonPoser::new(&mapped.map, &mapped.parents, &mapped.rest, frames).map_err(|e| e.to_string())?;
+        self.poser = Some((character.instance_id(), poser, bodies));
+        Ok(())
+    }
+
+    /// One modification pass. Returns true when it wrote poses.
+    fn modify(&mut self, delta_s: f32) -> bool {
+        if !self.ensure_mapped() {
+            return false;
+        }
+        let Some(skeleton) = self.base().get_skeleton() else { return false };
+        let (Some(controller), Some(character)) =
+            (self.controller.clone().filter(|c| c.is_instance_valid()), self.character())
+        else {
+            self.blend.set(false);
+            return false;
+        };
+        if character.bind().rig().is_none() {
+            return false;
+        }
+        if let Err(problem) = self.ensure_poser(&character) {
+            if self.problem.is_none() {
+                godot_error!("PunchSkeletonModifier '{}': {problem}. The skeleton keeps its animation.", self.name());
+                self.problem = Some(problem);
+                self.base_mut().update_configuration_warnings();
+            }
+            return false;
+        }
+        // Called, not bound: a pass may run while the controller is bound (a signal handler moving a node).
+        let mut controller = controller.upcast::<godot::classes::Object>();
+        let punching = controller.call("is_punching", &[]).try_to::<bool>().unwrap_or(false);
+        let recovering = controller.call("is_recovering", &[]).try_to::<bool>().unwrap_or(false);
+        let busy = punching || recovering;
+        let active = busy || self.guard_source == GUARD_FROM_CONTROLLER;
+        let weight = self.blend.advance(active, delta_s, self.blend_in_s, self.blend_out_s);
+        let skeleton_global = skeleton.get_global_transform();
+        if self.follow_rig && !busy {
+            self.place_character(character, skeleton_global);
+        }
+        if weight <= 0.0 {
+            return false;
+        }
+        let Some((_, poser, bodies)) = &self.poser else { return false };
+        let to_skeleton = quat(skeleton_global.basis.get_quaternion()).inverse();
+        let rotation = |i: usize| to_skeleton * quat(bodies[i].get_global_transform().basis.get_quaternion());
+        let rotations = BodyRotations {
+            torso: rotation(0),
+            upper_arm: [rotation(1), rotation(3)],
+            forearm: [rotation(2), rotation(4)],
+        };
+        let written: Vec<usize> = poser.written_bones().collect();
+        let animated: Vec<Quat> = written.iter().map(|&b| quat(skeleton.get_bone_pose_rotation(b as i32))).collect();
+        let hips = quat(skeleton.get_bone_global_pose(poser.hips() as i32).basis.get_quaternion());
+        let lookup = |bone: usize| written.iter().position(|&b| b == bone).map_or(Quat::IDENTITY, |i| animated[i]);
+        let targets = poser.pose(&rotations, hips, lookup);
+        let mut skeleton = skeleton;
+        for ((&bone, anim), target) in written.iter().zip(&animated).zip(&targets) {
+            let q = anim.slerp(*target, weight).normalize();
+            skeleton.set_bone_pose_rotation(bone as i32, Quaternion::new(q.x, q.y, q.z, q.w));
+        }
+        // The spine bends about other points than the simulated waist: the spine's first bone is shifted so that
+        // the rig's shoulders sit where the simulated ones are (by the blend weight's share).
+        let inverse = skeleton_global.affine_inverse();
+        let simulated_mid = (0..2).fold(Vec3::ZERO, |sum, side| {
+            let body = bodies[1 + 2 * side].get_global_transform();
+            sum + 0.5 * vec3(inverse * (body * vector3(self.shoulder_anchors[side])))
+        });
+        let (right, left) = poser.upper_arms();
+        let rig_mid = 0.5
+            * (vec3(skeleton.get_bone_global_pose(right as i32).origin)
+                + vec3(skeleton.get_bone_global_pose(left as i32).origin));
+        let first = poser.spine_root() as i32;
+        let parent = skeleton.get_bone_global_pose(skeleton.get_bone_parent(first));
+        let shift = parent.basis.inverse() * vector3(weight * (simulated_mid - rig_mid));
+        let position = skeleton.get_bone_pose_position(first) + shift;
+        skeleton.set_bone_pose_position(first, position);
+        true
+    }
+
+    /// Moves the simulated character onto the rig (see `follow_rig`) if it is more than 1 cm or 1 degree away,
+    /// and resets it to its guard there.
+    fn place_character(&mut self, mut character: Gd<PunchCharacter>, skeleton: Transform3D) {
+        let Some((_, poser, _)) = &self.poser else { return };
+        let scale = skeleton.basis.get_scale();
+        let (rotation, origin) =
+            poser.character_placement(quat(skeleton.basis.get_quaternion()), vec3(skeleton.origin), scale.y);
+        let now = character.get_global_transform();
+        let moved = (vec3(now.origin) - origin).length() > 0.01
+            || quat(now.basis.get_quaternion()).angle_between(rotation) > 1f32.to_radians();
+        if moved {
+            let basis = Basis::from_quaternion(Quaternion::new(rotation.x, rotation.y, rotation.z, rotation.w));
+            character.set_global_transform(Transform3D::new(basis, vector3(origin)));
+            character.call("reset_pose", &[]);
+        }
+    }
+}

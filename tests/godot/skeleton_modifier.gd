@@ -1,0 +1,315 @@
+## A game's own rigged characters punching through PunchSkeletonModifier. Rigs are built here at run time (no mesh:
+## the skeleton is what is tested) in several namings (Mixamo as glTF import renames it, Unreal, Godot's humanoid
+## profile, and bones with meaningless names), rest poses (T and A) and bone axis conventions (each bone's +Y or
+## its +X toward its child, with a roll), standing anywhere, turned any way, each playing an idle animation
+## that moves spine, arms and legs. Each rig has a twin that plays the same animation with no modifier: what the
+## animation alone gives. Each (mapped) rig's modifier drives it from a PunchController punching a sandbag with
+## the shipped straight policy (--policy=PATH, no noise). Glb files given with --glb=PATH (repeatable) are loaded
+## with GLTFDocument and run alike.
+##
+## Prints `SKELETON_MODIFIER <json>`: per rig its mapping, warnings, the fist gap (rig fist: the middle of the
+## hand bone, from its head to its child's; simulated: FistR) at the first hit and its largest while fully
+## blended, the largest per-frame rotation of each written bone in the blend-in and blend-out windows, of the
+## animation alone and of the fully simulated pose, and the legs' largest difference from the twin.
+extends SceneTree
+
+## name, naming, arm drop (deg: 0 T-pose), convention ("y" or "x"), arm scale, yaw (deg), position
+const RIGS := [
+	["mixamo_t_y", "mixamo", 0.0, "y", 1.0, 0.0, Vector3(0, 0, 0)],
+	["unreal_a_x", "unreal", 45.0, "x", 1.0, 90.0, Vector3(10, 0, 0)],
+	["profile_t_x", "profile", 0.0, "x", 1.0, -150.0, Vector3(20, 0, 5)],
+	["mixamo_a_y_long", "mixamo", 40.0, "y", 1.15, 30.0, Vector3(30, 0, 0)],
+	["unreal_t_y_short", "unreal", 0.0, "y", 0.85, 0.0, Vector3(40, 0, 0)],
+	["unmapped", "numbered", 0.0, "y", 1.0, 0.0, Vector3(50, 0, 0)],
+]
+const NAMES := {
+	"mixamo": {"hips": "mixamorig_Hips", "spine": ["mixamorig_Spine", "mixamorig_Spine1", "mixamorig_Spine2"],
+		"neck": "mixamorig_Neck", "head": "mixamorig_Head",
+		"arm": ["mixamorig_%sShoulder", "mixamorig_%sArm", "mixamorig_%sForeArm", "mixamorig_%sHand", "mixamorig_%sHandMiddle1"],
+		"leg": ["mixamorig_%sUpLeg", "mixamorig_%sLeg", "mixamorig_%sFoot"], "sides": ["Left", "Right"]},
+	"unreal": {"hips": "pelvis", "spine": ["spine_01", "spine_02", "spine_03"], "neck": "neck_01", "head": "head",
+		"arm": ["clavicle_%s", "upperarm_%s", "lowerarm_%s", "hand_%s", "middle_01_%s"],
+		"leg": ["thigh_%s", "calf_%s", "foot_%s"], "sides": ["l", "r"]},
+	"profile": {"hips": "Hips", "spine": ["Spine", "Chest", "UpperChest"], "neck": "Neck", "head": "Head",
+		"arm": ["%sShoulder", "%sUpperArm", "%sLowerArm", "%sHand", "%sMiddleProximal"],
+		"leg": ["%sUpperLeg", "%sLowerLeg", "%sFoot"], "sides": ["Left", "Right"]},
+}
+## The simulated body's proportions (the addon's character scene): shoulder joints 0.36 m apart at 1.42 m,
+## upper arm 0.282 m, elbow to fist centre 0.337 m (the wrist 0.269 m from the elbow, the fist centre 0.068 m on).
+const SHOULDER_Y := 1.42
+const UPPER_ARM_M := 0.282
+const FOREARM_M := 0.269
+const HAND_M := 0.136
+
+var _policy := ""
+var _rigs: Array[Dictionary] = []
+var _frames := 0
+
+
+func _initialize() -> void:
+	var glbs: Array[String] = []
+	for argument in OS.get_cmdline_user_args():
+		if argument.begins_with("--policy="):
+			_policy = argument.trim_prefix("--policy=")
+		elif argument.begins_with("--glb="):
+			glbs.append(argument.trim_prefix("--glb="))
+	for spec in RIGS:
+		var rig := _build_rig(spec[1], spec[2], spec[3], spec[4])
+		var twin := _build_rig(spec[1], spec[2], spec[3], spec[4])
+		_add(spec[0], rig, twin, spec[5], spec[6])
+	var index := 0
+	for path in glbs:
+		var rig := _load_glb(path)
+		var twin := _load_glb(path)
+		if rig == null or twin == null:
+			print("SKELETON_MODIFIER_GLB_FAILED ", path)
+			continue
+		_add(path.get_file().get_basename(), rig, twin, 0.0, Vector3(-20.0 - 10.0 * index, 0, 0))
+		index += 1
+
+
+func _load_glb(path: String) -> Node3D:
+	var document := GLTFDocument.new()
+	var state := GLTFState.new()
+	if document.append_from_file(path, state) != OK:
+		return null
+	return document.generate_scene(state) as Node3D
+
+
+func _add(name: String, rig: Node3D, twin: Node3D, yaw_deg: float, at: Vector3) -> void:
+	rig.transform = Transform3D(Basis(Vector3.UP, deg_to_rad(yaw_deg)), at)
+	root.add_child(rig)
+	twin.transform = Transform3D(Basis(Vector3.UP, deg_to_rad(yaw_deg)), at + Vector3(0, 0, 200))
+	root.add_child(twin)
+	var skeleton: Skeleton3D = rig.find_children("*", "Skeleton3D", true, false)[0]
+	var twin_skeleton: Skeleton3D = twin.find_children("*", "Skeleton3D", true, false)[0]
+	for pair in [[rig, skeleton], [twin, twin_skeleton]]:
+		_animate(pair[0], pair[1])
+	var character: Node3D = load("res://addons/punch_controller/scenes/punch_character.tscn").instantiate()
+	character.position = at + Vector3(0, 0, -3)  # anywhere: the modifier puts it on the rig
+	root.add_child(character)
+	var controller: Node = ClassDB.instantiate("PunchController")
+	controller.set("character", character)
+	controller.set("policy", load(_policy))
+	root.add_child(controller)
+	var modifier: Node = ClassDB.instantiate("PunchSkeletonModifier")
+	modifier.set("controller", controller)
+	skeleton.add_child(modifier)
+	var entry := {"name": name, "rig": rig, "skeleton": skeleton, "twin": twin_skeleton, "character": character,
+		"controller": controller, "modifier": modifier, "frames": [], "hit_gap_m": -1.0, "hits": 0,
+		"hit_pending": false}
+	controller.connect("hit", func(_impulse, _speed, _position, _body, _push):
+		entry.hits += 1
+		# The skeleton's pose is the modified one only while it updates: measured at its next update.
+		entry.hit_pending = entry.hit_gap_m < 0.0)
+	skeleton.connect("skeleton_updated", func(): _record(entry))
+	_rigs.append(entry)
+
+
+## Global rest transforms for a humanoid facing +Z (+X its left), arms scaled by `arm_scale`, in a T-pose or
+## with arms `drop_deg` below horizontal.
+func _build_rig(naming: String, drop_deg: float, convention: String, arm_scale: float) -> Node3D:
+	var bones: Array = []  # [name, parent index, global position]
+	var numbered := naming == "numbered"
+	if numbered:
+		naming = "mixamo"
+	var n: Dictionary = NAMES[naming]
+	bones.append([n.hips, -1, Vector3(0, 1.0, 0)])
+	var y := [1.1, 1.22, 1.32]
+	for i in 3:
+		bones.append([n.spine[i], bones.size() - 1, Vector3(0, y[i], 0)])
+	var chest := bones.size() - 1
+	bones.append([n.neck, chest, Vector3(0, 1.5, 0)])
+	bones.append([n.head, bones.size() - 1, Vector3(0, 1.6, 0)])
+	var drop := deg_to_rad(drop_deg)
+	for s in 2:
+		var sign := 1.0 if s == 0 else -1.0
+		var side: String = n.sides[s]
+		var out := Vector3(sign * cos(drop), -sin(drop), 0)
+		var shoulder := Vector3(sign * 0.18, SHOULDER_Y, 0)
+		bones.append([n.arm[0] % side, chest, Vector3(sign * 0.04, 1.4, 0.02)])
+		bones.append([n.arm[1] % side, bones.size() - 1, shoulder])
+		bones.append([n.arm[2] % side, bones.size() - 1, shoulder + UPPER_ARM_M * arm_scale * out])
+		bones.append([n.arm[3] % side, bones.size() - 1, shoulder + (UPPER_ARM_M + FOREARM_M) * arm_scale * out])
+		bones.append([n.arm[4] % side, bones.size() - 1, shoulder + (UPPER_ARM_M + FOREARM_M + HAND_M) * arm_scale * out])
+	for s in 2:
+		var sign := 1.0 if s == 0 else -1.0
+		var side: String = n.sides[s]
+		bones.append([n.leg[0] % side, 0, Vector3(sign * 0.1, 0.95, 0)])
+		bones.append([n.leg[1] % side, bones.size() - 1, Vector3(sign * 0.1, 0.5, 0)])
+		bones.append([n.leg[2] % side, bones.size() - 1, Vector3(sign * 0.1, 0.08, 0.02)])
+	var skeleton := Skeleton3D.new()
+	skeleton.name = "Skeleton3D"
+	var globals: Array[Transform3D] = []
+	for i in bones.size():
+		var child := -1
+		for j in bones.size():
+			if bones[j][1] == i:
+				child = j
+				break
+		var toward: Vector3 = (bones[child][2] - bones[i][2]).normalized() if child >= 0 else \
+			(bones[i][2] - bones[bones[i][1]][2]).normalized()
+		var axis := Vector3.UP if convention == "y" else Vector3.RIGHT
+		var basis := Basis(Quaternion(toward, 0.4 + 0.7 * i) * Quaternion(axis, toward))
+		globals.append(Transform3D(basis, bones[i][2]))
+		skeleton.add_bone(("Bone%d" % i) if numbered else bones[i][0])
+	for i in bones.size():
+		skeleton.set_bone_parent(i, bones[i][1])
+		var parent: Transform3D = globals[bones[i][1]] if bones[i][1] >= 0 else Transform3D()
+		skeleton.set_bone_rest(i, parent.affine_inverse() * globals[i])
+	skeleton.reset_bone_poses()
+	var rig := Node3D.new()
+	rig.add_child(skeleton)
+	return rig
+
+
+## An idle: spine, upper arms and legs swing gently about their own X (3, 10 and 15 degrees) at 1 Hz.
+func _animate(rig: Node3D, skeleton: Skeleton3D) -> void:
+	var animation := Animation.new()
+	animation.length = 1.0
+	animation.loop_mode = Animation.LOOP_LINEAR
+	for bone in skeleton.get_bone_count():
+		var name := skeleton.get_bone_name(bone)
+		var lower := name.to_lower()
+		var amplitude := 0.0
+		if "spine" in lower or "chest" in lower:
+			amplitude = 3.0
+		elif lower.ends_with("arm") or "upperarm" in lower:
+			amplitude = 10.0
+		elif "leg" in lower or "thigh" in lower or "calf" in lower:
+			amplitude = 15.0
+		if amplitude == 0.0:
+			continue
+		var track := animation.add_track(Animation.TYPE_ROTATION_3D)
+		animation.track_set_path(track, NodePath("%s:%s" % [rig.get_path_to(skeleton), name]))
+		var rest := skeleton.get_bone_rest(bone).basis.get_rotation_quaternion()
+		for k in 9:
+			var t := k / 8.0
+			animation.rotation_track_insert_key(track, t, rest * Quaternion(Vector3.RIGHT, deg_to_rad(amplitude) * sin(TAU * t)))
+	var library := AnimationLibrary.new()
+	library.add_animation("idle", animation)
+	var player := AnimationPlayer.new()
+	player.callback_mode_process = AnimationMixer.ANIMATION_CALLBACK_MODE_PROCESS_PHYSICS
+	rig.add_child(player)
+	player.add_animation_library("", library)
+	player.play("idle")
+
+
+func _hand_fist(skeleton: Skeleton3D) -> Vector3:
+	var hand := -1
+	for bone in skeleton.get_bone_count():
+		var lower := skeleton.get_bone_name(bone).to_lower()
+		if lower.ends_with("righthand") or lower.ends_with("hand_r"):
+			hand = bone
+	if hand < 0:
+		return Vector3.INF
+	var child := skeleton.get_bone_children(hand)
+	var head := skeleton.get_bone_global_pose(hand).origin
+	var tail := skeleton.get_bone_global_pose(child[0]).origin if child.size() > 0 else head
+	return skeleton.global_transform * (0.5 * (head + tail))
+
+
+func _fist_gap(entry: Dictionary) -> float:
+	var fist: Node3D = entry.character.get_node("ForearmR/FistR")
+	return _hand_fist(entry.skeleton).distance_to(fist.global_position)
+
+
+func _record(entry: Dictionary) -> void:
+	var skeleton: Skeleton3D = entry.skeleton
+	var twin: Skeleton3D = entry.twin
+	var rotations := []
+	var twin_rotations := []
+	var locals := []
+	var twin_locals := []
+	for bone in skeleton.get_bone_count():
+		rotations.append(skeleton.get_bone_global_pose(bone).basis.get_rotation_quaternion())
+		twin_rotations.append(twin.get_bone_global_pose(bone).basis.get_rotation_quaternion())
+		locals.append(skeleton.get_bone_pose_rotation(bone))
+		twin_locals.append(twin.get_bone_pose_rotation(bone))
+	entry.frames.append({"weight": entry.modifier.call("blend_weight"), "rotations": rotations, "twin": twin_rotations,
+		"locals": locals, "twin_locals": twin_locals, "gap": _fist_gap(entry)})
+	if entry.hit_pending:
+		entry.hit_gap_m = _fist_gap(entry)
+		entry.hit_pending = false
+
+
+## The angle between two rotations, precise near zero (unlike `angle_to`'s acos in single precision).
+func _angle(a: Quaternion, b: Quaternion) -> float:
+	var d := a.inverse() * b
+	return 2.0 * atan2(Vector3(d.x, d.y, d.z).length(), absf(d.w))
+
+
+func _physics_process(_delta: float) -> bool:
+	_frames += 1
+	if _frames == 4:
+		for entry in _rigs:
+			if not entry.modifier.call("is_mapped"):
+				continue
+			# The sandbag in front of the simulated character, now standing on the rig.
+			var character: Node3D = entry.character
+			var sandbag: Node3D = load("res://addons/punch_controller/scenes/punch_sandbag.tscn").instantiate()
+			sandbag.transform = Transform3D(character.global_transform.basis, character.global_transform * PunchSpec.default_target_offset())
+			root.add_child(sandbag)
+			entry.controller.set("target", sandbag.get_node("Bag"))
+	if _frames == 8:
+		for entry in _rigs:
+			if entry.modifier.call("is_mapped"):
+				entry.controller.call("punch")
+	if _frames == 230:
+		var report := []
+		for entry in _rigs:
+			report.append(_summary(entry))
+		print("SKELETON_MODIFIER_COST ", JSON.stringify(PunchSkeletonModifier.take_cost_usec()))
+		print("SKELETON_MODIFIER ", JSON.stringify(report))
+		quit(0)
+	return false
+
+
+func _summary(entry: Dictionary) -> Dictionary:
+	var skeleton: Skeleton3D = entry.skeleton
+	var modifier: Node = entry.modifier
+	var written: PackedStringArray = modifier.call("written_bones")
+	var written_ids: Array[int] = []
+	for name in written:
+		written_ids.append(skeleton.find_bone(name))
+	var frames: Array = entry.frames
+	var jumps := {"blend_in": 0.0, "blend_out": 0.0, "animation": 0.0, "simulated": 0.0}
+	var worst_bone := {}
+	var max_gap_full := 0.0
+	var pose_gap := 0.0  # largest angle between a written bone's simulated and animated pose
+	var gaps := []
+	var untouched := 0.0  # largest difference of a bone never written from its twin's (local rotations)
+	for f in range(1, frames.size()):
+		var before: Dictionary = frames[f - 1]
+		var now: Dictionary = frames[f]
+		var blending: bool = (now.weight > 0.0 and now.weight < 1.0) or (before.weight > 0.0 and before.weight < 1.0)
+		var rising: bool = now.weight >= before.weight
+		for bone in skeleton.get_bone_count():
+			if bone in written_ids:
+				continue
+			untouched = max(untouched, _angle(now.locals[bone], now.twin_locals[bone]))
+		if now.weight == 1.0:
+			max_gap_full = max(max_gap_full, now.gap)
+			gaps.append(snappedf(now.gap, 0.001))
+		for bone in written_ids:
+			var step: float = _angle(now.rotations[bone], before.rotations[bone])
+			var anim_step: float = _angle(now.twin[bone], before.twin[bone])
+			if now.weight == 1.0:
+				pose_gap = max(pose_gap, _angle(now.rotations[bone], now.twin[bone]))
+			jumps.animation = max(jumps.animation, anim_step)
+			if blending:
+				var key := "blend_in" if rising else "blend_out"
+				if step > jumps[key]:
+					jumps[key] = step
+					worst_bone[key] = skeleton.get_bone_name(bone)
+			elif now.weight == 1.0 and before.weight == 1.0:
+				jumps.simulated = max(jumps.simulated, step)
+	var blend_frames := 0
+	for f in frames:
+		if f.weight > 0.0 and f.weight < 1.0:
+			blend_frames += 1
+	return {"name": entry.name, "mapped": modifier.call("is_mapped"), "bone_map": modifier.get("bone_map"),
+		"written": written, "warnings": Array(modifier.call("configuration_warnings")),
+		"problem": modifier.call("mapping_problem"), "hits": entry.hits, "hit_gap_m": entry.hit_gap_m,
+		"max_gap_full_m": max_gap_full, "jumps_rad": jumps, "worst_bone": worst_bone, "blend_frames": blend_frames,
+		"untouched_max_rad": untouched, "frames": frames.size(), "pose_gap_rad": pose_gap, "gaps": gaps}
