@@ -20,6 +20,7 @@ import contextlib
 import os
 import socket
 import sys
+import time
 from collections.abc import Callable, Iterator
 from typing import Any, TypeVar
 
@@ -157,12 +158,14 @@ class RayTrainingServer(ServerConnection):
         self._actor: Any = actor
         self._pending: Any = None
         self.info = info
+        self.last_request_s = time.monotonic()
         self.node_id = node_id
         """the Ray node the worker runs on"""
 
     def send(self, message: Message) -> None:
         if self._actor is None:
             raise PunchError("the Ray worker is closed")
+        self.last_request_s = time.monotonic()
         self._pending = self._actor.request.remote(message)
 
     def receive(self) -> Message:

@@ -140,6 +140,7 @@ class PunchVectorEnv(gym.vector.VectorEnv, _EpisodeSettings):
     def reset(self, *, seed: int | None = None, options: Options = None) -> tuple[np.ndarray, dict[str, Any]]:
         if seed is not None:
             self._np_random, self._np_random_seed = gym.utils.seeding.np_random(seed)
+        self.group.replace_idle()  # a server idle for most of its idle timeout would quit under this episode
         start = _episode_start(options, self.info.default_bag, self.np_random, self.num_envs, self.bag_jitter_m)
         bags, lead_in = start.bags, start.lead_in  # lead_in [num_envs, decisions, A]: reset_message
         n = self.characters_per_process

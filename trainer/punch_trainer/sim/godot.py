@@ -63,9 +63,10 @@ def start_godot(args: list[str], *, cwd: Path | None = None, env: dict[str, str]
                             start_new_session=True, preexec_fn=_die_with_parent if sys.platform == "linux" else None)
 
 
-def stop_godot(process: subprocess.Popen[str], grace_s: float = 5.0) -> None:
+def stop_godot(process: subprocess.Popen[str], grace_s: float = 5.0, *, close_output: bool = True) -> None:
     """Ends a Godot started by `start_godot`, with everything in its process group: SIGTERM, then SIGKILL
-    after `grace_s`. Idempotent."""
+    after `grace_s`; then closes its output unless `close_output` is False (a reader thread of its own
+    closes it). Idempotent."""
     if process.poll() is None:
         with contextlib.suppress(ProcessLookupError):
             os.killpg(process.pid, signal.SIGTERM)
@@ -74,7 +75,7 @@ def stop_godot(process: subprocess.Popen[str], grace_s: float = 5.0) -> None:
         except subprocess.TimeoutExpired:
             os.killpg(process.pid, signal.SIGKILL)
             process.wait(timeout=grace_s)
-    if process.stdout:
+    if process.stdout and close_output:
         process.stdout.close()
 
 

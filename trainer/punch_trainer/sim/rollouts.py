@@ -1,7 +1,8 @@
 """Batches of open-loop rollouts spread over K Godot processes x N characters each.
 
 A Godot process that crashes, is killed or stops answering (its reply timeout) is restarted, the handshake
-is made again, and the batch is run again. A rollout always starts from the same reset and the same slot
+is made again, and the batch is run again; a process left idle for most of its idle timeout is replaced
+before the next batch. A rollout always starts from the same reset and the same slot
 gives bitwise the same features in any process, so a restarted run ends exactly where an uninterrupted one
 would."""
 
@@ -67,7 +68,8 @@ class RolloutPool:
         return np.concatenate(features), np.concatenate(executed)
 
     def _exchange(self, messages: list[Message]) -> list[Message]:
-        # The servers of the moment: a restart replaces them.
+        # The servers of the moment: a restart replaces them, and so does a long idle time since the last batch.
+        self.group.replace_idle()
         return exchange(self.servers, messages)
 
     def close(self) -> None:

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import os
 import secrets
-import selectors
 import socket
 import subprocess
 import time
@@ -17,11 +16,13 @@ import numpy as np
 
 from punch_trainer.errors import GodotRunError, PunchError
 from punch_trainer.sim.godot import GODOT_PROJECT, start_godot, stop_godot
+from punch_trainer.sim.godot_output import GodotOutput
 from punch_trainer.sim.placement import BagPlacement
 from punch_trainer.sim.protocol import (
     PROTOCOL_VERSION,
     Bags,
     Message,
+    ServerClosedError,
     ServerError,
     close_message,
     hello_message,
@@ -35,10 +36,19 @@ SERVER_SCENE = "res://training/training_server.tscn"
 SECRET_VARIABLE = "PUNCH_SERVER_SECRET"
 """carries a server's secret to it: in its environment, which other users cannot read (a command line they can)"""
 READY_PREFIX = "PUNCH_SERVER_READY "
+IDLE_TIMEOUT_S = 120.0
+"""a server quits after this long without a request (so none outlives a trainer that lost it); the trainer
+replaces one idle for most of it before using it again (`ServerConnection.idle_expired`)"""
+CONNECT_ATTEMPTS = 5
+"""connections the trainer tries while its server says it is busy (others hold its connections)"""
 
 
 class ProtocolVersionError(PunchError):
     """The server speaks another protocol version."""
+
+
+class ServerBusyError(PunchError):
+    """The server refused the trainer's connection because its connections were taken (by other processes)."""
 
 
 @dataclass(frozen=True)
@@ -76,6 +86,15 @@ class ServerConnection:
     `cluster.RayTrainingServer` (a process on a Ray worker node). Subclasses send and receive."""
 
     info: ServerInfo
+    idle_timeout_s: float = IDLE_TIMEOUT_S
+    """the server quits after this long without a request"""
+    last_request_s: float = 0.0
+    """time.monotonic() of the last request sent (or of the start)"""
+
+    def idle_expired(self, share: float = 0.8) -> bool:
+        """Whether this server has had no request for `share` of its idle timeout or more: it may have quit, or
+        may quit before the next reply, so it should be replaced before an episode starts."""
+        return time.monotonic() - self.last_request_s >= share * self.idle_timeout_s
 
     def send(self, message: Message) -> None:
         raise NotImplementedError
@@ -121,13 +140,14 @@ class TrainingServer(ServerConnection):
     """One Godot process running N characters. Use as a context manager, or call close()."""
 
     def __init__(self, slot_count: int = 1, *, decision_period: int = 5, slots_per_world: int = 16,
-                 start_timeout_s: float = 60.0, reply_timeout_s: float = 120.0, idle_timeout_s: float = 120.0):
+                 start_timeout_s: float = 60.0, reply_timeout_s: float = 120.0, idle_timeout_s: float | None = None):
         """`slots_per_world` = 1 puts every character in a physics world of its own: bitwise-identical results
-        whatever the slot, at about 2.7 times the cost (docs/env.md, Episodes)."""
+        whatever the slot, at about 2.7 times the cost (docs/env.md, Episodes). `idle_timeout_s`: default
+        `IDLE_TIMEOUT_S`."""
         self._process: subprocess.Popen[str] | None = None
         self._socket: socket.socket | None = None
         self.reply_timeout_s = reply_timeout_s
-        self._log: list[str] = []
+        self.idle_timeout_s = IDLE_TIMEOUT_S if idle_timeout_s is None else idle_timeout_s
         self.secret = secrets.token_hex(16)
         """the server's secret, fresh for each server: a connection must say it in its hello"""
         self._process = start_godot([
@@ -135,41 +155,59 @@ class TrainingServer(ServerConnection):
             # physics rate itself and blocks between commands, so this value only sets steps per frame.
             "--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), SERVER_SCENE, "--",
             "--port=0", f"--slots={slot_count}", f"--decision-period={decision_period}",
-            f"--slots-per-world={slots_per_world}", f"--idle-timeout-s={idle_timeout_s}",
+            f"--slots-per-world={slots_per_world}", f"--idle-timeout-s={self.idle_timeout_s}",
         ], env={**os.environ, SECRET_VARIABLE: self.secret})
+        assert self._process.stdout is not None
+        # Read for the server's whole life: a pipe left unread fills, and the server blocks in its log.
+        self.output = GodotOutput(self._process.stdout, READY_PREFIX)
         try:
             port = self.port = self._wait_until_ready(start_timeout_s)
-            self._socket = socket.create_connection(("127.0.0.1", port), timeout=start_timeout_s)
-            self._socket.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            self._socket.settimeout(reply_timeout_s)
-            self.info = self._handshake()
+            self.info = self._connect(port, start_timeout_s)
         except BaseException:
             self.close()
             raise
+        self.last_request_s = time.monotonic()
 
     def _wait_until_ready(self, timeout_s: float) -> int:
-        assert self._process is not None and self._process.stdout is not None
-        selector = selectors.DefaultSelector()
-        selector.register(self._process.stdout, selectors.EVENT_READ)
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            if not selector.select(timeout=max(0.0, deadline - time.monotonic())):
-                break
-            line = self._process.stdout.readline()
-            if not line:
-                raise GodotRunError(f"the training server exited before it was ready:\n{''.join(self._log[-30:])}", "".join(self._log))
-            self._log.append(line)
-            if line.startswith(READY_PREFIX):
-                fields = dict(item.split("=", 1) for item in line[len(READY_PREFIX):].split())
-                return int(fields["port"])
-        raise GodotRunError(f"the training server was not ready within {timeout_s:.0f} s:\n{''.join(self._log[-30:])}", "".join(self._log))
+        line = self.output.wait_for(timeout_s)
+        if line is None:
+            state = "exited before it was ready" if self.output.ended else f"was not ready within {timeout_s:.0f} s"
+            raise GodotRunError(f"the training server {state}:\n{self.output.tail()}", self.output.text())
+        fields = dict(item.split("=", 1) for item in line[len(READY_PREFIX):].split())
+        return int(fields["port"])
+
+    def _connect(self, port: int, timeout_s: float) -> ServerInfo:
+        """Connects and says hello; while the server says it is busy (other processes hold its connections),
+        tries again a few times (the server closes the oldest connection waiting for a hello)."""
+        for attempt in range(CONNECT_ATTEMPTS):
+            self._socket = socket.create_connection(("127.0.0.1", port), timeout=timeout_s)
+            self._socket.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            self._socket.settimeout(self.reply_timeout_s)
+            try:
+                return self._handshake()
+            except (ServerBusyError, ServerClosedError, ConnectionError) as error:
+                self._socket.close()
+                self._socket = None
+                if attempt == CONNECT_ATTEMPTS - 1 or (self._process is not None and self._process.poll() is not None):
+                    if isinstance(error, ServerBusyError):
+                        raise
+                    raise ServerClosedError(f"the training server closed our connection before its handshake ({error}):\n"
+                                            f"{self.output.tail()}") from None
+                time.sleep(0.05 * 2 ** attempt)
+        raise AssertionError("unreachable")
 
     def _handshake(self) -> ServerInfo:
         try:
             reply = self.request(hello_message(self.secret))
         except ServerError as error:
-            raise ProtocolVersionError(f"the server refused our protocol version {PROTOCOL_VERSION}: {error} "
-                                       "(rebuild the extension: ./dev setup)") from None
+            text = str(error)
+            if "busy" in text:
+                raise ServerBusyError(f"the training server on port {self.port} refused our connection: {text} (other "
+                                      f"processes on this machine hold its connections; tried {CONNECT_ATTEMPTS} times)") from None
+            if "protocol version" in text or "protocol_version" in text:
+                raise ProtocolVersionError(f"the server refused our protocol version {PROTOCOL_VERSION}: {text} "
+                                           "(rebuild the extension: ./dev setup)") from None
+            raise ServerError(f"the training server refused our hello: {text}") from None
         if reply.fields.get("protocol_version") != PROTOCOL_VERSION:
             raise ProtocolVersionError(f"server speaks protocol {reply.fields.get('protocol_version')}, we speak {PROTOCOL_VERSION}")
         f = reply.fields
@@ -185,6 +223,7 @@ class TrainingServer(ServerConnection):
     def send(self, message: Message) -> None:
         if self._socket is None:
             raise PunchError("the training server is closed")
+        self.last_request_s = time.monotonic()
         self._socket.sendall(message.encode())
 
     def receive(self) -> Message:
@@ -204,7 +243,10 @@ class TrainingServer(ServerConnection):
             self._socket = None
         if self._process is not None:
             process, self._process = self._process, None
-            stop_godot(process)
+            # The output is closed once its reader has seen it end (the process group is gone by then).
+            stop_godot(process, close_output=False)
+            if self.output.join(5.0) and process.stdout is not None:
+                process.stdout.close()
 
     def __del__(self) -> None:
         self.close()
@@ -217,4 +259,4 @@ def exchange(servers: list[ServerConnection], messages: list[Message]) -> list[M
     return [server.receive() for server in servers]
 
 
-__all__ = ["ServerConnection", "ServerError", "ServerInfo", "TrainingServer", "ProtocolVersionError", "exchange"]
+__all__ = ["ServerConnection", "ServerError", "ServerInfo", "TrainingServer", "ProtocolVersionError", "ServerBusyError", "exchange"]

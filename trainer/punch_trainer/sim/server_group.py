@@ -1,6 +1,9 @@
 """K training servers started, restarted and closed together, and the restart rule: a Godot process that
 crashes, is killed or stops answering (its reply timeout) is replaced by a fresh one, the handshake is made
-again, and the work is run again from its start."""
+again, and the work is run again from its start. Starting the servers is under the same rule (a start that
+fails as a running server can, or finds the server busy, is tried again), and servers left idle for most of
+their idle timeout (they quit at its end) are replaced before the next episode, whatever the trainer did
+meanwhile (`ServerGroup.replace_idle`)."""
 
 from __future__ import annotations
 
@@ -11,10 +14,11 @@ from typing import TypeVar
 from punch_trainer.errors import PunchError
 from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.protocol import ProtocolError, ServerClosedError, ServerTimeoutError
-from punch_trainer.sim.server import ServerConnection, ServerInfo
+from punch_trainer.sim.server import ServerBusyError, ServerConnection, ServerInfo
 
-# Failures that a fresh Godot process fixes (a server's error reply is not one of them: it would repeat).
-SIMULATOR_FAILURES = (ServerClosedError, ServerTimeoutError, ProtocolError, ConnectionError)
+# Failures that a fresh Godot process fixes (a server's error reply is not one of them: it would repeat). A
+# busy server is one whose connections other processes held: a fresh one is on another port.
+SIMULATOR_FAILURES = (ServerClosedError, ServerTimeoutError, ProtocolError, ConnectionError, ServerBusyError)
 
 T = TypeVar("T")
 
@@ -53,15 +57,30 @@ class ServerGroup:
     """K training servers with N characters each, started, restarted and closed together on `backend`: what
     the rollout pool and the vector env hold."""
 
-    def __init__(self, processes: int, characters_per_process: int, decision_period: int = 5, *, backend: Backend = LOCAL):
+    def __init__(self, processes: int, characters_per_process: int, decision_period: int = 5, *, backend: Backend = LOCAL,
+                 max_restarts: int = 3):
         self._start: Callable[[], list[ServerConnection]] = lambda: backend.start_servers(processes, characters_per_process, decision_period)
-        self.servers = self._start()
+        # A failed start has closed what it started (Backend.start_servers): trying again is starting again.
+        self.servers = SimulatorRestarts(lambda: None, max_restarts).run(self._start)
         self.info: ServerInfo = self.servers[0].info  # the handshake: rates, names, spec hash
+        self.idle_replacements = 0
+        """how many times idle servers were replaced (`replace_idle`; not restarts: nothing failed)"""
+
+    def replace_idle(self) -> bool:
+        """Replaces the servers if one has had no request for most of its idle timeout (it quits at its end),
+        as the work is about to start again from a fresh episode (a long pretraining, a report, a checkpoint
+        in between); returns whether it did. A rollout or episode starts from the same reset in any process,
+        so the results are bitwise those of the old servers."""
+        if not any(server.idle_expired() for server in self.servers):
+            return False
+        self.restart()
+        self.idle_replacements += 1
+        return True
 
     def restart(self) -> None:
         """Replaces every process with a fresh one (after one failed); the handshake is made again."""
         self.close()
-        self.servers = self._start()
+        self.servers = self._start()  # under the caller's restart rule, which counts a failure here too
         if self.servers[0].info.spec_hash != self.info.spec_hash:
             raise SimulatorCrashError("the restarted simulator has another observation spec")
 
