@@ -8,7 +8,9 @@ every policy trained on it carries."""
 
 from __future__ import annotations
 
+import functools
 import json
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +23,7 @@ from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.placement import BagPlacement
 from punch_trainer.sim.rewards import Reward, score
 from punch_trainer.sim.server import ServerInfo
+from punch_trainer.sim.server_group import ServerGroup, SimulatorRestarts
 
 
 class DatasetError(PunchError):
@@ -43,8 +46,10 @@ def record_datasets(results: list[SearchResult], reward: Reward, args: SearchArg
     placed: list[BagPlacement | None] = list(bags) if bags else [None] * len(results)
     recorded: list[dict[str, np.ndarray] | None] = [None] * len(results)
     pending = list(range(len(results)))
-    with backend.start_servers(1, slot_count, args.decision_period)[0] as server:
-        info = server.info
+    group = ServerGroup(1, slot_count, args.decision_period, backend=backend)
+    restarts = SimulatorRestarts(group.restart)  # each pass is played again in a fresh process if one fails
+    try:
+        info = group.info
         reach = reach or ReachVolume.spot(placed[0] or info.default_bag)
         while pending:
             # One pass plays every pending trajectory whose slot is still free in it.
@@ -55,24 +60,44 @@ def record_datasets(results: list[SearchResult], reward: Reward, args: SearchArg
             slot_bags = [info.default_bag] * slot_count
             for slot, index in by_slot.items():
                 slot_bags[slot] = placed[index] or info.default_bag
-            reply = server.reset(reward.frames, bags=slot_bags, smoothing_window=args.smoothing_window)
-            contract = dict(reply.fields["policy_metadata"], **{METADATA_KEY: reach.to_json()})
-            observations = [[reply.arrays["observations"][slot]] for slot in range(slot_count)]
-            executed: list[list[np.ndarray]] = [[] for _ in range(slot_count)]
-            frames: list[list[np.ndarray]] = [[] for _ in range(slot_count)]
-            for decision in range(len(results[0].best_actions)):
-                actions = np.zeros((slot_count, info.action_size), dtype=np.float32)
-                for slot, index in by_slot.items():
-                    actions[slot] = results[index].best_actions[decision]
-                step = server.step(actions)
-                for slot in by_slot:
-                    observations[slot].append(step.arrays["observations"][slot])
-                    executed[slot].append(step.arrays["executed_actions"][slot, 0])
-                    frames[slot].append(step.arrays["features"][slot])
+            passed = restarts.run(functools.partial(_play_pass, group, results, by_slot, slot_bags, reward, args))
+            contract = dict(passed.policy_metadata, **{METADATA_KEY: reach.to_json()})
             for slot, index in by_slot.items():
                 recorded[index] = _dataset(results[index], reward, args, info, contract, slot_bags[slot],
-                                           observations[slot], executed[slot], frames[slot])
+                                           passed.observations[slot], passed.executed[slot], passed.frames[slot])
+    finally:
+        group.close()
     return [dataset for dataset in recorded if dataset is not None]
+
+
+@dataclass
+class _Pass:
+    """What one pass of `record_datasets` saw, per slot."""
+
+    policy_metadata: dict[str, str]
+    observations: list[list[np.ndarray]]
+    executed: list[list[np.ndarray]]
+    frames: list[list[np.ndarray]]
+
+
+def _play_pass(group: ServerGroup, results: list[SearchResult], by_slot: dict[int, int], slot_bags: list[BagPlacement],
+               reward: Reward, args: SearchArgs) -> _Pass:
+    """Plays the trajectories `by_slot` (slot -> result) decision by decision on the group's server."""
+    group.replace_idle()
+    server, info, slot_count = group.servers[0], group.info, len(slot_bags)
+    reply = server.reset(reward.frames, bags=slot_bags, smoothing_window=args.smoothing_window)
+    played = _Pass(reply.fields["policy_metadata"], [[reply.arrays["observations"][slot]] for slot in range(slot_count)],
+                   [[] for _ in range(slot_count)], [[] for _ in range(slot_count)])
+    for decision in range(len(results[0].best_actions)):
+        actions = np.zeros((slot_count, info.action_size), dtype=np.float32)
+        for slot, index in by_slot.items():
+            actions[slot] = results[index].best_actions[decision]
+        step = server.step(actions)
+        for slot in by_slot:
+            played.observations[slot].append(step.arrays["observations"][slot])
+            played.executed[slot].append(step.arrays["executed_actions"][slot, 0])
+            played.frames[slot].append(step.arrays["features"][slot])
+    return played
 
 
 def _dataset(result: SearchResult, reward: Reward, args: SearchArgs, info: ServerInfo, contract: dict[str, str],

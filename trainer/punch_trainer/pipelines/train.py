@@ -9,6 +9,7 @@ only, as the paper does: the quickstart, in seconds, and a policy that hits only
 
 from __future__ import annotations
 
+import functools
 import json
 import time
 from dataclasses import dataclass
@@ -35,6 +36,7 @@ from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.rewards import Reward, load_reward, score
 from punch_trainer.sim.rollouts import RolloutPool
+from punch_trainer.sim.server_group import SimulatorRestarts
 
 
 @dataclass(frozen=True)
@@ -196,13 +198,17 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
     model = ActorCritic(data["observations"].shape[1], data["actions"].shape[1], seed=args.seed)
     processes = defaults.a2c_processes
     env = PunchVectorEnv(processes, args.a2c_characters, frames=reward.frames, smoothing_window=args.smoothing_window, backend=backend)
+    # Every call of the simulator below is under the restart rule (A2C keeps its own); the env replaces servers
+    # left idle by a long pretraining before their idle timeout ends them (PunchVectorEnv.reset).
+    restarts = SimulatorRestarts(env.restart)
     try:
         conditions = (EpisodeConditions(reach, punches, volume, seed=args.seed + 1, default_bag=env.info.default_bag)
                       if reach is not None else None)
         validation = reach.sample(np.random.default_rng(args.seed + 2), env.num_envs) if reach is not None else None
         pretrained = load_checkpoint(out / "pretrain", "pretrain") if resume else None
         if pretrained is None:
-            statistics = distribution_observations(env, conditions, punches) if conditions is not None else None
+            statistics = (restarts.run(functools.partial(distribution_observations, env, conditions, punches))
+                          if conditions is not None else None)
             pretrain_args = PretrainArgs(epochs=args.pretrain_epochs, seed=args.seed, initial_sigma=defaults.pretrain_initial_sigma)
             pretrain_history = pretrain(model, data, pretrain_args, progress, statistics)
             save_checkpoint(out / "pretrain", "pretrain", {"model": model.state_dict(), "history": pretrain_history})
@@ -211,7 +217,7 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
             pretrain_history = pretrained["history"]
         timings["pretrain_s"] = time.perf_counter() - started - timings["search_s"]
 
-        pretrained_return = evaluate_noise_free(model, env, reward)
+        pretrained_return = restarts.run(functools.partial(evaluate_noise_free, model, env, reward))
         updates = args.a2c_updates or defaults.a2c_updates
         budget = args.a2c_time_budget_s if args.a2c_time_budget_s is not None else defaults.a2c_time_budget_s
         sigma_floor = args.a2c_sigma_floor if args.a2c_sigma_floor is not None else defaults.a2c_sigma_floor
@@ -226,11 +232,11 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
         summary = {"search_best_return": search.best_return, "pretrained_return": pretrained_return,
                    "a2c_best_eval_return": max(h["eval_return"] for h in a2c_history), "a2c_updates": len(a2c_history) - 1,
                    "reach": args.reach, "grid_best_returns": [round(r, 4) for r in grid_bests]}
-        validated = validate(model, env, reward, validation) if validation is not None else None
+        validated = restarts.run(functools.partial(validate, model, env, reward, validation)) if validation is not None else None
         if validated is not None:
             summary["validation"] = validated.to_json()
         policy_path = export_policy(model, out / "policy.onnx", contract=data["policy_metadata"], reward=reward.name, summary=summary)
-        exported_return, features = run_exported_policy(policy_path, env, reward)
+        exported_return, features = restarts.run(functools.partial(run_exported_policy, policy_path, env, reward))
     finally:
         env.close()
     timings["total_s"] = time.perf_counter() - started
