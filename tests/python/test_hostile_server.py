@@ -14,6 +14,7 @@ import pytest
 from punch_trainer.learn.search import SearchArgs, trajectory_search
 from punch_trainer.pipelines import train as train_pipeline
 from punch_trainer.sim import server as server_module
+from punch_trainer.sim.env import PunchEnv
 from punch_trainer.sim.rewards import load_reward
 from punch_trainer.sim.rollouts import RolloutPool
 from punch_trainer.sim.server import TrainingServer
@@ -121,3 +122,15 @@ def test_a_phase_longer_than_the_servers_idle_timeout_fails_nothing(monkeypatch,
     out = train_pipeline.run_train(args, progress=False)
     assert (out / "policy.onnx").is_file()
     assert "a Godot process failed" not in capfd.readouterr().err, "no restart: idle servers are replaced before use"
+
+
+def test_a_gymnasium_env_left_idle_past_its_servers_timeout_starts_the_next_episode(monkeypatch):
+    monkeypatch.setattr(server_module, "IDLE_TIMEOUT_S", 1.0)
+    with PunchEnv() as env:
+        first, _ = env.reset()
+        pid = env.server.pid
+        time.sleep(1.5)  # the user's own work between episodes: the server quits meanwhile
+        again, _ = env.reset()
+        assert env.server.pid != pid, "a fresh server"
+        np.testing.assert_array_equal(first, again)
+        env.step(np.zeros(env.action_space.shape, dtype=np.float32))

@@ -15,6 +15,7 @@ one can score at all, against one from the guard, found by the same search.
 from __future__ import annotations
 
 import csv
+import functools
 import json
 import time
 from collections.abc import Sequence
@@ -34,6 +35,7 @@ from punch_trainer.sim.env import PunchEnv, PunchVectorEnv
 from punch_trainer.sim.placement import BagPlacement, EpisodeStart
 from punch_trainer.sim.rewards import Reward, load_reward
 from punch_trainer.sim.rollouts import RolloutPool
+from punch_trainer.sim.server_group import SimulatorRestarts
 
 METHODS = ["A2C only", "A2C after pretraining (GAE)", "A2C after pretraining (paper's advantage)", "SB3 PPO"]
 
@@ -254,18 +256,24 @@ def after_punch_headroom(args: AfterPunchArgs, elites: int = 8) -> list[AfterPun
     rng = np.random.default_rng(seed)
     rows = []
     with PunchVectorEnv(1, rollouts, frames=frames, decision_period=period, smoothing_window=window, reward=reward) as env:
+        restarts = SimulatorRestarts(env.restart)
+
+        def batch(actions: np.ndarray, lead_in: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+            env.reset(options=EpisodeStart([bag] * rollouts, lead_in))
+            returns, features = np.zeros(rollouts), []
+            for decision in range(decisions):
+                _, rewards, _, _, info = env.step(actions[:, decision])
+                returns += rewards
+                features.append(info["features"])
+            return returns, np.concatenate(features, axis=1)
+
         for start, lead_in in [("the guard", None), ("the end of the best punch", np.repeat(earlier[None], rollouts, axis=0))]:
             mean, sigma, best = np.zeros((decisions, action_size)), np.full((decisions, action_size), 0.6), -np.inf
             for _ in tqdm(range(iterations), desc=f"from {start}", leave=False):
                 actions = np.clip(mean + sigma * rng.standard_normal((rollouts, decisions, action_size)), -1, 1).astype(np.float32)
                 actions[0] = np.clip(mean, -1, 1)  # the current mean is always tried
-                env.reset(options=EpisodeStart([bag] * rollouts, lead_in))
-                returns, features = np.zeros(rollouts), []
-                for decision in range(decisions):
-                    _, rewards, _, _, info = env.step(actions[:, decision])
-                    returns += rewards
-                    features.append(info["features"])
-                hit = success(returns, np.concatenate(features, axis=1), env.feature_names)
+                returns, features = restarts.run(functools.partial(batch, actions, lead_in))
+                hit = success(returns, features, env.feature_names)
                 elite = actions[np.argsort(returns)[-elites:]]
                 mean, sigma = elite.mean(axis=0), np.maximum(elite.std(axis=0), 0.05)
                 best = max(best, float(returns.max()))

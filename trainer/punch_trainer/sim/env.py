@@ -87,6 +87,8 @@ class PunchEnv(gym.Env, _EpisodeSettings):
 
     def __init__(self, *, frames: int = 50, decision_period: int = 5, smoothing_window: int = 1,
                  reward: Reward | None = None, bag_jitter_m: float = 0.0, server: TrainingServer | None = None):
+        self._decision_period = decision_period
+        self._owns_server = server is None
         self.server = server or TrainingServer(1, decision_period=decision_period)
         info = self.server.info
         if info.slot_count != 1:
@@ -96,6 +98,9 @@ class PunchEnv(gym.Env, _EpisodeSettings):
 
     def reset(self, *, seed: int | None = None, options: Options = None) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
+        if self._owns_server and self.server.idle_expired():  # it would quit under this episode: a fresh one
+            self.server.close()
+            self.server = TrainingServer(1, decision_period=self._decision_period)
         start = _episode_start(options, self.info.default_bag, self.np_random, 1, self.bag_jitter_m)
         lead_in = start.lead_in
         reply = self.server.reset(self.frames, bags=start.bags, smoothing_window=self.smoothing_window,
