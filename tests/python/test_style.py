@@ -91,3 +91,26 @@ def test_a_reward_with_a_style_is_scored_with_it() -> None:
     styled_returns, terms = score_terms(styled, values, names)
     assert plain_returns[0] == plain_returns[1] and styled_returns[0] == pytest.approx(plain_returns[0])
     assert styled_returns[1] < 0.5 * plain_returns[1] and set(terms) == {"forward"}
+
+
+@pytest.mark.godot
+@pytest.mark.expensive
+def test_a_search_with_the_boxing_style_keeps_the_guard_hand_and_the_trunk_in(tmp_path) -> None:
+    """Same seed and budget, at the default placement: the style keeps the guard hand and the trunk within
+    what the reward alone lets go, narrows the search there, and still hits (docs/style.md)."""
+    from punch_trainer.learn.search import SearchArgs
+    from punch_trainer.pipelines.search import run_search
+    from punch_trainer.report.naturalness import punch_naturalness
+    from punch_trainer.sim.rewards import first_right_contact
+
+    figures, touched = {}, {}
+    for style in ("none", "boxing"):
+        args = SearchArgs(reward="straight", style=style, iterations=30, rollouts=32, characters_per_process=32,
+                          plateau_iterations=0, seed=3, out=tmp_path / style)
+        _, result, _ = run_search(args, progress=False)
+        figures[style] = punch_naturalness(result.best_features, result.feature_names, 120.0)
+        touched[style] = bool(first_right_contact(result.best_features, result.feature_names)[0])
+    assert touched["boxing"]
+    calm, plain = figures["boxing"], figures["none"]
+    assert calm.off_fist_from_guard_m < plain.off_fist_from_guard_m
+    assert calm.trunk_flexion_whole_deg < plain.trunk_flexion_whole_deg

@@ -33,15 +33,21 @@ import numpy as np
 from tqdm import tqdm
 
 from punch_trainer.learn.checkpoint import CheckpointError, array, default_run_dir, flag, load_checkpoint, number, save_checkpoint
+from punch_trainer.options import bounds
 from punch_trainer.sim.placement import BagPlacement
 from punch_trainer.sim.rewards import Reward, Terms, score_terms
 from punch_trainer.sim.rollouts import RolloutPool
+from punch_trainer.sim.style import MAX_WEIGHT as MAX_STYLE_WEIGHT
 
 
 @dataclass
 class SearchArgs:
     reward: str = "straight"
     """a preset (straight, straight100, hook, swing) or FILE.py:FUNCTION"""
+    style: str = "none"
+    """the motion style added to the reward (docs/style.md): boxing, or none for the reward alone"""
+    style_weight: float = field(default=1.0, metadata=bounds(0.0, MAX_STYLE_WEIGHT))
+    """how strongly the style holds (1: as measured in docs/style.md)"""
     frames: int | None = None
     """episode length in physics frames (default: the reward's)"""
     seed: int = 0
@@ -180,6 +186,8 @@ def placement_search(args: SearchArgs, reward: Reward, pool: RolloutPool, progre
     clip_epsilon = args.clip_epsilon if args.clip_epsilon is not None else reward.search_clip_epsilon
     decisions = reward.frames // args.decision_period
     action_size = pool.info.action_size
+    # A style narrows the search around the guard for the degrees of freedom a punch moves least (sim/style.py).
+    sigma_cap = reward.style.search_sigma_cap(action_size) if reward.style is not None else None
     count = 1 if placements is None else len(placements)
     scale = np.ptp([p.position_m() for p in placements], axis=0) + 1e-6 if placements else np.ones(3)
     near = [np.argsort([np.linalg.norm((q.position_m() - p.position_m()) / scale) for q in placements])[1:neighbours + 1]
@@ -203,6 +211,8 @@ def placement_search(args: SearchArgs, reward: Reward, pool: RolloutPool, progre
         start_mu = np.zeros((decisions, action_size), dtype=np.float32) if init_mu is None else np.asarray(init_mu, dtype=np.float32)
         mu = np.broadcast_to(start_mu, (count, decisions, action_size)).copy()
         sigma = np.full((count, decisions, action_size), args.sigma_init, dtype=np.float64)
+        if sigma_cap is not None:
+            sigma = np.minimum(sigma, sigma_cap)
         returns, terms, features, executed = returns_of(mu, 1)
         history: list[dict[str, Any]] = []
         bests = [best_of(p, mu, returns, terms, features, executed, history) for p in range(count)]
@@ -232,6 +242,8 @@ def placement_search(args: SearchArgs, reward: Reward, pool: RolloutPool, progre
                 bests[p] = best_of(p * args.rollouts + top, samples, returns, terms, features, executed, history)
                 last_improvement = iteration
             sigma[p] = update_sigma(samples[p], returns[p], mu[p], bests[p].best_return, sigma[p], clip_epsilon, args.sigma_min)
+            if sigma_cap is not None:
+                sigma[p] = np.minimum(sigma[p], sigma_cap)
         elapsed = time.perf_counter() - start
         best_returns = np.array([b.best_return for b in bests])
         history.append({

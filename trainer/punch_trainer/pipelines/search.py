@@ -13,6 +13,7 @@ from punch_trainer.report.search_report import write_search_run
 from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.rewards import load_reward, reward_fingerprint
 from punch_trainer.sim.rollouts import RolloutPool
+from punch_trainer.sim.style import style_named
 
 
 def run_search(args: SearchArgs, progress: bool = True, resume: bool = False, *,
@@ -20,7 +21,7 @@ def run_search(args: SearchArgs, progress: bool = True, resume: bool = False, *,
     """The whole `punch search` command: search, dataset, run directory, with the training servers on
     `backend`. `resume` continues the run in `args.out` from its checkpoint (the CLI reads its arguments back
     with `checkpoint.read_config`)."""
-    reward = load_reward(args.reward, args.frames)
+    reward = load_reward(args.reward, args.frames, style_named(args.style, args.style_weight))
     if reward.frames % args.decision_period:
         raise ValueError(f"frames ({reward.frames}) must be a multiple of the decision period ({args.decision_period})")
     out = args.run_dir()

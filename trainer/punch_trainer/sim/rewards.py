@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from punch_trainer.options import BOUNDS
 from punch_trainer.sim.reward_worker import Frames as Frames
 from punch_trainer.sim.reward_worker import IsolatedFunction, result_terms
 from punch_trainer.sim.reward_worker import RewardError as RewardError
@@ -88,12 +89,12 @@ PRESETS = {
 }
 
 
-def load_reward(spec: str, frames: int | None = None) -> Reward:
+def load_reward(spec: str, frames: int | None = None, style: Style | None = None) -> Reward:
     """A preset name, `path/to/file.py:function` or `package.module:function`; `frames` overrides the
-    preset's episode length (default 50 for user rewards)."""
+    preset's episode length (default 50 for user rewards); `style`: the motion style added to it (sim/style.py)."""
     if spec in PRESETS:
         preset = PRESETS[spec]
-        return Reward(preset.name, preset.function, frames or preset.frames, preset.search_clip_epsilon)
+        return Reward(preset.name, preset.function, frames or preset.frames, preset.search_clip_epsilon, style)
     if ":" not in spec:
         raise RewardError(f"unknown reward '{spec}': use a preset ({', '.join(PRESETS)}) or FILE.py:FUNCTION")
     location, function_name = spec.rsplit(":", 1)
@@ -105,7 +106,7 @@ def load_reward(spec: str, frames: int | None = None) -> Reward:
     # The user's code is imported and called in a worker process, never in the trainer (sim/reward_worker.py).
     function = IsolatedFunction(spec, location, function_name, reward_time_limit_s)
     function.load()
-    return Reward(spec, function, frames or 50)
+    return Reward(spec, function, frames or 50, style=style)
 
 
 def reward_fingerprint(reward: Reward) -> str:
@@ -126,8 +127,9 @@ def metadata_reward(metadata: dict[str, str], source: str, explicit: str | None 
     own code) when given, else the policy's `punch_reward` metadata, which is only ever a preset name: a model
     file is data and never chooses code to run."""
     frames = metadata.get("punch_frames", "50")
-    if not frames.isdigit() or int(frames) == 0:  # its range is the game's to check (punch_core::spec)
-        raise RewardError(f"{source}: its metadata's punch_frames {frames!r} is not a frame count")
+    limits = BOUNDS["frames"]
+    if not (frames.isascii() and frames.isdigit() and len(frames) < 8) or limits.refuses(int(frames)):
+        raise RewardError(f"{source}: its metadata's punch_frames {frames[:40]!r} is not a frame count ({limits.describe()})")
     if explicit:
         return load_reward(explicit, int(frames))
     name = metadata.get("punch_reward")
