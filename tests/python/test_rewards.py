@@ -175,3 +175,12 @@ def test_reward_source_is_fingerprinted(tmp_path):
     path.write_text("def reward(f):\n    return 2 * f['fist_r_vel_z']\n")
     assert first.startswith("sha256:") and first != reward_fingerprint(load_reward(f"{path}:reward"))
     assert reward_fingerprint(load_reward("hook")) == "preset:hook"
+
+
+@pytest.mark.parametrize("frames", ["0", "1201", "99999999999", "-5", "5.0", "\u0663"])
+def test_a_policy_frame_count_of_no_sense_is_refused(frames):
+    from punch_trainer.sim.rewards import metadata_reward
+
+    assert metadata_reward({"punch_frames": "100", "punch_reward": "straight"}, "p.onnx").frames == 100
+    with pytest.raises(RewardError, match="is not a frame count"):
+        metadata_reward({"punch_frames": frames, "punch_reward": "straight"}, "p.onnx")
