@@ -17,7 +17,7 @@ from punch_trainer.learn.export import export_policy
 from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.pretrain import PretrainArgs, pretrain
 from punch_trainer.learn.search import SearchArgs
-from punch_trainer.pipelines.replay import ReplayArgs, ReplayError, parse_sigmas, replay_frames, run_replay
+from punch_trainer.pipelines.replay import ReplayArgs, ReplayError, parse_sigmas, policy_metadata, replay_frames, run_replay
 from punch_trainer.pipelines.search import run_search
 from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.godot import ADDON_POLICIES
@@ -137,3 +137,77 @@ def test_a_godot_that_hangs_silently_is_stopped_at_the_deadline(tmp_path, monkey
     with pytest.raises(ReplayError, match="did not finish within 3 s"):
         run_replay(ReplayArgs(policy=SHIPPED_POLICY, sigmas=[0.0], episodes=1, timeout_s=3), progress=False)
     assert time.monotonic() - started < 30
+
+
+def _protobuf_field(number: int, body: bytes) -> bytes:
+    """A length-delimited protobuf field (wire type 2)."""
+    def varint(value: int) -> bytes:
+        out = bytearray()
+        while value >= 0x80:
+            out.append((value & 0x7F) | 0x80)
+            value >>= 7
+        return bytes(out + bytes([value]))
+    return varint(number << 3 | 2) + varint(len(body)) + body
+
+
+def hostile_model_files(directory: Path) -> dict[str, Path]:
+    """The issue's bypasses of the model check: the graph written twice (a Loop of 2^40 iterations first,
+    which protobuf and ONNX Runtime merge with the real graph), and allowed operators grown to unbounded work
+    (Concat of copies to [batch, 16384], an outer product by MatMul to [batch, 16384, 16384])."""
+    from onnx import TensorProto, helper
+
+    body = helper.make_graph([helper.make_node("Identity", ["x_in"], ["x_out"]),
+                              helper.make_node("Identity", ["cond_in"], ["cond_out"])], "body",
+                             [helper.make_tensor_value_info("i", TensorProto.INT64, []),
+                              helper.make_tensor_value_info("cond_in", TensorProto.BOOL, []),
+                              helper.make_tensor_value_info("x_in", TensorProto.FLOAT, ["batch", 45])],
+                             [helper.make_tensor_value_info("cond_out", TensorProto.BOOL, []),
+                              helper.make_tensor_value_info("x_out", TensorProto.FLOAT, ["batch", 45])])
+    loop = helper.make_graph(
+        [helper.make_node("Loop", ["trips", "", "obs"], ["mean"], body=body)], "loop",
+        [helper.make_tensor_value_info("obs", TensorProto.FLOAT, ["batch", 45])],
+        [helper.make_tensor_value_info("mean", TensorProto.FLOAT, ["batch", 45])],
+        initializer=[helper.make_tensor("trips", TensorProto.INT64, [], [2**40])])
+    shipped = SHIPPED_POLICY.read_bytes()
+    files = {"loop_first": _protobuf_field(7, loop.SerializeToString()) + shipped,
+             "loop_last": shipped + _protobuf_field(7, loop.SerializeToString())}
+
+    ints = [helper.make_tensor(name, TensorProto.INT64, [len(v)], v)
+            for name, v in [("zero", [0]), ("one", [1]), ("ten", [10]), ("axes", [1, 2]), ("last", [2])]]
+    growth = helper.make_graph(
+        [helper.make_node("Slice", ["obs", "zero", "one", "one"], ["v0"]),
+         helper.make_node("Concat", ["v0"] * 128, ["v1"], axis=1),
+         helper.make_node("Concat", ["v1"] * 128, ["v2"], axis=1),
+         helper.make_node("Unsqueeze", ["v2", "last"], ["column"]),
+         helper.make_node("Unsqueeze", ["v2", "one"], ["row"]),
+         helper.make_node("MatMul", ["column", "row"], ["square"]),
+         helper.make_node("Slice", ["square", "zero", "one", "last"], ["cut"]),
+         helper.make_node("Slice", ["cut", "zero", "ten", "one"], ["flat"]),
+         helper.make_node("Flatten", ["flat"], ["mean"], axis=1)], "growth",
+        [helper.make_tensor_value_info("obs", TensorProto.FLOAT, ["batch", 45])],
+        [helper.make_tensor_value_info("mean", TensorProto.FLOAT, ["batch", 10])], initializer=ints)
+    grown = helper.make_model(growth, opset_imports=[helper.make_opsetid("", 17)])
+    helper.set_model_props(grown, policy_metadata(SHIPPED_POLICY))  # otherwise a real policy's
+    files["concat_matmul"] = grown.SerializeToString()
+    paths = {}
+    for name, data in files.items():
+        paths[name] = directory / f"{name}.onnx"
+        paths[name].write_bytes(data)
+    return paths
+
+
+@pytest.mark.godot
+def test_a_hostile_model_file_ends_the_replay_with_one_error_at_once(tmp_path):
+    """`punch replay` on a file the model check refuses: one `punch:` error naming the reason, within a short
+    deadline (the bypassed check froze the game and hung the replay)."""
+    punch = Path(sys.executable).with_name("punch")
+    expected = {"loop_first": "graph field more than once", "loop_last": "graph field more than once",
+                "concat_matmul": "elements per row, more than the 65536"}
+    for name, path in hostile_model_files(tmp_path).items():
+        result = subprocess.run([punch, "replay", "--policy", str(path), "--sigmas", "0", "--episodes", "1",
+                                 "--characters", "1", "--out", str(tmp_path / name)],
+                                capture_output=True, text=True, timeout=120)
+        assert result.returncode != 0, name
+        errors = [line for line in result.stderr.splitlines() if line.startswith("punch:")]
+        assert len(errors) == 1 and "Traceback" not in result.stderr, (name, result.stderr[-2000:])
+        assert expected[name] in result.stderr, (name, result.stderr[-2000:])
