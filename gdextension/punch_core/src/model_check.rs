@@ -178,7 +178,7 @@ mod tests {
 
     #[test]
     fn control_flow_custom_domains_and_functions_are_refused() {
-        refused(&model(&loop_graph(), 17), "a subgraph");
+        refused(&model(&loop_graph(), 17), "operator 'Loop': the model holds a subgraph");
         let scan = graph(&[node("Scan", &["obs"], &["mean"], &[])], &[], 4, &["mean"]);
         refused(&model(&scan, 17), "'Scan'");
         let custom =

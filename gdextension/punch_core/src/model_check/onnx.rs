@@ -237,9 +237,11 @@ fn read_graph(bytes: &[u8], max_nodes: usize) -> Result<Graph, String> {
 
 fn read_node(bytes: &[u8]) -> Result<Node, String> {
     let node = Message::parse(bytes, &NODE)?;
+    let op = node.text(4)?;
     let mut attributes: Vec<(String, Attribute)> = Vec::new();
     for attribute in node.all_bytes(5) {
-        let (name, value) = read_attribute(attribute)?;
+        // Named with the operator: "operator 'Loop': the model holds a subgraph".
+        let (name, value) = read_attribute(attribute).map_err(|e| format!("operator '{op}': {e}"))?;
         if attributes.iter().any(|(n, _)| *n == name) {
             return Err(format!("a node has the attribute '{name}' twice"));
         }
@@ -248,13 +250,7 @@ fn read_node(bytes: &[u8]) -> Result<Node, String> {
     for entry in node.all_bytes(9) {
         Message::parse(entry, &ENTRY)?;
     }
-    Ok(Node {
-        op: node.text(4)?,
-        domain: node.text(7)?,
-        inputs: node.all_text(1)?,
-        outputs: node.all_text(2)?,
-        attributes,
-    })
+    Ok(Node { op, domain: node.text(7)?, inputs: node.all_text(1)?, outputs: node.all_text(2)?, attributes })
 }
 
 fn read_attribute(bytes: &[u8]) -> Result<(String, Attribute), String> {
