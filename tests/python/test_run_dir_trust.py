@@ -142,14 +142,13 @@ def test_a_checkpoint_of_another_run_is_refused(tmp_path, other, message):
         load_checkpoint(ours, "search")
 
 
-def test_a_config_edited_after_the_checkpoint_is_refused(tmp_path):
-    new_run(tmp_path)
+def test_a_finished_search_rewriting_its_config_keeps_its_checkpoint_resumable(tmp_path):
+    """The search's last config.json (with the spec hash and the clip it used) still owns its checkpoints."""
+    args = new_run(tmp_path)
     save_checkpoint(tmp_path, "search", search_state())
-    config = json.loads((tmp_path / CONFIG_FILE).read_text())
-    config["iterations"] = 400
-    (tmp_path / CONFIG_FILE).write_text(json.dumps(config))
-    with pytest.raises(CheckpointError, match="its config.json differs"):
-        load_checkpoint(tmp_path, "search")
+    write_config(tmp_path, args, frames=50, spec_hash="abc", clip_epsilon=0.2)
+    assert json.loads((tmp_path / CONFIG_FILE).read_text())["reward_fingerprint"] == "preset:straight"
+    assert load_checkpoint(tmp_path, "search")["iteration"] == 3
 
 
 def test_a2c_checkpoint_values_are_checked(tmp_path):
@@ -223,3 +222,16 @@ def test_a_resume_runs_no_code_the_command_line_did_not_name(tmp_path, capsys):
 def test_search_and_train_options_read_back_are_checked(tmp_path):
     args = new_run(tmp_path)
     assert read_config(tmp_path, SearchArgs) == dataclasses.replace(args, out=tmp_path, frames=50)
+
+
+def test_a_train_resume_runs_no_code_the_command_line_did_not_name(tmp_path, capsys):
+    from punch_trainer.pipelines.train import TrainArgs
+
+    marker = tmp_path / "ran"
+    evil = tmp_path / "evil.py"
+    evil.write_text(f"open({str(marker)!r}, 'w').close()\ndef reward(f):\n    return f['fist_r_vel_z']\n")
+    run = tmp_path / "run"
+    write_config(run, TrainArgs(reward=f"{evil}:reward", out=run))
+    assert main(["train", "--resume", str(run)]) == 1
+    assert "a resume runs only code the command line names" in capsys.readouterr().err
+    assert not marker.exists()

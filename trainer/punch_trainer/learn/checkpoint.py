@@ -11,8 +11,8 @@ arguments, and `checkpoint.pt` from its first completed iteration (search) or up
 Nothing in a run directory is trusted as it is. config.json's values are checked against the options' bounds
 (`punch_trainer/options.py`) and it holds a random `run_id`, kept for the run's life. A checkpoint file
 starts with the SHA-256 of its contents (an edited or damaged file is refused) and records whose it is: the
-run_id, seed and reward of the config.json that governs it (its folder's, else the folder above), and the
-SHA-256 of that config; `load_checkpoint` refuses one that is not this run's, naming what differs. The
+run_id, seed, reward and reward fingerprint of the config.json that governs it (its folder's, else the folder
+above); `load_checkpoint` refuses one that is not this run's, naming what differs. The
 pipelines check each restored value's type, range and finiteness (`number`, `array`) and turn anything else
 that does not fit into a CheckpointError, so a tampered file ends as one `punch:` line.
 """
@@ -107,8 +107,7 @@ def load_checkpoint(run_dir: Path, kind: str) -> dict[str, Any] | None:
             or not isinstance(saved.get("state"), dict) or not isinstance(saved.get("identity"), dict)):
         raise CheckpointError(f"{path} is not a version-{CHECKPOINT_VERSION} {kind} checkpoint")
     expected = run_identity(run_dir)
-    for key, label in (("seed", "seed"), ("reward", "reward"), ("reward_fingerprint", "reward's source"),
-                       ("config_sha256", "config.json"), ("run_id", "run")):
+    for key, label in (("seed", "seed"), ("reward", "reward"), ("reward_fingerprint", "reward's source"), ("run_id", "run")):
         if saved["identity"].get(key) != expected.get(key):
             raise CheckpointError(f"{path} is not this run's checkpoint: its {label} differs from the run's "
                                   f"({saved['identity'].get(key)!r}, not {expected.get(key)!r}); it is not resumed")
@@ -142,24 +141,25 @@ def _refuse_constant(name: str) -> float:
 
 def run_identity(run_dir: Path) -> dict[str, Any]:
     """Whose a checkpoint in `run_dir` is: the governing config.json's run_id, seed, reward and reward
-    fingerprint, and the SHA-256 of that config (its `out` aside: a moved run directory resumes)."""
+    fingerprint (its other values are checked as options when a resume reads them)."""
     path = _governing_config(run_dir)
     if path is None:
         return {}
     config = _read_config_dict(path)
-    canonical = json.dumps({k: v for k, v in config.items() if k not in ("out", "run_id")}, sort_keys=True).encode()
-    return {"run_id": config.get("run_id"), "seed": config.get("seed"), "reward": config.get("reward"),
-            "reward_fingerprint": config.get("reward_fingerprint"), "config_sha256": hashlib.sha256(canonical).hexdigest()}
+    return {key: config.get(key) for key in ("run_id", "seed", "reward", "reward_fingerprint")}
 
 
 def write_config(run_dir: Path, args: Any, **extra: Any) -> None:
     """Writes the run's arguments (a dataclass) and `extra` facts to config.json, atomically, keeping the
-    run_id of the config already there (a resume) or drawing a new one."""
+    run_id (and reward_fingerprint, unless given) of the config already there, or drawing a new run_id."""
     config = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(args).items()}
     config.update(extra)
     path = run_dir / CONFIG_FILE
-    previous = _read_config_dict(path).get("run_id") if path.is_file() else None
-    config["run_id"] = previous if isinstance(previous, str) and len(previous) == 32 else secrets.token_hex(16)
+    previous = _read_config_dict(path) if path.is_file() else {}
+    if "reward_fingerprint" in previous and "reward_fingerprint" not in config:
+        config["reward_fingerprint"] = previous["reward_fingerprint"]
+    run_id = previous.get("run_id")
+    config["run_id"] = run_id if isinstance(run_id, str) and len(run_id) == 32 else secrets.token_hex(16)
     atomic_write_bytes(path, (json.dumps(config, indent=2) + "\n").encode())
 
 
