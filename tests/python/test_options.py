@@ -81,10 +81,15 @@ def test_bad_options_are_one_punch_line_before_any_work(capsys, arguments, messa
     ("1:0:0.1", "at least 1"),
     ("0:1:0", "step > 0"),
     ("a,b", "could not convert"),
+    ("bags:1e30,1.3,0", "is not distance,height,side"),
+    ("bags:0.7,1.3,0;0.7,nan,0", "'0.7,nan,0' is not distance,height,side"),
+    ("bags:0.7,1.3", "is not distance,height,side"),
 ])
-def test_bad_sigma_ranges_are_usage_errors(capsys, sigmas, message):
+def test_bad_sigma_ranges_and_bags_are_usage_errors(capsys, sigmas, message):
+    command = (["render", "--bags", sigmas.removeprefix("bags:")] if sigmas.startswith("bags:")
+               else ["eval", "--policy", POLICY, "--sigmas", sigmas])
     with pytest.raises(SystemExit) as exit_:
-        cli_main.main(["eval", "--policy", POLICY, "--sigmas", sigmas])
+        cli_main.main(command)
     assert exit_.value.code == 2
     err = capsys.readouterr().err
     assert "Traceback" not in err and message in err.strip().splitlines()[-1], err

@@ -22,9 +22,10 @@ from punch_trainer.learn.search import SearchArgs
 from punch_trainer.pipelines.bench import BenchEnvArgs, BenchInferenceArgs, BenchSearchArgs
 from punch_trainer.pipelines.evaluate import EvalArgs
 from punch_trainer.pipelines.experiments import AfterPunchArgs, Fig6Args
-from punch_trainer.pipelines.render import RenderArgs
+from punch_trainer.pipelines.render import RenderArgs, parse_bags
 from punch_trainer.pipelines.replay import ReplayArgs, parse_sigmas
 from punch_trainer.pipelines.selfcheck import SelfCheckArgs
+from punch_trainer.pipelines.style_experiment import StyleExperimentArgs
 from punch_trainer.pipelines.train import TrainArgs, reach_default_notes
 from punch_trainer.sim.cluster import backend_for
 
@@ -238,6 +239,27 @@ def _after_punch(args: argparse.Namespace) -> int:
     return 0
 
 
+def _style_experiment(args: argparse.Namespace) -> int:
+    from punch_trainer.pipelines.bench import write_section
+    from punch_trainer.pipelines.style_experiment import PLACEMENTS_M, style_experiment
+
+    options = dataclass_from_arguments(StyleExperimentArgs, args)
+    rows, table = style_experiment(options)
+    hits = ["| style | punches that hit (the reward alone) | median return of the reward alone |", "|---|---|---|",
+            *[f"| {row.style} | {row.hits}/{row.punches} | {row.median_return:.3f} |" for row in rows]]
+    body = "\n".join([*hits, "", *table])
+    print(body)
+    if not args.no_write:
+        command = (f"punch experiment style --reward {options.reward} --styles {' '.join(options.styles)} "
+                   f"--seeds {' '.join(map(str, options.seeds))} --iterations {options.iterations} --rollouts {options.rollouts}")
+        note = (f"Reward `{options.reward}`: each style's trajectory search at the same {len(PLACEMENTS_M)} bag placements inside "
+                "the shipped policies' reach volume (distance, height, side in m: "
+                f"{', '.join(str(p) for p in PLACEMENTS_M)}), each seed, the same budget; the figures are each placement's best "
+                "punch (docs/naturalness.md), medians over placements and seeds. docs/style.md says what the style is.")
+        print(f"written to {write_section('A motion style', command, note + chr(10) + chr(10) + body)}")
+    return 0
+
+
 def _pretrain(args: argparse.Namespace) -> int:
     from punch_trainer.pipelines.pretrain import pretrain_datasets
 
@@ -310,7 +332,7 @@ def build_parser() -> argparse.ArgumentParser:
     replay.set_defaults(run=_replay)
 
     render = commands.add_parser("render", help="a GIF of a policy's punches at one or several sigmas (Godot Movie Maker under Xvfb)")
-    add_dataclass_arguments(render, RenderArgs, value_parsers={"sigmas": parse_sigmas})
+    add_dataclass_arguments(render, RenderArgs, value_parsers={"sigmas": parse_sigmas, "bags": parse_bags})
     render.set_defaults(run=_render)
 
     experiment = commands.add_parser("experiment", help="experiments of the paper")
@@ -323,6 +345,10 @@ def build_parser() -> argparse.ArgumentParser:
     after.add_argument("dataset", type=Path, help=field_docs(AfterPunchArgs)["dataset"])
     add_dataclass_arguments(after, AfterPunchArgs, exclude=["dataset"])
     after.set_defaults(run=_after_punch)
+    style = experiments.add_parser("style", help="the motion style's effect on the search's punches (docs/style.md)")
+    add_dataclass_arguments(style, StyleExperimentArgs)
+    add_no_write_option(style)
+    style.set_defaults(run=_style_experiment)
 
     bench = commands.add_parser("bench", help="measure speed and write BENCHMARKS.md")
     bench_targets = bench.add_subparsers(dest="target", required=True)

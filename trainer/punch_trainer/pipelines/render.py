@@ -2,11 +2,14 @@
 Movie Maker mode under a virtual X display (Xvfb), so it works on a machine without a screen or GPU.
 
     punch render --policy addons/punch_controller/policies/hook.onnx --sigmas 0,0.3,0.6 --out docs/hook.gif
+    punch render --scene own_character --seconds 6 --out docs/own_character.gif   # a demo scene instead
 """
 
 from __future__ import annotations
 
+import math
 import os
+import re
 import shutil
 import subprocess
 import tempfile
@@ -49,6 +52,9 @@ class RenderArgs:
     """noise seed"""
     bags: str = ""
     """each character's bag placement, `distance,height,side;...` in metres, cycled (default: the spec's)"""
+    scene: str = ""
+    """film a demo scene instead (godot_project/demo/SCENE.tscn: own_character, duel, crowd); --policy, --sigmas,
+    --noise-decisions, --seed and --bags are then not used"""
 
 
 def _free_display() -> int:
@@ -95,10 +101,43 @@ class VirtualDisplay:
         self.close()
 
 
+BAG_LIMIT_M = 3.0
+"""A rendered bag is placed within this of the character (m), as every reach volume is (learn/reach.py)."""
+
+
+def parse_bags(text: str) -> str:
+    """`--bags` as given, once every `distance,height,side` in it is three finite numbers within BAG_LIMIT_M
+    (distance and height not negative), at most 256 placements; RenderError otherwise."""
+    if not text:
+        return text
+    placements = text.split(";")
+    if len(placements) > 256:
+        raise RenderError(f"--bags holds {len(placements)} placements; at most 256")
+    for placement in placements:
+        try:
+            values = [float(v) for v in placement.split(",")]
+        except ValueError:
+            values = []
+        if (len(values) != 3 or not all(math.isfinite(v) and abs(v) <= BAG_LIMIT_M for v in values)
+                or values[0] < 0 or values[1] < 0):
+            raise RenderError(f"--bags placement {placement[:60]!r} is not distance,height,side in metres (finite, distance "
+                              f"and height from 0 to {BAG_LIMIT_M:g}, side within {BAG_LIMIT_M:g})")
+    return text
+
+
 def render(args: RenderArgs) -> Path:
     """Films the punches and writes a looping GIF to `args.out`; returns its path."""
-    if not Path(args.policy).is_file():
+    if args.scene:
+        if not re.fullmatch(r"[a-z0-9_]+", args.scene) or not (GODOT_PROJECT / "demo" / f"{args.scene}.tscn").is_file():
+            scenes = sorted(p.stem for p in (GODOT_PROJECT / "demo").glob("*.tscn"))
+            raise RenderError(f"no demo scene '{args.scene}' (there are: {', '.join(scenes)})")
+        scene, scene_args = f"res://demo/{args.scene}.tscn", []
+    elif not Path(args.policy).is_file():
         raise RenderError(f"policy file not found: {args.policy}")
+    else:
+        scene = "res://tools/render.tscn"
+        scene_args = [f"--policy={Path(args.policy).resolve()}", f"--sigmas={','.join(map(str, args.sigmas))}",
+                      f"--noise-decisions={args.noise_decisions}", f"--seed={args.seed}", f"--bags={args.bags}"]
     frames = max(1, round(args.seconds * FPS))
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -108,9 +147,7 @@ def render(args: RenderArgs) -> Path:
         try:
             run_godot(["--rendering-driver", "opengl3", "--path", str(GODOT_PROJECT),
                        "--write-movie", str(movie), "--fixed-fps", str(FPS), "--quit-after", str(frames), "--disable-vsync",
-                       "res://tools/render.tscn", "--", f"--policy={Path(args.policy).resolve()}",
-                       f"--sigmas={','.join(map(str, args.sigmas))}", f"--noise-decisions={args.noise_decisions}",
-                       f"--seed={args.seed}", f"--bags={args.bags}"], timeout_s=120 + 2 * frames, env=environment)
+                       scene, "--", *scene_args], timeout_s=120 + 2 * frames, env=environment)
         except GodotRunError as error:
             if "OpenGL" in error.log or "MESA" in error.log or "glx" in error.log.lower():
                 raise RenderError("Godot could not open OpenGL on the virtual display: run ./dev setup-render "
