@@ -29,7 +29,7 @@ def test_a_punch_within_the_free_ranges_costs_nothing_and_keeps_its_reward() -> 
     assert np.all(style.cost(frames_of(calm)) == 0.0)
     reward = {"forward": np.linspace(-1.0, 1.0, FRAMES)}
     styled = style.apply(reward, frames_of(calm))
-    np.testing.assert_array_equal(styled["forward"], reward["forward"])
+    np.testing.assert_allclose(styled["forward"], reward["forward"], atol=1e-12)
 
 
 def test_each_excess_costs_and_the_discount_grows_with_the_cost_so_far() -> None:
@@ -40,9 +40,28 @@ def test_each_excess_costs_and_the_discount_grows_with_the_cost_so_far() -> None
         cost = style.cost(frames_of(flailing))
         assert np.all(cost[:10] == 0.0) and np.all(cost[10:] > 0.0), column
         styled = style.apply({"forward": np.ones(FRAMES), "back": -np.ones(FRAMES)}, frames_of(flailing))
-        assert np.all(np.diff(styled["forward"][10:]) < 0.0), column  # discounted more and more
-        assert np.all(styled["forward"] > 0.0), column  # a hit still beats standing still
+        np.testing.assert_allclose(styled["forward"][:10], 1.0, atol=1e-12)  # nothing to discount yet
+        so_far = np.cumsum(styled["forward"])
+        assert np.all(np.diff(so_far[10:]) < 1.0), column  # each frame earns less than the reward alone
+        assert np.all(so_far > -1e-9), column  # a hit still does no worse than standing still
+        every_cost = np.cumsum(cost)  # each frame's earnings x exp(-cost up to it - the share of the cost after it)
+        expected = np.exp(-every_cost - style.later_cost_share * (every_cost[-1] - every_cost)).sum()
+        np.testing.assert_allclose(so_far[-1], expected, rtol=1e-9, atol=1e-12)
         np.testing.assert_array_equal(styled["back"], -np.ones(FRAMES))  # losses are not discounted
+
+
+def test_flailing_after_the_punch_has_landed_costs_what_it_earned() -> None:
+    """Earnings stay partly at risk until the punch ends: a guard hand that flies off after the fist lands
+    discounts what the fist earned, where a discount of later frames only would let it go free."""
+    style = Style("boxing")
+    landed = np.where(np.arange(FRAMES) < 20, 1.0, 0.0)  # earned in the first 20 frames, nothing after
+    calm = features()
+    after = features(fist_l_pos_y=np.where(np.arange(FRAMES) >= 30, 0.12, 0.0))
+    calm_return = style.apply({"forward": landed}, frames_of(calm))["forward"].sum()
+    after_return = style.apply({"forward": landed}, frames_of(after))["forward"].sum()
+    assert calm_return == pytest.approx(20.0)
+    assert 0.0 < after_return < 0.9 * calm_return
+    assert Style("boxing", later_cost_share=0.0).apply({"forward": landed}, frames_of(after))["forward"].sum() == pytest.approx(20.0)
 
 
 def test_the_weight_scales_the_cost() -> None:
@@ -92,6 +111,37 @@ def test_a_reward_with_a_style_is_scored_with_it() -> None:
     assert plain_returns[0] == plain_returns[1] and styled_returns[0] == pytest.approx(plain_returns[0])
     assert styled_returns[1] < 0.5 * plain_returns[1] and set(terms) == {"forward"}
 
+
+def test_an_episode_scored_decision_by_decision_adds_up_to_its_return_with_and_without_a_style() -> None:
+    """A2C, validation and the env score decision by decision; the style's discount depends on the episode so
+    far, so the decisions' rewards must add up to the return the search gives the whole episode."""
+    from dataclasses import replace
+
+    from punch_trainer.sim.rewards import (
+        EpisodeScorer,
+        decision_rewards,
+        load_reward,
+        score,
+    )
+
+    names = ["fist_l_pos_x", "fist_l_pos_y", "fist_l_pos_z", "fist_l_vel_x", "fist_l_vel_y", "fist_l_vel_z",
+             "fist_r_vel_x", "fist_r_vel_y", "fist_r_vel_z", "angle_waist_flexion", "fist_r_bag_distance", "exploit_flags"]
+    rng = np.random.default_rng(3)
+    values = np.zeros((3, FRAMES, len(names)))
+    values[..., names.index("fist_r_vel_z")] = rng.uniform(0, 12, (3, FRAMES))
+    values[..., names.index("fist_l_pos_y")] = np.linspace(0, 0.4, FRAMES)  # the guard hand drifts off
+    plain = load_reward("straight")
+    for reward in (plain, replace(plain, style=style_named("boxing"))):
+        per_decision = decision_rewards(reward, values, names, 5)
+        assert per_decision.shape == (3, FRAMES // 5)
+        np.testing.assert_allclose(per_decision.sum(axis=-1), score(reward, values, names), rtol=1e-9, atol=1e-9)
+        scorer = EpisodeScorer(reward, names)
+        for _ in range(2):  # a reset starts the next episode afresh
+            scorer.reset()
+            steps = [scorer.add(values[:, d * 5:(d + 1) * 5])[0] for d in range(FRAMES // 5)]
+            np.testing.assert_array_equal(np.stack(steps, axis=-1), per_decision)
+    styled = decision_rewards(replace(plain, style=style_named("boxing")), values, names, 5)
+    assert styled[:, -1].sum() < 0.5 * decision_rewards(plain, values, names, 5)[:, -1].sum()  # discounted late
 
 @pytest.mark.godot
 @pytest.mark.expensive

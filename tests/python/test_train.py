@@ -9,13 +9,17 @@ import pytest
 
 from punch_trainer.pipelines.train import TrainArgs, run_exported_policy, run_train
 from punch_trainer.sim.env import PunchVectorEnv
-from punch_trainer.sim.rewards import load_reward
+from punch_trainer.sim.rewards import load_reward, score
+from punch_trainer.sim.style import style_named
 
 pytestmark = [pytest.mark.godot, pytest.mark.expensive]
 
 
-def test_small_training_run_exports_a_policy_that_repeats_its_punch(tmp_path):
-    args = TrainArgs(reward="straight", out=tmp_path / "run", search_iterations=4, search_rollouts=16,
+@pytest.mark.parametrize("style", ["none", "boxing"])
+def test_small_training_run_exports_a_policy_that_repeats_its_punch(tmp_path, style):
+    """With a style too: A2C's decision-by-decision rewards add up to the episode's styled return, and the
+    policy records its style."""
+    args = TrainArgs(reward="straight", style=style, out=tmp_path / "run", search_iterations=4, search_rollouts=16,
                      pretrain_epochs=300, a2c_updates=2, a2c_characters=4, a2c_time_budget_s=0, reach="spot")
     out = run_train(args, progress=False)
     for name in ["policy.onnx", "report.md", "summary.json", "a2c_metrics.csv", "a2c_diagnostics.png", "search/dataset.npz"]:
@@ -34,15 +38,19 @@ def test_small_training_run_exports_a_policy_that_repeats_its_punch(tmp_path):
     for key in ["punch_spec_hash", "punch_action_spec", "punch_decision_period", "punch_smoothing_window",
                 "punch_physics_hz", "punch_reward", "punch_training_summary"]:
         assert metadata.get(key), key
+    assert metadata["punch_style"] == ("none" if style == "none" else "boxing@1")
+    assert json.loads((out / "config.json").read_text())["style"] == style
     assert [i.name for i in model.graph.input] == ["obs"] and [o.name for o in model.graph.output] == ["mean", "sigma"]
     summary = json.loads((out / "summary.json").read_text())
     assert summary["exported_return"] == pytest.approx(summary["exported_return"])  # a number, not NaN
     # With sigma = 0 the exported policy repeats the same punch exactly.
+    reward = load_reward("straight", style=style_named(style))
     with PunchVectorEnv(1, 2, frames=50, smoothing_window=3) as env:
-        first, features_a = run_exported_policy(out / "policy.onnx", env, load_reward("straight"))
-        second, features_b = run_exported_policy(out / "policy.onnx", env, load_reward("straight"))
+        first, features_a = run_exported_policy(out / "policy.onnx", env, reward)
+        second, features_b = run_exported_policy(out / "policy.onnx", env, reward)
     assert first == second and (features_a == features_b).all()
     assert first == pytest.approx(summary["exported_return"])
+    assert first == pytest.approx(float(score(reward, features_a, env.feature_names)), rel=1e-9, abs=1e-9)
 
 
 def test_fig6_experiment_runs_every_method_with_honest_axes(tmp_path):

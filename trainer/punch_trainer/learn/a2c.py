@@ -30,7 +30,7 @@ from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.volume import validate
 from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.placement import BagPlacement, EpisodeStart
-from punch_trainer.sim.rewards import Reward, score, score_terms
+from punch_trainer.sim.rewards import EpisodeScorer, Reward
 from punch_trainer.sim.server_group import SimulatorRestarts
 
 
@@ -60,12 +60,12 @@ class A2CArgs:
 def evaluate_noise_free(model: ActorCritic, env: PunchVectorEnv, reward: Reward) -> float:
     """Return of the policy's mean actions (every character does the same, so character 0 is enough)."""
     obs, _ = env.reset()
-    episode = 0.0
+    episode, scorer = 0.0, EpisodeScorer(reward, env.feature_names)
     while True:
         with torch.no_grad():
             mean, _ = model(torch.as_tensor(obs))
         obs, _, terminated, truncated, info = env.step(mean.numpy())
-        episode += float(score(reward, info["features"][:1], env.feature_names)[0])
+        episode += float(scorer.add(info["features"][:1])[0][0])
         if terminated[0] or truncated[0]:
             return episode
 
@@ -84,7 +84,8 @@ class EpisodeBatch:
     values: torch.Tensor
     """[T, N]: the critic's value of each observation"""
     rewards: torch.Tensor
-    """[T, N]: each decision's reward, the reward function's score of the frames it played"""
+    """[T, N]: each decision's reward, the reward function's score of the frames it played (with a style, given
+    the episode's frames before them: sim/rewards.py, EpisodeScorer)"""
     term_rewards: dict[str, torch.Tensor]
     """the reward function's term name -> [T, N]: that term's part of `rewards`"""
 
@@ -105,6 +106,7 @@ def collect_episodes(model: ActorCritic, env: PunchVectorEnv, reward: Reward,
     rewards: list[torch.Tensor] = []
     term_rewards: dict[str, list[torch.Tensor]] = {}
     done = np.zeros(env.num_envs, dtype=bool)
+    scorer = EpisodeScorer(reward, env.feature_names)
     while not done.all():
         obs_t = torch.as_tensor(obs)
         with torch.no_grad():
@@ -113,14 +115,14 @@ def collect_episodes(model: ActorCritic, env: PunchVectorEnv, reward: Reward,
             logp = dist.log_prob(action).sum(-1)
             value = model.value(obs_t)
         obs, _, terminated, truncated, info = env.step(action.clamp(-1, 1).numpy())
-        step_returns, step_terms = score_terms(reward, info["features"], env.feature_names)
+        step_returns, step_terms = scorer.add(info["features"])
         observations.append(obs_t)
         actions.append(action)
         log_probs.append(logp)
         values.append(value)
         rewards.append(torch.as_tensor(step_returns, dtype=torch.float32))
-        for term, per_frame in step_terms.items():
-            term_rewards.setdefault(term, []).append(torch.as_tensor(per_frame.sum(axis=-1)))
+        for term, term_step_rewards in step_terms.items():
+            term_rewards.setdefault(term, []).append(torch.as_tensor(term_step_rewards))
         done = terminated | truncated
     return EpisodeBatch(observations=torch.stack(observations), actions=torch.stack(actions), log_probs=torch.stack(log_probs),
                         values=torch.stack(values), rewards=torch.stack(rewards),

@@ -21,7 +21,7 @@ from punch_trainer.learn.reach import METADATA_KEY, ReachVolume
 from punch_trainer.learn.search import SearchArgs, SearchResult
 from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.placement import BagPlacement
-from punch_trainer.sim.rewards import Reward, score
+from punch_trainer.sim.rewards import Reward, decision_rewards, score
 from punch_trainer.sim.server import ServerInfo
 from punch_trainer.sim.server_group import ServerGroup, SimulatorRestarts
 
@@ -105,7 +105,7 @@ def _dataset(result: SearchResult, reward: Reward, args: SearchArgs, info: Serve
              frames: list[np.ndarray]) -> dict[str, np.ndarray]:
     features = np.concatenate(frames)
     decisions = len(result.best_actions)
-    rewards = score(reward, features.reshape(decisions, args.decision_period, -1), info.feature_names)
+    rewards = decision_rewards(reward, features[:decisions * args.decision_period], info.feature_names, args.decision_period)
     if not np.array_equal(features, result.best_features):
         raise RuntimeError("recording the best trajectory step by step did not reproduce its features; the physics is not deterministic")
     return {

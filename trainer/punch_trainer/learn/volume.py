@@ -27,7 +27,7 @@ from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.reach import ReachVolume
 from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.placement import BagPlacement, EpisodeStart
-from punch_trainer.sim.rewards import Reward, first_right_contact, score
+from punch_trainer.sim.rewards import EpisodeScorer, Reward, first_right_contact
 
 DISTRIBUTION_DRAWS = 10**9
 """the first "update" number of the draws for the observation statistics (A2C updates count from 1)"""
@@ -106,12 +106,12 @@ def run_policy(model: ActorCritic, env: PunchVectorEnv, reward: Reward,
                options: EpisodeStart | None = None) -> tuple[np.ndarray, np.ndarray]:
     """One episode on every character with the policy's mean actions: returns [N] and features [N, frames, F]."""
     obs, _ = env.reset(options=options)
-    returns, frames = np.zeros(env.num_envs), []
+    returns, frames, scorer = np.zeros(env.num_envs), [], EpisodeScorer(reward, env.feature_names)
     while True:
         with torch.no_grad():
             mean, _ = model(torch.as_tensor(obs))
         obs, _, terminated, truncated, info = env.step(mean.numpy())
-        returns += score(reward, info["features"], env.feature_names)
+        returns += scorer.add(info["features"])[0]
         frames.append(info["features"])
         if np.all(terminated | truncated):
             return returns, np.concatenate(frames, axis=1)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import functools
 import json
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
@@ -28,15 +28,18 @@ from punch_trainer.learn.pretrain import PretrainArgs, pretrain
 from punch_trainer.learn.reach import ReachVolume
 from punch_trainer.learn.search import SearchArgs, SearchResult, placement_search
 from punch_trainer.learn.volume import EpisodeConditions, VolumeArgs, distribution_observations, validate
+from punch_trainer.options import bounds
 from punch_trainer.pipelines.search import run_search
 from punch_trainer.report.a2c_report import write_a2c_report
 from punch_trainer.report.motion import motion_report
 from punch_trainer.report.naturalness import capture_figures, naturalness_table, punch_naturalness, summarise
 from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.env import PunchVectorEnv
-from punch_trainer.sim.rewards import Reward, load_reward, score
+from punch_trainer.sim.rewards import EpisodeScorer, Reward, load_reward
 from punch_trainer.sim.rollouts import RolloutPool
 from punch_trainer.sim.server_group import SimulatorRestarts
+from punch_trainer.sim.style import MAX_WEIGHT as MAX_STYLE_WEIGHT
+from punch_trainer.sim.style import style_label, style_named
 
 
 @dataclass(frozen=True)
@@ -70,6 +73,10 @@ def reach_default_notes() -> dict[str, str]:
 class TrainArgs:
     reward: str = SearchArgs.reward
     """a preset (straight, straight100, hook, swing) or FILE.py:FUNCTION"""
+    style: str = SearchArgs.style
+    """the motion style added to the reward in every stage (docs/style.md): boxing, or none for the reward alone"""
+    style_weight: float = field(default=SearchArgs.style_weight, metadata=bounds(0.0, MAX_STYLE_WEIGHT))
+    """how strongly the style holds (1: as measured in docs/style.md)"""
     frames: int | None = None
     """episode length in physics frames (default: the reward's)"""
     seed: int = 0
@@ -120,12 +127,12 @@ def run_exported_policy(path: Path, env: PunchVectorEnv, reward: Reward, sigma: 
     session = onnxruntime.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     rng = np.random.default_rng(seed)
     obs, _ = env.reset()
-    total_return, frames = 0.0, []
+    total_return, frames, scorer = 0.0, [], EpisodeScorer(reward, env.feature_names)
     while True:
         mean, _ = session.run(None, {"obs": obs.astype(np.float32)})
         action = np.clip(mean + sigma * rng.standard_normal(mean.shape), -1, 1).astype(np.float32)
         obs, _, terminated, truncated, info = env.step(action)
-        total_return += float(score(reward, info["features"][:1], env.feature_names)[0])
+        total_return += float(scorer.add(info["features"][:1])[0][0])
         frames.append(info["features"][0])
         if terminated[0] or truncated[0]:
             return total_return, np.concatenate(frames)
@@ -148,7 +155,7 @@ def search_volume(args: TrainArgs, volume: VolumeArgs, reward: Reward, centre: S
     and one dataset per placement in volume_search/datasets/. Returns the dataset paths, the reach, each
     placement's best return and best actions [P, decisions, A]."""
     out = args.run_dir() / "volume_search"
-    search_args = SearchArgs(reward=args.reward, frames=reward.frames, seed=args.seed, out=out,
+    search_args = SearchArgs(reward=args.reward, style=args.style, style_weight=args.style_weight, frames=reward.frames, seed=args.seed, out=out,
                              iterations=volume.search_iterations, rollouts=volume.search_rollouts,
                              sigma_init=volume.search_sigma_init, processes=args.processes, characters_per_process=64,
                              smoothing_window=args.smoothing_window)
@@ -174,14 +181,15 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
         raise ValueError(f"--reach is 'volume' or 'spot', not '{args.reach}'")
     over_volume = args.reach == "volume"
     defaults = REACH_DEFAULTS[args.reach]
-    reward = load_reward(args.reward, args.frames)
+    reward = load_reward(args.reward, args.frames, style_named(args.style, args.style_weight))
     out = args.run_dir()
     if not resume and (out / CONFIG_FILE).exists():
         raise CheckpointError(f"{out} already holds a training run; continue it with `punch train --resume {out}` or choose another --out")
     write_config(out, args)
     timings = {}
 
-    search_args = SearchArgs(reward=args.reward, frames=reward.frames, seed=args.seed, out=out / "search",
+    search_args = SearchArgs(reward=args.reward, style=args.style, style_weight=args.style_weight, frames=reward.frames,
+                             seed=args.seed, out=out / "search",
                              iterations=args.search_iterations, rollouts=args.search_rollouts,
                              processes=args.processes, characters_per_process=min(64, args.search_rollouts),
                              smoothing_window=args.smoothing_window)
@@ -235,7 +243,8 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
         validated = restarts.run(functools.partial(validate, model, env, reward, validation)) if validation is not None else None
         if validated is not None:
             summary["validation"] = validated.to_json()
-        policy_path = export_policy(model, out / "policy.onnx", contract=data["policy_metadata"], reward=reward.name, summary=summary)
+        policy_path = export_policy(model, out / "policy.onnx", contract=data["policy_metadata"], reward=reward.name,
+                                    style=style_label(reward.style), summary=summary)
         exported_return, features = restarts.run(functools.partial(run_exported_policy, policy_path, env, reward))
     finally:
         env.close()
@@ -248,7 +257,7 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
               f"{motion['contact_point_from_bag_centre_m']} m from the bag's centre" if motion["impact_time_s"] is not None
               else "no contact with the bag")
     lines = [
-        f"# punch train: {reward.name}", "",
+        f"# punch train: {reward.name}", "", f"- motion style: {style_label(reward.style)} (docs/style.md)",
         f"- trajectory search: best return {search.best_return:.4f} ({search_args.iterations} iterations of {search_args.rollouts} rollouts)",
         f"- after pretraining ({args.pretrain_epochs} epochs, final actor MSE {pretrain_history[-1]['actor_mse']:.2e}): noise-free return {pretrained_return:.4f}",
         f"- after A2C ({len(a2c_history) - 1} updates x {processes * args.a2c_characters} episodes, advantage '{args.advantage}', "

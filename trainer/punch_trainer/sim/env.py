@@ -14,8 +14,9 @@ Env card (full tables in docs/env.md)
 - Episode: `frames` physics frames (50 or 100: 10 or 20 decisions), always from the same initial state.
   At the last decision `terminated` is True, or `truncated` if the physics guard saw a joint come apart.
 - Reward: a `Reward` (punch_trainer.sim.rewards: a preset, or a function of the features loaded with
-  `load_reward`), scored on each decision's frames by `score`, the one scoring recipe of the trainer; 0 when
-  none is given.
+  `load_reward`, with a motion style or none), scored on each decision's frames by `EpisodeScorer` (which a
+  style's discount needs: it depends on the episode so far), so the step rewards add up to what `score` gives
+  the whole episode; 0 when none is given.
 - Registered with Gymnasium as `punch/Punch-v0` (`gym.make`, one character) and, for `gym.make_vec`, as a
   vector env (K processes x N characters) once `punch_trainer` is imported.
 """
@@ -30,7 +31,7 @@ import numpy as np
 from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.placement import BagPlacement, EpisodeStart
 from punch_trainer.sim.protocol import reset_message, step_message
-from punch_trainer.sim.rewards import Reward, score
+from punch_trainer.sim.rewards import EpisodeScorer, Reward
 from punch_trainer.sim.server import ServerConnection, ServerInfo, TrainingServer, exchange
 from punch_trainer.sim.server_group import ServerGroup
 
@@ -78,6 +79,11 @@ class _EpisodeSettings:
         self.bag_jitter_m = bag_jitter_m
         self.feature_names = info.feature_names
         self.spec_hash = info.spec_hash
+        self._scorer = EpisodeScorer(reward, info.feature_names) if reward is not None else None
+
+    def _decision_rewards(self, features: np.ndarray) -> np.ndarray:
+        """Each character's reward for the decision that played `features` [N, period, F] (0 with no reward)."""
+        return self._scorer.add(features)[0] if self._scorer is not None else np.zeros(features.shape[0])
 
 
 class PunchEnv(gym.Env, _EpisodeSettings):
@@ -102,6 +108,8 @@ class PunchEnv(gym.Env, _EpisodeSettings):
             self.server.close()
             self.server = TrainingServer(1, decision_period=self._decision_period)
         start = _episode_start(options, self.info.default_bag, self.np_random, 1, self.bag_jitter_m)
+        if self._scorer is not None:
+            self._scorer.reset()
         lead_in = start.lead_in
         reply = self.server.reset(self.frames, bags=start.bags, smoothing_window=self.smoothing_window,
                                   lead_in=None if lead_in is None else np.asarray(lead_in, dtype=np.float32).reshape(1, -1, self.info.action_size))
@@ -111,7 +119,7 @@ class PunchEnv(gym.Env, _EpisodeSettings):
         action = np.asarray(action, dtype=np.float32).reshape(1, -1)
         reply = self.server.step(action)
         features = reply.arrays["features"][0].copy()
-        reward = float(score(self.reward, features, self.feature_names)) if self.reward else 0.0
+        reward = float(self._decision_rewards(features[None])[0])
         info = {"features": features, "executed_action": reply.arrays["executed_actions"][0, 0].copy()}
         return (reply.arrays["observations"][0].copy(), reward, bool(reply.fields["terminated"][0]),
                 bool(reply.fields["truncated"][0]), info)
@@ -147,6 +155,8 @@ class PunchVectorEnv(gym.vector.VectorEnv, _EpisodeSettings):
             self._np_random, self._np_random_seed = gym.utils.seeding.np_random(seed)
         self.group.replace_idle()  # a server idle for most of its idle timeout would quit under this episode
         start = _episode_start(options, self.info.default_bag, self.np_random, self.num_envs, self.bag_jitter_m)
+        if self._scorer is not None:
+            self._scorer.reset()
         bags, lead_in = start.bags, start.lead_in  # lead_in [num_envs, decisions, A]: reset_message
         n = self.characters_per_process
         replies = exchange(self.servers, [reset_message(self.frames, bags=bags[p * n:(p + 1) * n], smoothing_window=self.smoothing_window,
@@ -167,7 +177,7 @@ class PunchVectorEnv(gym.vector.VectorEnv, _EpisodeSettings):
         features = np.concatenate([r.arrays["features"] for r in replies])
         terminated = np.concatenate([r.fields["terminated"] for r in replies]).astype(bool)
         truncated = np.concatenate([r.fields["truncated"] for r in replies]).astype(bool)
-        rewards = score(self.reward, features, self.feature_names) if self.reward else np.zeros(self.num_envs)
+        rewards = self._decision_rewards(features)
         self._needs_reset = bool(np.all(terminated | truncated))
         return np.concatenate([r.arrays["observations"] for r in replies]), rewards, terminated, truncated, {"features": features}
 

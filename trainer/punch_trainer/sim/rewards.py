@@ -195,6 +195,42 @@ def score_terms(reward: Reward, features: np.ndarray, feature_names: list[str]) 
 
 
 def score(reward: Reward, features: np.ndarray, feature_names: list[str]) -> np.ndarray:
-    """The return of every trajectory in `features` [..., frames, F]: shape [...]. Scoring a decision's frames
-    gives that decision's reward; scoring an episode's, its return."""
+    """The return of every trajectory in `features` [..., frames, F]: shape [...]. Scoring an episode's frames
+    gives its return; a decision's reward comes from `EpisodeScorer`, which knows the frames before it."""
     return score_terms(reward, features, feature_names)[0]
+
+
+class EpisodeScorer:
+    """Scores episodes decision by decision, as they are played: each decision's reward (and terms) of its own
+    frames [..., period, F]. A reward alone is per frame, so a decision's frames are scored on their own, as
+    always. A style (sim/style.py) discounts by the cost of the whole episode so far and measures the guard from
+    the episode's first frame, so then the episode so far is scored and the decision's frames taken from it: the
+    decisions' rewards add up to exactly the episode's return, as the search scores it."""
+
+    def __init__(self, reward: Reward, feature_names: list[str]):
+        self.reward = reward
+        self.feature_names = feature_names
+        self._episode: list[np.ndarray] = []
+
+    def reset(self) -> None:
+        """A new episode starts with the next `add`."""
+        self._episode = []
+
+    def add(self, frames: np.ndarray) -> tuple[np.ndarray, Terms]:
+        """The reward [...] of the decision that played `frames` [..., period, F], and its terms summed over them."""
+        if self.reward.style is None:
+            returns, terms = score_terms(self.reward, frames, self.feature_names)
+            return returns, {name: values.sum(axis=-1) for name, values in terms.items()}
+        self._episode.append(np.asarray(frames))
+        period = frames.shape[-2]
+        terms = evaluate(self.reward, np.concatenate(self._episode, axis=-2), self.feature_names)
+        terms = {name: values[..., -period:] for name, values in terms.items()}
+        return total(terms).sum(axis=-1), {name: values.sum(axis=-1) for name, values in terms.items()}
+
+
+def decision_rewards(reward: Reward, features: np.ndarray, feature_names: list[str], decision_period: int) -> np.ndarray:
+    """Each decision's reward [..., decisions] of a whole episode's `features` [..., frames, F]."""
+    scorer = EpisodeScorer(reward, feature_names)
+    decisions = features.shape[-2] // decision_period
+    return np.stack([scorer.add(features[..., d * decision_period:(d + 1) * decision_period, :])[0]
+                     for d in range(decisions)], axis=-1)

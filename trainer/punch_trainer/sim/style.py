@@ -7,8 +7,9 @@ A style has two parts, chosen by measurement (docs/experiments.md, "A motion sty
    its guard and its speed, the waist's forward flexion and the punching fist's speed, each counted only
    beyond a free range that captured punches stay within (../shared/data, CMU 143/23: the other hand moves
    12-20 cm at 1.2-1.8 m/s, the trunk leans 7-17 degrees, the fist peaks at 6.3-8.4 m/s), and growing with the
-   square of the excess. A frame's positive reward is multiplied by exp(-weight x the cost so far): a punch that
-   flails on its way earns less, but any hit still earns more than standing still. Penalties added to the
+   square of the excess. A frame's positive reward is multiplied by exp(-weight x the cost so far), and a
+   tenth of every later frame's cost is taken from it too (so flailing after the fist lands is not free): a
+   punch that flails earns less, but any hit still earns more than standing still. Penalties added to the
    reward instead made the search settle on standing still, since every exploratory motion then scores below
    zero (docs/experiments.md, "A motion style"); subtracting even 2% of the cost as well made the punching
    arm wind up and missed a far target.
@@ -55,6 +56,9 @@ class Style:
     waist_flexion_cost_per_rad2: float = 20.0
     fist_free_mps: float = 9.0
     fist_cost_per_mps2: float = 0.2
+    later_cost_share: float = 0.1
+    """how much of the cost after a frame still discounts what that frame earned (0: only the cost before it;
+    1: all of it, the whole punch's)"""
     search_sigma: tuple[float, ...] = (0.1, 1.0, 1.0, 1.0, 1.0, 1.0, 0.05, 0.05, 0.05, 0.05)
     """the trajectory search's largest sigma per degree of freedom, in action order (punch_core::character::DOFS:
     waist flexion, waist rotation, the right shoulder's three and elbow, the left shoulder's three and elbow)"""
@@ -80,9 +84,26 @@ class Style:
         return np.asarray(self.weight * cost, dtype=np.float64)
 
     def apply(self, terms: Mapping[str, np.ndarray], frames: FramesLike) -> dict[str, np.ndarray]:
-        """The reward's terms with the style: every positive value discounted by exp(-the cost so far)."""
-        discount = np.exp(-np.cumsum(self.cost(frames), axis=-1))
-        return {name: np.where(values > 0, values * discount, values) for name, values in terms.items()}
+        """The reward's terms with the style. A frame's positive value is discounted by exp(-the cost up to it),
+        and what it earned stays at risk after it: each later frame's cost takes `later_cost_share` of it as
+        well, so flailing after the fist lands costs part of what the punch earned. Negative values are left as
+        they are. Frame by frame (causal, so A2C can score decision by decision): what the frame earns, less
+        what its cost takes of the earnings held before it. A term's return, sum over frames f of
+        earned_f x exp(-C_f - share x (C_end - C_f)) plus its losses, never falls below its losses alone:
+        a hit still beats standing still."""
+        cost = self.cost(frames)
+        discount = np.exp(-np.cumsum(cost, axis=-1))
+        kept = np.exp(-self.later_cost_share * cost)  # what a frame's cost leaves of the earnings held before it
+        styled = {}
+        for name, values in terms.items():
+            earned = np.maximum(values, 0.0) * discount
+            held = np.zeros_like(earned[..., 0])
+            value = np.empty_like(earned)
+            for frame in range(earned.shape[-1]):
+                value[..., frame] = earned[..., frame] - held * (1.0 - kept[..., frame])
+                held = held * kept[..., frame] + earned[..., frame]
+            styled[name] = value + np.minimum(values, 0.0)
+        return styled
 
     def search_sigma_cap(self, action_size: int) -> np.ndarray:
         """The search's sigma cap per degree of freedom, [action_size]."""
