@@ -8,9 +8,12 @@
 ## with GLTFDocument and run alike.
 ##
 ## Prints `SKELETON_MODIFIER <json>`: per rig its mapping, warnings, the fist gap (rig fist: the middle of the
-## hand bone, from its head to its child's; simulated: FistR) at the first hit and its largest while fully
-## blended, the largest per-frame rotation of each written bone in the blend-in and blend-out windows, of the
-## animation alone and of the fully simulated pose, and the legs' largest difference from the twin.
+## hand bone, from its head to the mean of its children's; simulated: FistR) at the first hit and its largest while
+## fully blended, the simulated arms' lengths (sized to the rig) and the rig's own (measured here from its rest, the
+## same way: upper arm head to forearm head, forearm head to the middle of the hand, between the upper arms' heads; the
+## mean of both sides), the largest per-frame rotation of each written bone in the blend-in and blend-out windows,
+## of the animation alone and of the fully simulated pose, and the legs' largest difference from the twin. The
+## tiny rig's arms (0.6 of the simulated ones) are outside the range the simulated arms can be sized to.
 extends SceneTree
 
 ## name, naming, arm drop (deg: 0 T-pose), convention ("y" or "x"), arm scale, yaw (deg), position
@@ -20,6 +23,7 @@ const RIGS := [
 	["profile_t_x", "profile", 0.0, "x", 1.0, -150.0, Vector3(20, 0, 5)],
 	["mixamo_a_y_long", "mixamo", 40.0, "y", 1.15, 30.0, Vector3(30, 0, 0)],
 	["unreal_t_y_short", "unreal", 0.0, "y", 0.85, 0.0, Vector3(40, 0, 0)],
+	["profile_a_y_tiny", "profile", 30.0, "y", 0.6, 60.0, Vector3(60, 0, 0)],
 	["unmapped", "numbered", 0.0, "y", 1.0, 0.0, Vector3(50, 0, 0)],
 ]
 const NAMES := {
@@ -195,23 +199,46 @@ func _animate(rig: Node3D, skeleton: Skeleton3D) -> void:
 	player.play("idle")
 
 
-func _hand_fist(skeleton: Skeleton3D) -> Vector3:
-	var hand := -1
-	for bone in skeleton.get_bone_count():
-		var lower := skeleton.get_bone_name(bone).to_lower()
-		if lower.ends_with("righthand") or lower.ends_with("hand_r"):
-			hand = bone
+## The rig's right fist now (global): the middle of the bone the modifier maps as the right hand.
+func _hand_fist(skeleton: Skeleton3D, bone_map: Dictionary) -> Vector3:
+	var hand := skeleton.find_bone(bone_map.get("hand_r", ""))
 	if hand < 0:
 		return Vector3.INF
-	var child := skeleton.get_bone_children(hand)
-	var head := skeleton.get_bone_global_pose(hand).origin
-	var tail := skeleton.get_bone_global_pose(child[0]).origin if child.size() > 0 else head
-	return skeleton.global_transform * (0.5 * (head + tail))
+	return skeleton.global_transform * _middle_of_hand(skeleton, hand, false)
+
+
+## The middle of the hand (skeleton space, posed or at rest): halfway from its head to the mean of its children's
+## heads (the fingers' roots).
+func _middle_of_hand(skeleton: Skeleton3D, hand: int, rest: bool) -> Vector3:
+	var at := func(bone: int) -> Vector3:
+		return skeleton.get_bone_global_rest(bone).origin if rest else skeleton.get_bone_global_pose(bone).origin
+	var head: Vector3 = at.call(hand)
+	var tips := Vector3.ZERO
+	var children := skeleton.get_bone_children(hand)
+	for child in children:
+		tips += at.call(child)
+	var tail := tips / children.size() if children.size() > 0 else head
+	return 0.5 * (head + tail)
+
+
+## The rig's arm lengths at rest, m: [upper arm, forearm to the middle of the hand, shoulder width].
+func _rig_arm_lengths(skeleton: Skeleton3D, bone_map: Dictionary) -> Array:
+	var at := func(role: String) -> Vector3:
+		return skeleton.get_bone_global_rest(skeleton.find_bone(bone_map[role])).origin
+	var scale := skeleton.global_transform.basis.get_scale().y
+	var upper := 0.0
+	var fore := 0.0
+	for side in ["r", "l"]:
+		upper += 0.5 * at.call("upper_arm_" + side).distance_to(at.call("forearm_" + side))
+		var hand := skeleton.find_bone(bone_map["hand_" + side])
+		fore += 0.5 * at.call("forearm_" + side).distance_to(_middle_of_hand(skeleton, hand, true))
+	var width: float = at.call("upper_arm_r").distance_to(at.call("upper_arm_l"))
+	return [scale * upper, scale * fore, scale * width]
 
 
 func _fist_gap(entry: Dictionary) -> float:
 	var fist: Node3D = entry.character.get_node("ForearmR/FistR")
-	return _hand_fist(entry.skeleton).distance_to(fist.global_position)
+	return _hand_fist(entry.skeleton, entry.modifier.get("bone_map")).distance_to(fist.global_position)
 
 
 func _record(entry: Dictionary) -> void:
@@ -312,4 +339,10 @@ func _summary(entry: Dictionary) -> Dictionary:
 		"written": written, "warnings": Array(modifier.call("configuration_warnings")),
 		"problem": modifier.call("mapping_problem"), "hits": entry.hits, "hit_gap_m": entry.hit_gap_m,
 		"max_gap_full_m": max_gap_full, "jumps_rad": jumps, "worst_bone": worst_bone, "blend_frames": blend_frames,
-		"untouched_max_rad": untouched, "frames": frames.size(), "pose_gap_rad": pose_gap, "gaps": gaps}
+		"untouched_max_rad": untouched, "frames": frames.size(), "pose_gap_rad": pose_gap, "gaps": gaps,
+		"arm_lengths_m": _array(entry.character.call("arm_lengths")),
+		"rig_arm_lengths_m": _rig_arm_lengths(skeleton, modifier.get("bone_map")) if modifier.call("is_mapped") else []}
+
+
+func _array(v: Vector3) -> Array:
+	return [v.x, v.y, v.z]

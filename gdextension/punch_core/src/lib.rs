@@ -15,6 +15,7 @@
 //! engine); the Godot layer (`punch_godot`) only moves engine data in and out and reports errors.
 
 pub mod access;
+pub mod arm_size;
 pub mod bone_map;
 pub mod character;
 // The training server runs on Linux (the trainer starts headless Linux Godot).

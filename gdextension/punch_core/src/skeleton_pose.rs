@@ -33,6 +33,7 @@
 
 use glam::{Mat3, Quat, Vec3};
 
+use crate::arm_size::ArmLengths;
 use crate::bone_map::{BoneMap, Side};
 use crate::character::{Body, JOINTS};
 use crate::sensing::CharacterGeometry;
@@ -207,7 +208,7 @@ impl SkeletonPoser {
             let arm = map.arm(side);
             let what = |part: &str| format!("the {side:?} {part} has no length (its child sits on it)");
             let f_u = frame_or(pos(arm.forearm) - pos(arm.upper_arm), front, -up, &what("upper arm"))?;
-            let f_f = frame_or(pos(arm.hand) - pos(arm.forearm), front, -up, &what("forearm"))?;
+            let f_f = frame_or(rig_fist(parents, rest, arm.hand) - pos(arm.forearm), front, -up, &what("forearm"))?;
             upper_offset[i] = f_u.inverse() * rot(arm.upper_arm);
             fore_offset[i] = f_f.inverse() * rot(arm.forearm);
         }
@@ -380,6 +381,37 @@ impl SkeletonPoser {
     fn local_for(&self, written: &[(usize, Quat)], parent: usize, target: Quat, hips_global: Quat) -> (Quat, Quat) {
         let parent = new_global(written, parent).unwrap_or(hips_global);
         ((parent.inverse() * target).normalize(), target)
+    }
+}
+
+/// The rig's fist centre at rest (skeleton space): the middle of the hand, halfway from the hand bone's head to
+/// the mean of its children's heads (the fingers' roots), or a quarter of a forearm on past the wrist for a
+/// hand without children. The forearm's rest direction is taken toward it, so the visible fist lies on the line
+/// of the simulated forearm even when the rig's hand is bent at rest.
+pub fn rig_fist(parents: &[i32], rest: &[(Quat, Vec3)], hand: usize) -> Vec3 {
+    let head = rest[hand].1;
+    let (sum, count) = parents
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| usize::try_from(**p).ok() == Some(hand))
+        .fold((Vec3::ZERO, 0), |(sum, n), (child, _)| (sum + rest[child].1, n + 1));
+    if count > 0 {
+        return head + 0.5 * (sum / count as f32 - head);
+    }
+    let forearm = usize::try_from(parents[hand]).ok().map_or(head, |p| rest[p].1);
+    head + 0.25 * (head - forearm)
+}
+
+/// The rig's arm proportions at rest (the mean of its two sides, in the skeleton's units times `scale`): upper
+/// arm from its head to the forearm's, forearm from its head to the fist centre (`rig_fist`), and the distance
+/// between the upper arms' heads.
+pub fn rig_arm_lengths(map: &BoneMap, parents: &[i32], rest: &[(Quat, Vec3)], scale: f32) -> ArmLengths {
+    let pos = |b: usize| rest[b].1;
+    let mean = |f: &dyn Fn(Side) -> f32| 0.5 * (f(Side::Right) + f(Side::Left)) * scale;
+    ArmLengths {
+        upper_arm_m: mean(&|s| pos(map.arm(s).forearm).distance(pos(map.arm(s).upper_arm))),
+        forearm_m: mean(&|s| rig_fist(parents, rest, map.arm(s).hand).distance(pos(map.arm(s).forearm))),
+        shoulder_width_m: scale * pos(map.right.upper_arm).distance(pos(map.left.upper_arm)),
     }
 }
 

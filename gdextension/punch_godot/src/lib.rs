@@ -1,6 +1,7 @@
 //! The punch controller's Godot classes. This crate only registers classes and converts engine types;
 //! the logic is in `punch_core`.
 
+mod arm_sizing;
 mod convert;
 mod engine_io;
 mod punch_character;

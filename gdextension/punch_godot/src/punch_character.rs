@@ -3,7 +3,7 @@
 //! reads and drives its bodies for `PunchController` with the same core code the training server uses.
 
 use glam::Vec3;
-use godot::builtin::{Rid, Transform3D, Vector3};
+use godot::builtin::{Rid, Transform3D, Vector2, Vector3};
 use godot::classes::generic6_dof_joint_3d::{Flag, Param};
 use godot::classes::{
     Generic6DofJoint3D, INode3D, Node3D, PhysicsBody3D, PhysicsDirectBodyState3D, PhysicsServer3D, RigidBody3D,
@@ -11,10 +11,12 @@ use godot::classes::{
 use godot::global::godot_error;
 use godot::obj::{Base, EngineEnum, Gd, Singleton, WithBaseField};
 use godot::prelude::{GodotClass, godot_api};
+use punch_core::arm_size::{ARM_SCALE_RANGE, ArmLengths, ArmScale};
 use punch_core::character::{Axis, Body, JOINTS};
 use punch_core::sensing::{BodyState, CharacterGeometry, MAX_BAG_CONTACTS};
 
-use crate::convert::{quat, vec3};
+use crate::arm_sizing::{SceneArms, rebuild_joints};
+use crate::convert::{quat, vec3, vector3};
 use crate::engine_io::{character_geometry, drive_joints, joint_axis_settings};
 
 /// A physics-based upper-body character: pelvis fixed in place, a welded head-neck-chest torso, and two
@@ -25,6 +27,8 @@ use crate::engine_io::{character_geometry, drive_joints, joint_axis_settings};
 #[class(base = Node3D, init)]
 pub struct PunchCharacter {
     rig: Option<Rig>,
+    /// The arms as the scene had them, captured at the first `size_arms`.
+    scene_arms: Option<SceneArms>,
     base: Base<Node3D>,
 }
 
@@ -44,6 +48,8 @@ pub struct Rig {
     pub geometry: CharacterGeometry,
     /// Each body's rest transform relative to the character's root (`Body::ALL` order).
     rest_from_root: [Transform3D; 6],
+    /// The arms' lengths as the bodies and joints are now.
+    pub arm_lengths: ArmLengths,
 }
 
 impl Rig {
@@ -139,6 +145,69 @@ impl PunchCharacter {
         true
     }
 
+    /// Sizes the simulated arms to a character's: `upper_arm_m` from shoulder joint to elbow joint, `forearm_m`
+    /// from elbow joint to the fist's centre, `shoulder_width_m` between the two shoulder joints. The bodies,
+    /// shapes, fists and joints move (masses stay; inertia follows the length), always from the scene's own
+    /// proportions (upper arm 0.282 m, forearm 0.337 m, shoulders 0.36 m apart), and the character is reset to
+    /// its guard. The arm (shoulder to fist) must be 0.75 to 1.25 times the scene's and each length 0.65 to 1.35
+    /// times; outside that, or before the character is ready, one error says why, the arms keep their size and
+    /// this returns false. Call it between punches: `PunchSkeletonModifier` does, with `size_to_rig` on.
+    #[func]
+    fn size_arms(&mut self, upper_arm_m: f32, forearm_m: f32, shoulder_width_m: f32) -> bool {
+        let wanted = ArmLengths { upper_arm_m, forearm_m, shoulder_width_m };
+        match self.try_size_arms(wanted) {
+            Ok(()) => true,
+            Err(error) => {
+                godot_error!("PunchCharacter '{}': cannot size the arms: {error}", self.base().get_name());
+                false
+            }
+        }
+    }
+
+    /// The simulated arms' lengths now: (upper arm, elbow to fist centre, shoulder width), m.
+    #[func]
+    fn arm_lengths(&self) -> Vector3 {
+        let lengths = self.rig.as_ref().map(|rig| rig.arm_lengths).unwrap_or(ArmLengths {
+            upper_arm_m: 0.0,
+            forearm_m: 0.0,
+            shoulder_width_m: 0.0,
+        });
+        Vector3::new(lengths.upper_arm_m, lengths.forearm_m, lengths.shoulder_width_m)
+    }
+
+    /// The arm lengths' accepted range for `size_arms` (shoulder to fist centre), as fractions of the scene's.
+    #[func]
+    fn arm_scale_range() -> Vector2 {
+        Vector2::new(ARM_SCALE_RANGE.0, ARM_SCALE_RANGE.1)
+    }
+
+    fn try_size_arms(&mut self, wanted: ArmLengths) -> Result<(), String> {
+        let rig = self.rig.as_ref().ok_or("the character is not ready")?;
+        if self.scene_arms.is_none() {
+            let root = self.base().clone().upcast::<Node3D>();
+            self.scene_arms = Some(SceneArms::capture(&root, &rig.bodies, &rig.rest_from_root, &rig.geometry)?);
+        }
+        let scene = self.scene_arms.as_ref().ok_or("no scene arms")?;
+        let scale = ArmScale::between(scene.lengths, wanted).map_err(|e| e.to_string())?;
+        let root = self.base().get_global_transform();
+        // The torso and pelvis back at rest too: the joints are rebuilt from the bodies' places.
+        for i in [Body::Pelvis.index(), Body::Torso.index()] {
+            let mut body = rig.bodies[i].clone();
+            body.set_global_transform(root * rig.rest_from_root[i]);
+            if let Ok(mut rigid) = body.try_cast::<RigidBody3D>() {
+                rigid.set_linear_velocity(Vector3::ZERO);
+                rigid.set_angular_velocity(Vector3::ZERO);
+            }
+        }
+        scene.apply(root, scale);
+        rebuild_joints(&self.base().clone().upcast::<Node3D>())?;
+        self.rig = Some(self.set_up()?);
+        if let Some(rig) = self.rig.as_ref() {
+            rig.drive(&[Vec3::ZERO; 5]);
+        }
+        Ok(())
+    }
+
     pub fn rig(&self) -> Option<&Rig> {
         self.rig.as_ref()
     }
@@ -184,7 +253,15 @@ impl PunchCharacter {
         let joint_transforms: [Transform3D; 5] = std::array::from_fn(|j| joints[j].get_global_transform());
         let root_inverse = base.get_global_transform().affine_inverse();
         let geometry = character_geometry(&base, &body_transforms, &joint_transforms, base.get_global_transform())?;
+        let at = |j: usize| vec3(joint_transforms[j].origin);
+        let fist = vec3(body_transforms[Body::ForearmR.index()] * vector3(geometry.fist_offsets[0]));
+        let arm_lengths = ArmLengths {
+            upper_arm_m: at(2).distance(at(1)),
+            forearm_m: fist.distance(at(2)),
+            shoulder_width_m: at(1).distance(at(3)),
+        };
         Ok(Rig {
+            arm_lengths,
             rigid: std::array::from_fn(|i| bodies[i].clone().try_cast::<RigidBody3D>().ok()),
             joint_rids: std::array::from_fn(|j| joints[j].get_rid()),
             body_rids: std::array::from_fn(|i| bodies[i].get_rid()),

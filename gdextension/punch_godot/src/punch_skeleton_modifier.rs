@@ -36,11 +36,12 @@ use godot::builtin::{Basis, GString, PackedStringArray, Quaternion, Transform3D,
 use godot::classes::skeleton_3d::ModifierCallbackModeProcess;
 use godot::classes::{Engine, ISkeletonModifier3D, Node3D, Skeleton3D, SkeletonModifier3D};
 use godot::global::godot_error;
+use godot::meta::ToGodot;
 use godot::obj::{Base, Gd, InstanceId, Singleton, WithBaseField};
 use godot::prelude::{GodotClass, godot_api};
 use punch_core::bone_map::{BoneMap, Role, map_bones_with};
 use punch_core::character::Body;
-use punch_core::skeleton_pose::{Blend, BodyFrames, BodyRotations, SkeletonPoser};
+use punch_core::skeleton_pose::{Blend, BodyFrames, BodyRotations, SkeletonPoser, rig_arm_lengths};
 
 use crate::convert::{quat, vec3, vector3};
 use crate::punch_character::PunchCharacter;
@@ -95,6 +96,13 @@ pub struct PunchSkeletonModifier {
     #[export]
     #[init(val = true)]
     follow_rig: bool,
+    /// Size the simulated arms to the rig's (upper arm, forearm to the middle of the hand, shoulder width), so the
+    /// skeleton's fists land where the simulated ones do: `PunchCharacter.size_arms`, once, before the first
+    /// punch. A rig whose arm is outside 0.75 to 1.25 times the simulated one (shoulder to fist 0.619 m) gets one
+    /// error and punches with the simulated body's own arms.
+    #[export]
+    #[init(val = true)]
+    size_to_rig: bool,
     /// Show the simulated body's capsules (for debugging); hidden otherwise. Physics is the same either way.
     #[export]
     #[var(set = set_show_simulated_body)]
@@ -106,6 +114,8 @@ pub struct PunchSkeletonModifier {
     problem: Option<String>,
     /// The poser for the character it was made for.
     poser: Option<(InstanceId, SkeletonPoser, [Gd<Node3D>; 5])>,
+    /// The character whose arms were sized to this rig (tried once: a refusal is logged once).
+    sized_for: Option<InstanceId>,
     /// The shoulder joints in the upper arms' frames ([right, left]), where the simulated shoulders are.
     shoulder_anchors: [Vec3; 2],
     blend: Blend,
@@ -149,6 +159,7 @@ impl ISkeletonModifier3D for PunchSkeletonModifier {
     fn skeleton_changed(&mut self, _old: Option<Gd<Skeleton3D>>, _new: Option<Gd<Skeleton3D>>) {
         self.mapped = None;
         self.poser = None;
+        self.sized_for = None;
         self.problem = None;
         self.ensure_mapped();
     }
@@ -165,6 +176,7 @@ impl PunchSkeletonModifier {
         self.bone_map = bone_map;
         self.mapped = None;
         self.poser = None;
+        self.sized_for = None;
         self.problem = None;
         if self.base().is_inside_tree() {
             self.ensure_mapped();
@@ -183,6 +195,7 @@ impl PunchSkeletonModifier {
     fn remap(&mut self) -> bool {
         self.mapped = None;
         self.poser = None;
+        self.sized_for = None;
         self.problem = None;
         self.ensure_mapped()
     }
@@ -274,6 +287,7 @@ impl PunchSkeletonModifier {
             return false;
         }
         self.poser = None;
+        self.sized_for = None;
         match self.read_skeleton(&skeleton) {
             Ok(mapped) => {
                 let mut filled = VarDictionary::new();
@@ -338,12 +352,30 @@ impl PunchSkeletonModifier {
         }
     }
 
-    /// Makes the poser for `character` (its rest geometry must be read: the character is ready).
-    fn ensure_poser(&mut self, character: &Gd<PunchCharacter>) -> Result<(), String> {
-        if self.poser.as_ref().is_some_and(|(id, ..)| *id == character.instance_id()) {
+    /// Makes the poser for `character` (its rest geometry must be read: the character is ready), first sizing
+    /// its arms to the rig's when `size_to_rig` is on (which resets its pose: never while it punches; a poser
+    /// made during a punch is made again, sized, at the first frame the character is idle).
+    fn ensure_poser(&mut self, character: &Gd<PunchCharacter>, busy: bool) -> Result<(), String> {
+        let id = character.instance_id();
+        let needs_sizing = self.size_to_rig && self.sized_for != Some(id);
+        if self.poser.as_ref().is_some_and(|(poser_for, ..)| *poser_for == id) && (busy || !needs_sizing) {
             return Ok(());
         }
         let mapped = self.mapped.as_ref().ok_or("the skeleton is not mapped")?;
+        if needs_sizing && !busy {
+            self.sized_for = Some(id);
+            let scale = self.base().get_skeleton().map_or(1.0, |s| s.get_global_transform().basis.get_scale().y);
+            let lengths = rig_arm_lengths(&mapped.map, &mapped.parents, &mapped.rest, scale);
+            // Called, not bound; on failure the character says why (one error) and keeps its arms.
+            character.clone().call(
+                "size_arms",
+                &[
+                    lengths.upper_arm_m.to_variant(),
+                    lengths.forearm_m.to_variant(),
+                    lengths.shoulder_width_m.to_variant(),
+                ],
+            );
+        }
         let root = character.get_global_transform();
         let (geometry, bodies) = {
             let bound = character.bind();
@@ -385,7 +417,12 @@ impl PunchSkeletonModifier {
         if character.bind().rig().is_none() {
             return false;
         }
-        if let Err(problem) = self.ensure_poser(&character) {
+        // Called, not bound: a pass may run while the controller is bound (a signal handler moving a node).
+        let mut controller = controller.upcast::<godot::classes::Object>();
+        let punching = controller.call("is_punching", &[]).try_to::<bool>().unwrap_or(false);
+        let recovering = controller.call("is_recovering", &[]).try_to::<bool>().unwrap_or(false);
+        let busy = punching || recovering;
+        if let Err(problem) = self.ensure_poser(&character, busy) {
             if self.problem.is_none() {
                 godot_error!("PunchSkeletonModifier '{}': {problem}. The skeleton keeps its animation.", self.name());
                 self.problem = Some(problem);
@@ -393,11 +430,6 @@ impl PunchSkeletonModifier {
             }
             return false;
         }
-        // Called, not bound: a pass may run while the controller is bound (a signal handler moving a node).
-        let mut controller = controller.upcast::<godot::classes::Object>();
-        let punching = controller.call("is_punching", &[]).try_to::<bool>().unwrap_or(false);
-        let recovering = controller.call("is_recovering", &[]).try_to::<bool>().unwrap_or(false);
-        let busy = punching || recovering;
         let active = busy || self.guard_source == GUARD_FROM_CONTROLLER;
         let weight = self.blend.advance(active, delta_s, self.blend_in_s, self.blend_out_s);
         let skeleton_global = skeleton.get_global_transform();
