@@ -166,3 +166,19 @@ def test_the_cc0_characters_are_sized_and_their_visible_fists_land_within_3_cm(c
             assert rig["max_gap_full_m"] <= 0.03, (name, rig["max_gap_full_m"])
         else:
             assert rig["arm_lengths_m"] == pytest.approx(SCENE_ARMS, abs=0.002), name
+
+
+def test_the_own_character_demo_punches_the_bag_and_spars():
+    """godot_project/demo/own_character.tscn: two converted CC0 characters (1.90 m Mixamo, 1.60 m Unreal), sized
+    and driven through their skeletons, punch the bag and each other."""
+    make_characters(DEFAULT_OUT)
+    run = run_godot(["--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), "res://demo/own_character.tscn",
+                     "--", "--punches=6"], check=False, timeout_s=120)
+    assert "ERROR" not in run.log, run.log[-3000:]
+    line = next(line for line in run.log.splitlines() if line.startswith("OWN_CHARACTER "))
+    fighters = json.loads(line[len("OWN_CHARACTER "):])
+    print(fighters)
+    assert [f["name"] for f in fighters] == ["mixamo_190", "unreal_160"] and all(f["mapped"] for f in fighters)
+    assert fighters[0]["hits_on_bag"] >= 1 and fighters[1]["hits_on_opponent"] >= 1, fighters
+    rate = json.loads(next(line for line in run.log.splitlines() if line.startswith("HIT_RATE "))[len("HIT_RATE "):])
+    assert rate["punches"] == 6 and rate["rate"] >= 5 / 6, rate
