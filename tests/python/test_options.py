@@ -64,6 +64,9 @@ def test_every_numeric_option_has_bounds():
     (["search", "--time-budget-s", "nan"], "--time-budget-s nan: must be a finite number"),
     (["train", "--default-share", "2"], "--default-share 2.0: must be at least 0, at most 1"),
     (["train", "--a2c-characters", "100000"], "--a2c-characters 100000: must be at least 1, at most 4096"),
+    (["train", "--grid", "1000000,1000,1000"], "--grid 1000000: must be at least 1, at most 50"),
+    (["train", "--grid", "0,3,3"], "--grid 0: must be at least 1"),
+    (["train", "--grid", "3,3"], "--grid '3,3': must be three whole numbers"),
     (["selfcheck", "--batch", "0"], "--batch 0: must be at least 1"),
     (["bench", "env", "--characters", "1", "0"], "--characters 0: must be at least 1"),
 ])
@@ -73,6 +76,20 @@ def test_bad_options_are_one_punch_line_before_any_work(capsys, arguments, messa
     err = capsys.readouterr().err
     assert err.startswith("punch: ") and err.count("\n") == 1 and message in err, err
     assert time.monotonic() - started < 10  # refused at once: no Godot was started
+
+
+def test_a_grid_of_no_sense_in_a_runs_config_is_refused_before_any_work(tmp_path, capsys):
+    """`punch train --resume` reads --grid back from config.json: checked as on the command line (a tampered
+    10^12-placement grid was found out only after the first search, as a MemoryError traceback)."""
+    from punch_trainer.learn.checkpoint import write_config
+    from punch_trainer.pipelines.train import TrainArgs
+
+    write_config(tmp_path, TrainArgs(out=tmp_path, grid="1000000,1000,1000"))
+    started = time.monotonic()
+    assert cli_main.main(["train", "--resume", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("punch: ") and err.count("\n") == 1 and "grid 1000000: must be at least 1, at most 50" in err, err
+    assert time.monotonic() - started < 10
 
 
 @pytest.mark.parametrize("sigmas, message", [

@@ -165,3 +165,18 @@ def check_options(args: Any, source: str = "") -> None:
                 raise OptionError(f"{where} {item!r}: must be a path")
             elif typing.get_origin(kind) is typing.Literal and item not in typing.get_args(kind):
                 raise OptionError(f"{where} {item!r}: must be one of {', '.join(map(str, typing.get_args(kind)))}")
+        if field.name == "grid" and isinstance(value, str):
+            _check_grid_text(where, value, limits)
+
+
+def _check_grid_text(where: str, text: str, limits: Bounds | None) -> None:
+    """A grid written as text (`punch train --grid 3,3,3`): three whole counts, each within the grid's bounds
+    (a grid of 10^12 placements would otherwise be found out only after the first search, as a MemoryError)."""
+    try:
+        counts = [int(part) for part in text.split(",")]
+    except ValueError:
+        counts = []
+    if len(counts) != 3:
+        raise OptionError(f"{where} {text!r}: must be three whole numbers, distance,height,side")
+    for count in counts:
+        _check_number(where, count, int, limits, True)

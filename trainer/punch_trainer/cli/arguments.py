@@ -101,7 +101,7 @@ def add_dataclass_arguments(parser: argparse.ArgumentParser, args_type: type[Dat
             raise ArgumentsError(f"{args_type.__name__}.{field.name}: no command-line option for the type {hints[field.name]}")
         help_text = docs.get(field.name, "")
         limits = field_bounds(field)
-        if limits is not None and annotation is not str and typing.get_origin(annotation) is not typing.Literal:
+        if limits is not None and (annotation is not str or field.name == "grid") and typing.get_origin(annotation) is not typing.Literal:
             help_text += f" ({limits.describe(typing.get_origin(annotation) in (list, tuple))})"
         if field.name in default_notes:
             help_text += f" (default: {default_notes[field.name]})"
