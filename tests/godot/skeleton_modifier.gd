@@ -7,13 +7,14 @@
 ## the shipped straight policy (--policy=PATH, no noise). Glb files given with --glb=PATH (repeatable) are loaded
 ## with GLTFDocument and run alike.
 ##
-## Prints `SKELETON_MODIFIER <json>`: per rig its mapping, warnings, the fist gap (rig fist: the middle of the
-## hand bone, from its head to the mean of its children's; simulated: FistR) at the first hit and its largest while
-## fully blended, the simulated arms' lengths (sized to the rig) and the rig's own (measured here from its rest, the
-## same way: upper arm head to forearm head, forearm head to the middle of the hand, between the upper arms' heads; the
-## mean of both sides), the largest per-frame rotation of each written bone in the blend-in and blend-out windows,
-## of the animation alone and of the fully simulated pose, and the legs' largest difference from the twin. The
-## tiny rig's arms (0.6 of the simulated ones) are outside the range the simulated arms can be sized to.
+## Prints `SKELETON_MODIFIER <json>`: per rig its mapping, warnings, the fist gap (rig fist: the middle of the hand,
+## halfway from the hand bone's head to its knuckles; simulated: FistR) at the first hit and its largest while fully
+## blended, for a rig with a skinned mesh the gap of its skinned hand's centre at the first hit, the simulated arms'
+## lengths (sized to the rig) and the rig's own (measured here from its rest, the same way: upper arm head to
+## forearm head, forearm head to the middle of the hand, between the upper arms' heads; the mean of both sides), the
+## largest per-frame rotation of each written bone in the blend-in and blend-out windows, of the animation alone and
+## of the fully simulated pose, and the legs' largest difference from the twin. The tiny rig's arms (0.6 of the
+## simulated ones) are outside the range the simulated arms can be sized to.
 extends SceneTree
 
 ## name, naming, arm drop (deg: 0 T-pose), convention ("y" or "x"), arm scale, yaw (deg), position
@@ -101,7 +102,7 @@ func _add(name: String, rig: Node3D, twin: Node3D, yaw_deg: float, at: Vector3) 
 	skeleton.add_child(modifier)
 	var entry := {"name": name, "rig": rig, "skeleton": skeleton, "twin": twin_skeleton, "character": character,
 		"controller": controller, "modifier": modifier, "frames": [], "hit_gap_m": -1.0, "hits": 0,
-		"hit_pending": false}
+		"hit_pending": false, "skinned_hit_gap_m": -1.0, "hand_skin": {}}
 	controller.connect("hit", func(_impulse, _speed, _position, _body, _push):
 		entry.hits += 1
 		# The skeleton's pose is the modified one only while it updates: measured at its next update.
@@ -199,26 +200,110 @@ func _animate(rig: Node3D, skeleton: Skeleton3D) -> void:
 	player.play("idle")
 
 
+## The visible right fist now (global), for a rig with a skinned mesh: the centre of the skin bound mostly to the
+## right hand and the bones below it (palm and fingers), skinned on the CPU with Godot's formula (weighted bone
+## global pose * bind pose); INF for a rig without a skin.
+func _skinned_fist(entry: Dictionary) -> Vector3:
+	var skeleton: Skeleton3D = entry.skeleton
+	if entry.hand_skin.is_empty():
+		entry.hand_skin = _hand_skin(entry)
+	var hand_skin: Dictionary = entry.hand_skin
+	if not hand_skin.has("vertices"):
+		return Vector3.INF
+	var skin: Skin = hand_skin.skin
+	var matrices: Array[Transform3D] = []
+	for bind in skin.get_bind_count():
+		matrices.append(skeleton.get_bone_global_pose(hand_skin.bind_bones[bind]) * skin.get_bind_pose(bind))
+	var per_vertex: int = hand_skin.per_vertex
+	var vertices: PackedVector3Array = hand_skin.vertices
+	var bones: PackedInt32Array = hand_skin.bones
+	var weights: PackedFloat32Array = hand_skin.weights
+	var centre := Vector3.ZERO
+	for i in vertices.size():
+		var sum := Vector3.ZERO
+		for k in per_vertex:
+			var w := weights[i * per_vertex + k]
+			if w > 0.0:
+				sum += w * (matrices[bones[i * per_vertex + k]] * vertices[i])
+		centre += sum
+	return skeleton.global_transform * (centre / vertices.size())
+
+
+## The vertices of the rig's skinned mesh bound at least half to the right hand and the bones below it, with
+## their bones and weights; {} for a rig without a skinned mesh.
+func _hand_skin(entry: Dictionary) -> Dictionary:
+	var skeleton: Skeleton3D = entry.skeleton
+	var hand := skeleton.find_bone(entry.modifier.get("bone_map").get("hand_r", ""))
+	var meshes: Array = entry.rig.find_children("*", "MeshInstance3D", true, false)
+	if hand < 0 or meshes.is_empty() or meshes[0].skin == null:
+		return {"none": true}
+	var mesh_instance: MeshInstance3D = meshes[0]
+	var skin := mesh_instance.skin
+	var arrays := mesh_instance.mesh.surface_get_arrays(0)
+	var all_vertices: PackedVector3Array = arrays[Mesh.ARRAY_VERTEX]
+	var all_bones: PackedInt32Array = arrays[Mesh.ARRAY_BONES]
+	var all_weights: PackedFloat32Array = arrays[Mesh.ARRAY_WEIGHTS]
+	var per_vertex := all_bones.size() / all_vertices.size()
+	var bind_bones := []
+	var in_hand := []
+	for bind in skin.get_bind_count():
+		var bone := skin.get_bind_bone(bind)
+		bone = bone if bone >= 0 else skeleton.find_bone(skin.get_bind_name(bind))
+		bind_bones.append(bone)
+		var ancestor := bone
+		while ancestor >= 0 and ancestor != hand:
+			ancestor = skeleton.get_bone_parent(ancestor)
+		in_hand.append(ancestor == hand)
+	var found := {"skin": skin, "bind_bones": bind_bones, "per_vertex": per_vertex, "vertices": PackedVector3Array(),
+		"bones": PackedInt32Array(), "weights": PackedFloat32Array()}
+	for i in all_vertices.size():
+		var share := 0.0
+		for k in per_vertex:
+			if in_hand[all_bones[i * per_vertex + k]]:
+				share += all_weights[i * per_vertex + k]
+		if share >= 0.5:
+			found.vertices.append(all_vertices[i])
+			for k in per_vertex:
+				found.bones.append(all_bones[i * per_vertex + k])
+				found.weights.append(all_weights[i * per_vertex + k])
+	if found.vertices.is_empty():
+		return {"none": true}
+	return found
+
+
 ## The rig's right fist now (global): the middle of the bone the modifier maps as the right hand.
 func _hand_fist(skeleton: Skeleton3D, bone_map: Dictionary) -> Vector3:
 	var hand := skeleton.find_bone(bone_map.get("hand_r", ""))
 	if hand < 0:
 		return Vector3.INF
-	return skeleton.global_transform * _middle_of_hand(skeleton, hand, false)
+	var forearm := skeleton.find_bone(bone_map.get("forearm_r", ""))
+	return skeleton.global_transform * _middle_of_hand(skeleton, hand, forearm, false)
 
 
-## The middle of the hand (skeleton space, posed or at rest): halfway from its head to the mean of its children's
-## heads (the fingers' roots).
-func _middle_of_hand(skeleton: Skeleton3D, hand: int, rest: bool) -> Vector3:
+## The middle of the hand (skeleton space, posed or at rest): halfway from its head to its knuckles, the mean of
+## its fingers' roots: its children's heads, or for a child within a fifth of the forearm (from the `forearm` bone's
+## head to the wrist) of the wrist (a metacarpal), the mean of that child's children's; with no children, a quarter
+## of the forearm on.
+func _middle_of_hand(skeleton: Skeleton3D, hand: int, forearm_bone: int, rest: bool) -> Vector3:
 	var at := func(bone: int) -> Vector3:
 		return skeleton.get_bone_global_rest(bone).origin if rest else skeleton.get_bone_global_pose(bone).origin
 	var head: Vector3 = at.call(hand)
-	var tips := Vector3.ZERO
+	var forearm: Vector3 = at.call(forearm_bone)
+	var near := 0.2 * head.distance_to(forearm)
+	var knuckles := Vector3.ZERO
 	var children := skeleton.get_bone_children(hand)
 	for child in children:
-		tips += at.call(child)
-	var tail := tips / children.size() if children.size() > 0 else head
-	return 0.5 * (head + tail)
+		var below := skeleton.get_bone_children(child)
+		if at.call(child).distance_to(head) < near and below.size() > 0:
+			var mean := Vector3.ZERO
+			for b in below:
+				mean += at.call(b)
+			knuckles += mean / below.size()
+		else:
+			knuckles += at.call(child)
+	if children.is_empty():
+		return head + 0.25 * (head - forearm)
+	return head + 0.5 * (knuckles / children.size() - head)
 
 
 ## The rig's arm lengths at rest, m: [upper arm, forearm to the middle of the hand, shoulder width].
@@ -231,7 +316,8 @@ func _rig_arm_lengths(skeleton: Skeleton3D, bone_map: Dictionary) -> Array:
 	for side in ["r", "l"]:
 		upper += 0.5 * at.call("upper_arm_" + side).distance_to(at.call("forearm_" + side))
 		var hand := skeleton.find_bone(bone_map["hand_" + side])
-		fore += 0.5 * at.call("forearm_" + side).distance_to(_middle_of_hand(skeleton, hand, true))
+		var forearm := skeleton.find_bone(bone_map["forearm_" + side])
+		fore += 0.5 * at.call("forearm_" + side).distance_to(_middle_of_hand(skeleton, hand, forearm, true))
 	var width: float = at.call("upper_arm_r").distance_to(at.call("upper_arm_l"))
 	return [scale * upper, scale * fore, scale * width]
 
@@ -257,6 +343,10 @@ func _record(entry: Dictionary) -> void:
 		"locals": locals, "twin_locals": twin_locals, "gap": _fist_gap(entry)})
 	if entry.hit_pending:
 		entry.hit_gap_m = _fist_gap(entry)
+		var skinned := _skinned_fist(entry)
+		if skinned != Vector3.INF:
+			var fist: Node3D = entry.character.get_node("ForearmR/FistR")
+			entry.skinned_hit_gap_m = skinned.distance_to(fist.global_position)
 		entry.hit_pending = false
 
 
@@ -338,6 +428,7 @@ func _summary(entry: Dictionary) -> Dictionary:
 	return {"name": entry.name, "mapped": modifier.call("is_mapped"), "bone_map": modifier.get("bone_map"),
 		"written": written, "warnings": Array(modifier.call("configuration_warnings")),
 		"problem": modifier.call("mapping_problem"), "hits": entry.hits, "hit_gap_m": entry.hit_gap_m,
+		"skinned_hit_gap_m": entry.skinned_hit_gap_m,
 		"max_gap_full_m": max_gap_full, "jumps_rad": jumps, "worst_bone": worst_bone, "blend_frames": blend_frames,
 		"untouched_max_rad": untouched, "frames": frames.size(), "pose_gap_rad": pose_gap, "gaps": gaps,
 		"arm_lengths_m": _array(entry.character.call("arm_lengths")),

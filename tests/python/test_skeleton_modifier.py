@@ -35,7 +35,8 @@ def run_scene(*args: str) -> list[dict]:
               f"{jumps['blend_in'] * 57.3:.1f} blend-out {jumps['blend_out'] * 57.3:.1f} animation "
               f"{jumps['animation'] * 57.3:.1f} simulated {jumps['simulated'] * 57.3:.1f}; unwritten bones off the "
               f"animation by {rig['untouched_max_rad']:.1e} rad; arms (upper, fore, shoulders) simulated "
-              f"{fmt(rig['arm_lengths_m'])} rig {fmt(rig['rig_arm_lengths_m'])} m")
+              f"{fmt(rig['arm_lengths_m'])} rig {fmt(rig['rig_arm_lengths_m'])} m"
+              + (f"; skinned hand at the hit {100 * rig['skinned_hit_gap_m']:.1f} cm off" if rig["skinned_hit_gap_m"] >= 0 else ""))
     # One error per rig whose bones cannot be mapped and per rig whose arms are outside the range the simulated
     # ones can be sized to (saying so), and nothing else.
     errors = [line for line in run.log.splitlines() if "ERROR" in line]
@@ -156,7 +157,7 @@ def test_the_cc0_characters_are_sized_and_their_visible_fists_land_within_3_cm(c
     each one whose arms are within the range gets them, and its fist lands within 3 cm of the simulated fist at
     the hit; one outside keeps the simulated body's own arms (its error is counted in run_scene)."""
     sized = [name for name, rig in characters.items() if in_range(rig)]
-    assert {"mixamo_160", "unreal_160", "mixamo_190", "unreal_190", "unreal_long_arms_175"} <= set(sized), sized
+    assert sized == list(characters), sized  # all of them: 1.60 m ones have arms 0.78 of the simulated ones
     for name, rig in characters.items():
         assert rig["mapped"] and rig["hits"] >= 1, name
         assert rig["untouched_max_rad"] < 1e-5, name
@@ -166,6 +167,16 @@ def test_the_cc0_characters_are_sized_and_their_visible_fists_land_within_3_cm(c
             assert rig["max_gap_full_m"] <= 0.03, (name, rig["max_gap_full_m"])
         else:
             assert rig["arm_lengths_m"] == pytest.approx(SCENE_ARMS, abs=0.002), name
+
+
+@pytest.mark.xfail(strict=True, reason="the skinned hand is open (its fingers are not curled into a fist), so the centre "
+                   "of its skin lies 7-10 cm beyond the middle of the hand (wrist to knuckles), which is what lands on the simulated fist")
+def test_the_skinned_hand_of_the_cc0_characters_lands_within_3_cm_of_the_simulated_fist(characters):
+    """The visible fist as the skin shows it: the centre of the vertices bound mostly to the right hand and the
+    bones below it, skinned on the CPU at the hit (tests/godot/skeleton_modifier.gd)."""
+    for name, rig in characters.items():
+        if in_range(rig):
+            assert 0.0 <= rig["skinned_hit_gap_m"] <= 0.03, (name, rig["skinned_hit_gap_m"])
 
 
 def test_the_own_character_demo_punches_the_bag_and_spars():

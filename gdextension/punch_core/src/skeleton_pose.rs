@@ -208,7 +208,12 @@ impl SkeletonPoser {
             let arm = map.arm(side);
             let what = |part: &str| format!("the {side:?} {part} has no length (its child sits on it)");
             let f_u = frame_or(pos(arm.forearm) - pos(arm.upper_arm), front, -up, &what("upper arm"))?;
-            let f_f = frame_or(rig_fist(parents, rest, arm.hand) - pos(arm.forearm), front, -up, &what("forearm"))?;
+            let f_f = frame_or(
+                rig_fist(parents, rest, arm.hand, arm.forearm) - pos(arm.forearm),
+                front,
+                -up,
+                &what("forearm"),
+            )?;
             upper_offset[i] = f_u.inverse() * rot(arm.upper_arm);
             fore_offset[i] = f_f.inverse() * rot(arm.forearm);
         }
@@ -384,22 +389,35 @@ impl SkeletonPoser {
     }
 }
 
-/// The rig's fist centre at rest (skeleton space): the middle of the hand, halfway from the hand bone's head to
-/// the mean of its children's heads (the fingers' roots), or a quarter of a forearm on past the wrist for a
-/// hand without children. The forearm's rest direction is taken toward it, so the visible fist lies on the line
-/// of the simulated forearm even when the rig's hand is bent at rest.
-pub fn rig_fist(parents: &[i32], rest: &[(Quat, Vec3)], hand: usize) -> Vec3 {
+/// The rig's fist centre at rest (skeleton space): halfway from the hand bone's head (the wrist) to its knuckles,
+/// the mean of its fingers' roots. A finger root is a child of the hand, or, for a child that starts within a fifth
+/// of the forearm bone's head from the wrist (a metacarpal or a finger base, as MakeHuman and CMU rigs have), the
+/// mean of that child's children. A hand without children: a quarter of that forearm on past the wrist. The forearm's rest
+/// direction is taken toward it, so the visible fist lies on the line of the simulated forearm even when the
+/// rig's hand is bent at rest.
+pub fn rig_fist(parents: &[i32], rest: &[(Quat, Vec3)], hand: usize, forearm: usize) -> Vec3 {
     let head = rest[hand].1;
-    let (sum, count) = parents
-        .iter()
-        .enumerate()
-        .filter(|(_, p)| usize::try_from(**p).ok() == Some(hand))
-        .fold((Vec3::ZERO, 0), |(sum, n), (child, _)| (sum + rest[child].1, n + 1));
-    if count > 0 {
-        return head + 0.5 * (sum / count as f32 - head);
+    let forearm = rest[forearm].1;
+    let near_m = 0.2 * head.distance(forearm);
+    let children = |bone: usize| -> Vec<usize> {
+        parents.iter().enumerate().filter(|(_, p)| usize::try_from(**p).ok() == Some(bone)).map(|(b, _)| b).collect()
+    };
+    let roots: Vec<Vec3> = children(hand)
+        .into_iter()
+        .map(|child| {
+            let below = children(child);
+            if rest[child].1.distance(head) < near_m && !below.is_empty() {
+                below.iter().map(|&b| rest[b].1).sum::<Vec3>() / below.len() as f32
+            } else {
+                rest[child].1
+            }
+        })
+        .collect();
+    if roots.is_empty() {
+        return head + 0.25 * (head - forearm);
     }
-    let forearm = usize::try_from(parents[hand]).ok().map_or(head, |p| rest[p].1);
-    head + 0.25 * (head - forearm)
+    let knuckles = roots.iter().sum::<Vec3>() / roots.len() as f32;
+    head + 0.5 * (knuckles - head)
 }
 
 /// The rig's arm proportions at rest (the mean of its two sides, in the skeleton's units times `scale`): upper
@@ -410,7 +428,9 @@ pub fn rig_arm_lengths(map: &BoneMap, parents: &[i32], rest: &[(Quat, Vec3)], sc
     let mean = |f: &dyn Fn(Side) -> f32| 0.5 * (f(Side::Right) + f(Side::Left)) * scale;
     ArmLengths {
         upper_arm_m: mean(&|s| pos(map.arm(s).forearm).distance(pos(map.arm(s).upper_arm))),
-        forearm_m: mean(&|s| rig_fist(parents, rest, map.arm(s).hand).distance(pos(map.arm(s).forearm))),
+        forearm_m: mean(&|s| {
+            rig_fist(parents, rest, map.arm(s).hand, map.arm(s).forearm).distance(pos(map.arm(s).forearm))
+        }),
         shoulder_width_m: scale * pos(map.right.upper_arm).distance(pos(map.left.upper_arm)),
     }
 }
