@@ -47,6 +47,17 @@ def test_every_numeric_option_has_bounds():
     assert not missing, f"numeric options without bounds (punch_trainer/options.py): {missing}"
 
 
+
+def test_an_option_whose_help_gives_0_a_meaning_accepts_0():
+    """`--search-iterations 0` of punch eval means no search (its help says so): its bounds may not refuse it."""
+    from punch_trainer.cli.arguments import field_docs
+
+    refused = [f"{args_type.__name__}.{field.name}" for args_type in all_args_types() for field in dataclasses.fields(args_type)
+               if "(0: " in field_docs(args_type).get(field.name, "") and (bounds := field_bounds(field)) is not None
+               and bounds.refuses(0)]
+    assert not refused, f"options whose help gives 0 a meaning, and whose bounds refuse it: {refused}"
+
+
 @pytest.mark.parametrize("arguments, message", [
     (["eval", "--policy", POLICY, "--sigmas", "inf"], "--sigmas inf: must be a finite number"),
     (["eval", "--policy", POLICY, "--sigmas", "5"], "--sigmas 5.0: must be at least 0, at most 1"),

@@ -36,6 +36,7 @@ import numpy as np
 from punch_trainer.learn.reach import HELD_OUT_SEED, ReachVolume
 from punch_trainer.learn.search import SearchArgs, placement_search
 from punch_trainer.learn.volume import success
+from punch_trainer.options import bounds
 from punch_trainer.pipelines.replay import ReplayArgs, ReplayError, analyse_sigma, policy_metadata, run_godot_replay
 from punch_trainer.report.mocap import DEFAULT_BVH
 from punch_trainer.report.naturalness import (
@@ -69,7 +70,7 @@ class EvalArgs:
     """noise sigmas (a,b,c or start:stop:step)"""
     noisy_episodes: int = 2
     """punches per placement at each sigma > 0 (sigma 0: one)"""
-    search_iterations: int = 20
+    search_iterations: int = field(default=20, metadata=bounds(0, 100_000))
     """iterations of the per-placement search (0: no search; fractions of the best are then left out)"""
     out: Path | None = None
     """output directory (default: next to the policy, eval_<time>)"""
