@@ -70,3 +70,26 @@ def test_the_diagnostics_go_into_the_metrics_file_and_the_plot(tmp_path):
     assert rows[0]["policy_loss"] == "" and float(rows[2]["value_loss"]) == 1.0
     assert float(rows[3]["reward/forward"]) == history[3]["reward/forward"] and rows[3]["reward/sideways"] == "0.1"
     assert [p.name for p in plots] == ["a2c_diagnostics.png"] and plots[0].stat().st_size > 10_000
+
+
+def test_a_style_caps_the_sampling_sigma_of_the_guard_where_it_narrows_the_search():
+    """Noise on the guard arm alone costs a styled punch all it earns, so A2C samples there no wider than the
+    style's search does, the sigma floor included; without a style nothing is capped."""
+    from dataclasses import replace
+
+    from punch_trainer.learn.a2c import style_sigma_cap
+    from punch_trainer.learn.policy import ActorCritic
+    from punch_trainer.sim.rewards import load_reward
+    from punch_trainer.sim.style import style_named
+
+    model = ActorCritic(45, 10, seed=0)
+    obs = torch.zeros(3, 45)
+    plain = load_reward("straight")
+    styled = replace(plain, style=style_named("boxing"))
+    assert style_sigma_cap(plain, 10) is None
+    cap = style_sigma_cap(styled, 10)
+    sigma = model.distribution(obs, 0.2, cap).stddev
+    expected = torch.tensor(styled.style.search_sigma).clamp(max=1.0).minimum(model(obs)[1].clamp(min=0.2))
+    assert torch.allclose(sigma, expected.expand_as(sigma))
+    assert torch.all(sigma[:, 6:] == 0.05) and torch.all(sigma[:, 0] == 0.1)  # the guard arm, the waist's flexion
+    assert torch.all(model.distribution(obs, 0.2).stddev >= 0.2)

@@ -52,7 +52,9 @@ class A2CArgs:
     smoothing_window: int = 3
     sigma_floor: float = 0.0
     """the least sigma actions are sampled with, in collection and in the update: keeps exploring and
-    keeps the policy seeing (and correcting) noisy decisions after its learned sigma has shrunk"""
+    keeps the policy seeing (and correcting) noisy decisions after its learned sigma has shrunk. A reward's
+    style caps it where the style narrows the search (sim/style.py: the guard arm and the waist's flexion),
+    since noise there alone costs a styled punch everything it earns."""
     time_budget_s: float | None = None
     seed: int = 0
 
@@ -94,6 +96,14 @@ class EpisodeBatch:
         return self.rewards.sum(0)
 
 
+def style_sigma_cap(reward: Reward, action_size: int) -> torch.Tensor | None:
+    """The largest sigma A2C samples each degree of freedom with under the reward's style (the search's cap),
+    or None without a style."""
+    if reward.style is None:
+        return None
+    return torch.as_tensor(reward.style.search_sigma_cap(action_size), dtype=torch.float32)
+
+
 def collect_episodes(model: ActorCritic, env: PunchVectorEnv, reward: Reward,
                      options: EpisodeStart | None = None, sigma_floor: float = 0.0) -> EpisodeBatch:
     """One episode on every character with actions sampled from the policy (reset with `options`: bag
@@ -107,10 +117,11 @@ def collect_episodes(model: ActorCritic, env: PunchVectorEnv, reward: Reward,
     term_rewards: dict[str, list[torch.Tensor]] = {}
     done = np.zeros(env.num_envs, dtype=bool)
     scorer = EpisodeScorer(reward, env.feature_names)
+    cap = style_sigma_cap(reward, env.info.action_size)
     while not done.all():
         obs_t = torch.as_tensor(obs)
         with torch.no_grad():
-            dist = model.distribution(obs_t, sigma_floor)
+            dist = model.distribution(obs_t, sigma_floor, cap)
             action = dist.sample()
             logp = dist.log_prob(action).sum(-1)
             value = model.value(obs_t)
@@ -236,7 +247,7 @@ def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVecto
         b_adv = (b_adv - b_adv.mean()) / (b_adv.std() + 1e-8)
         per_epoch: dict[str, list[float]] = {"policy_loss": [], "value_loss": [], "entropy": [], "sigma_mean": []}
         for _ in range(args.epochs):
-            dist = model.distribution(b_obs, args.sigma_floor)
+            dist = model.distribution(b_obs, args.sigma_floor, style_sigma_cap(reward, b_actions.shape[-1]))
             ratio = torch.exp(dist.log_prob(b_actions).sum(-1) - b_logp)
             policy_loss = -torch.min(ratio * b_adv, torch.clamp(ratio, 1 - args.clip, 1 + args.clip) * b_adv).mean()
             value_loss = ((model.value(b_obs) - b_returns) ** 2).mean()

@@ -52,11 +52,15 @@ class ActorCritic(nn.Module):
         value: torch.Tensor = self.critic(self.normalize(obs)).squeeze(-1)
         return value
 
-    def distribution(self, obs: torch.Tensor, sigma_floor: float = 0.0) -> torch.distributions.Normal:
+    def distribution(self, obs: torch.Tensor, sigma_floor: float = 0.0,
+                     sigma_cap: torch.Tensor | None = None) -> torch.distributions.Normal:
         """The action distribution; `sigma_floor` keeps its sigma from shrinking below that value (training
-        noise the policy must learn to recover from; the exported sigma head is unchanged)."""
+        noise the policy must learn to recover from; the exported sigma head is unchanged), and `sigma_cap`
+        [act_dim], where given, holds each degree of freedom's sigma at most there (a style's narrow guard),
+        the floor included."""
         mean, sigma = self(obs)
-        return torch.distributions.Normal(mean, sigma.clamp(min=sigma_floor))
+        sigma = sigma.clamp(min=sigma_floor)
+        return torch.distributions.Normal(mean, sigma if sigma_cap is None else torch.minimum(sigma, sigma_cap))
 
 
 class Actor(nn.Module):
