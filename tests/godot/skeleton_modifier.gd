@@ -25,6 +25,7 @@ const RIGS := [
 	["mixamo_a_y_long", "mixamo", 40.0, "y", 1.15, 30.0, Vector3(30, 0, 0)],
 	["unreal_t_y_short", "unreal", 0.0, "y", 0.85, 0.0, Vector3(40, 0, 0)],
 	["profile_a_y_tiny", "profile", 30.0, "y", 0.6, 60.0, Vector3(60, 0, 0)],
+	["mixamo_a_x_cm", "mixamo", 35.0, "x", 1.1, -60.0, Vector3(70, 0, 0)],
 	["unmapped", "numbered", 0.0, "y", 1.0, 0.0, Vector3(50, 0, 0)],
 ]
 const NAMES := {
@@ -59,8 +60,9 @@ func _initialize() -> void:
 		elif argument.begins_with("--glb="):
 			glbs.append(argument.trim_prefix("--glb="))
 	for spec in RIGS:
-		var rig := _build_rig(spec[1], spec[2], spec[3], spec[4])
-		var twin := _build_rig(spec[1], spec[2], spec[3], spec[4])
+		var units := 100.0 if spec[0].ends_with("_cm") else 1.0
+		var rig := _build_rig(spec[1], spec[2], spec[3], spec[4], units)
+		var twin := _build_rig(spec[1], spec[2], spec[3], spec[4], units)
 		_add(spec[0], rig, twin, spec[5], spec[6])
 	var index := 0
 	for path in glbs:
@@ -113,7 +115,8 @@ func _add(name: String, rig: Node3D, twin: Node3D, yaw_deg: float, at: Vector3) 
 
 ## Global rest transforms for a humanoid facing +Z (+X its left), arms scaled by `arm_scale`, in a T-pose or
 ## with arms `drop_deg` below horizontal.
-func _build_rig(naming: String, drop_deg: float, convention: String, arm_scale: float) -> Node3D:
+## `units` per metre: a rig in centimetres (100) sits under an Armature node scaled by 0.01, as FBX imports do.
+func _build_rig(naming: String, drop_deg: float, convention: String, arm_scale: float, units: float) -> Node3D:
 	var bones: Array = []  # [name, parent index, global position]
 	var numbered := naming == "numbered"
 	if numbered:
@@ -156,7 +159,7 @@ func _build_rig(naming: String, drop_deg: float, convention: String, arm_scale: 
 			(bones[i][2] - bones[bones[i][1]][2]).normalized()
 		var axis := Vector3.UP if convention == "y" else Vector3.RIGHT
 		var basis := Basis(Quaternion(toward, 0.4 + 0.7 * i) * Quaternion(axis, toward))
-		globals.append(Transform3D(basis, bones[i][2]))
+		globals.append(Transform3D(basis, units * bones[i][2]))
 		skeleton.add_bone(("Bone%d" % i) if numbered else bones[i][0])
 	for i in bones.size():
 		skeleton.set_bone_parent(i, bones[i][1])
@@ -164,7 +167,11 @@ func _build_rig(naming: String, drop_deg: float, convention: String, arm_scale: 
 		skeleton.set_bone_rest(i, parent.affine_inverse() * globals[i])
 	skeleton.reset_bone_poses()
 	var rig := Node3D.new()
-	rig.add_child(skeleton)
+	var armature := Node3D.new()
+	armature.name = "Armature"
+	armature.scale = Vector3.ONE / units
+	rig.add_child(armature)
+	armature.add_child(skeleton)
 	return rig
 
 

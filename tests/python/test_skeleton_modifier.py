@@ -73,7 +73,7 @@ def characters() -> dict[str, dict]:
     return {rig["name"]: rig for rig in report if rig["name"] in names}
 
 
-MAPPED = ["mixamo_t_y", "unreal_a_x", "profile_t_x", "mixamo_a_y_long", "unreal_t_y_short"]
+MAPPED = ["mixamo_t_y", "unreal_a_x", "profile_t_x", "mixamo_a_y_long", "unreal_t_y_short", "mixamo_a_x_cm"]
 
 
 def test_every_naming_is_mapped_without_hand_work(rigs):

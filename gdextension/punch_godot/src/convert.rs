@@ -1,7 +1,7 @@
 //! Conversions between Godot's math types and glam (the core's).
 
-use glam::{Quat, Vec3};
-use godot::builtin::{Quaternion, Vector3, Vector3Axis};
+use glam::{Mat3, Quat, Vec3};
+use godot::builtin::{Basis, Quaternion, Vector3, Vector3Axis};
 use punch_core::character::Axis;
 
 pub fn vec3(v: Vector3) -> Vec3 {
@@ -14,6 +14,13 @@ pub fn vector3(v: Vec3) -> Vector3 {
 
 pub fn quat(q: Quaternion) -> Quat {
     Quat::from_xyzw(q.x, q.y, q.z, q.w).normalize()
+}
+
+/// The rotation of a basis that may be scaled, however little: a rig imported in centimetres sits under a node
+/// scaled by 0.01, whose basis Godot's own `get_quaternion` refuses (its determinant counts as zero).
+pub fn rotation(basis: Basis) -> Quat {
+    let [a, b, c] = [basis.col_a(), basis.col_b(), basis.col_c()].map(|v| vec3(v).normalize_or_zero());
+    Quat::from_mat3(&Mat3::from_cols(a, b, c)).normalize()
 }
 
 pub fn godot_axis(axis: Axis) -> Vector3Axis {

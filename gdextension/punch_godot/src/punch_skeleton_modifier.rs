@@ -43,7 +43,7 @@ use punch_core::bone_map::{BoneMap, Role, map_bones_with};
 use punch_core::character::Body;
 use punch_core::skeleton_pose::{Blend, BodyFrames, BodyRotations, SkeletonPoser, rig_arm_lengths};
 
-use crate::convert::{quat, vec3, vector3};
+use crate::convert::{quat, rotation, vec3, vector3};
 use crate::punch_character::PunchCharacter;
 use crate::punch_controller::PunchController;
 
@@ -331,7 +331,7 @@ impl PunchSkeletonModifier {
         let rest = (0..count)
             .map(|b| {
                 let t = skeleton.get_bone_global_rest(b);
-                (quat(t.basis.get_quaternion()), vec3(t.origin))
+                (rotation(t.basis), vec3(t.origin))
             })
             .collect();
         Ok(Mapped { skeleton: skeleton.instance_id(), version: skeleton.get_version(), map, parents, rest })
@@ -440,7 +440,7 @@ impl PunchSkeletonModifier {
             return false;
         }
         let Some((_, poser, bodies)) = &self.poser else { return false };
-        let to_skeleton = quat(skeleton_global.basis.get_quaternion()).inverse();
+        let to_skeleton = rotation(skeleton_global.basis).inverse();
         let rotation = |i: usize| to_skeleton * quat(bodies[i].get_global_transform().basis.get_quaternion());
         let rotations = BodyRotations {
             torso: rotation(0),
@@ -481,8 +481,7 @@ impl PunchSkeletonModifier {
     fn place_character(&mut self, mut character: Gd<PunchCharacter>, skeleton: Transform3D) {
         let Some((_, poser, _)) = &self.poser else { return };
         let scale = skeleton.basis.get_scale();
-        let (rotation, origin) =
-            poser.character_placement(quat(skeleton.basis.get_quaternion()), vec3(skeleton.origin), scale.y);
+        let (rotation, origin) = poser.character_placement(rotation(skeleton.basis), vec3(skeleton.origin), scale.y);
         let now = character.get_global_transform();
         let moved = (vec3(now.origin) - origin).length() > 0.01
             || quat(now.basis.get_quaternion()).angle_between(rotation) > 1f32.to_radians();
