@@ -3,6 +3,9 @@ flood of refused hellos stalls nothing and changes nothing, connections held bef
 it out of nothing, and a phase of a run longer than the server's idle timeout fails nothing. The worst an
 outsider achieves is being refused."""
 
+import json
+import os
+import signal
 import subprocess
 import sys
 import textwrap
@@ -134,3 +137,34 @@ def test_a_gymnasium_env_left_idle_past_its_servers_timeout_starts_the_next_epis
         assert env.server.pid != pid, "a fresh server"
         np.testing.assert_array_equal(first, again)
         env.step(np.zeros(env.action_space.shape, dtype=np.float32))
+
+
+@pytest.mark.expensive
+def test_a_godot_killed_in_each_train_phase_outside_a2c_is_restarted_and_the_run_unchanged(monkeypatch, capfd, tmp_path):
+    """The evaluation after pretraining and the exported policy's run are under the restart rule: a Godot killed
+    (SIGKILL) as each starts is restarted, the phase runs again, and the run ends with the same returns."""
+    def train(out):
+        args = train_pipeline.TrainArgs(reward="straight", out=out, search_iterations=2, search_rollouts=16,
+                                        pretrain_epochs=20, a2c_updates=1, a2c_characters=2, a2c_time_budget_s=0, reach="spot")
+        return json.loads((train_pipeline.run_train(args, progress=False) / "summary.json").read_text())
+
+    undisturbed = train(tmp_path / "undisturbed")
+    killed = []
+
+    def killing_first(phase):
+        def first_call_killed(*args, **kwargs):
+            env = next(a for a in args if hasattr(a, "servers"))
+            if phase not in killed:
+                killed.append(phase)
+                os.kill(env.servers[0].pid, signal.SIGKILL)
+            return phase(*args, **kwargs)
+        return first_call_killed
+
+    for name in ("evaluate_noise_free", "run_exported_policy"):
+        monkeypatch.setattr(train_pipeline, name, killing_first(getattr(train_pipeline, name)))
+    capfd.readouterr()
+    disturbed = train(tmp_path / "disturbed")
+    assert len(killed) == 2
+    assert capfd.readouterr().err.count("a Godot process failed") == 2
+    for key in ("pretrained_return", "exported_return"):
+        assert disturbed[key] == undisturbed[key], key
