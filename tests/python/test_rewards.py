@@ -1,6 +1,8 @@
 """Rewards: presets against hand-computed values, user reward files, and clear errors."""
 
 import os
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -146,6 +148,33 @@ def test_reward_attacks_end_only_their_worker(tmp_path, monkeypatch, name):
     if name in ENDS_THE_WORKER:
         with pytest.raises(ProcessLookupError):
             os.kill(pid, 0)  # reaped: no worker left running
+
+
+
+def test_a_reward_that_forks_then_exits_is_named_and_its_child_is_gone(tmp_path, monkeypatch):
+    """A child process the reward started keeps the worker's pipes open after the worker exits: the error still
+    says what the reward did (not a time-out), and the child goes with the worker (its process group)."""
+    import punch_trainer.sim.rewards as rewards
+
+    monkeypatch.setattr(rewards, "REWARD_TIME_LIMIT_S", 0.5)
+    child_file = tmp_path / "child"
+    path = tmp_path / "forks.py"
+    path.write_text(f"import os, time\ndef reward(f):\n    child = os.fork()\n    if child == 0:\n        time.sleep(60)\n"
+                    f"        os._exit(0)\n    open({str(child_file)!r}, 'w').write(str(child))\n    os._exit(3)\n")
+    with pytest.raises(RewardError, match=r"tried to exit the process \(exit code 3\)"):
+        evaluate(load_reward(f"{path}:reward"), features(0.2, 1.0, 8.0), NAMES)
+    child, deadline = int(child_file.read_text()), time.monotonic() + 5
+    while running(child) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not running(child), "the reward's child still runs"
+
+
+def running(pid: int) -> bool:
+    """Whether process `pid` runs (a zombie waiting for its parent to reap it does not)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[-1].split()[0] not in "ZX"
+    except (FileNotFoundError, ProcessLookupError):
+        return False
 
 
 def test_a_worker_that_died_is_replaced_and_results_match_in_process(tmp_path):

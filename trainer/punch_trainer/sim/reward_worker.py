@@ -175,6 +175,9 @@ def _receive(fd: int, deadline: float | None) -> tuple[dict[str, Any], bytes]:
 
 
 def _stop(process: subprocess.Popen[bytes], fds: list[int]) -> None:
+    # The worker leads its own process group: processes the reward started (and that may hold its pipes) go too.
+    with contextlib.suppress(OSError):
+        os.killpg(process.pid, signal.SIGKILL)
     if process.poll() is None:
         process.kill()
         process.wait()
@@ -263,7 +266,10 @@ class IsolatedFunction:
             _send(request_write, header, payload, deadline)
             reply, data = _receive(reply_read, deadline)
         except _DeadlineError:
+            ended = self._process.poll() is not None  # the reward ended its worker; a process it started kept the pipes
             self._kill()
+            if ended:
+                raise RewardError(self._death_message()) from None
             raise RewardError(f"reward '{self.spec}' took longer than {limit_s:g} s {doing} and was stopped "
                               "(set PUNCH_REWARD_TIME_LIMIT_S to allow more)") from None
         except _ClosedError:
