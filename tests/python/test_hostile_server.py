@@ -6,10 +6,13 @@ outsider achieves is being refused."""
 import json
 import os
 import signal
+import socket
+import struct
 import subprocess
 import sys
 import textwrap
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,6 +21,7 @@ from punch_trainer.learn.search import SearchArgs, trajectory_search
 from punch_trainer.pipelines import train as train_pipeline
 from punch_trainer.sim import server as server_module
 from punch_trainer.sim.env import PunchEnv
+from punch_trainer.sim.protocol import hello_message
 from punch_trainer.sim.rewards import load_reward
 from punch_trainer.sim.rollouts import RolloutPool
 from punch_trainer.sim.server import TrainingServer
@@ -168,3 +172,37 @@ def test_a_godot_killed_in_each_train_phase_outside_a2c_is_restarted_and_the_run
     assert capfd.readouterr().err.count("a Godot process failed") == 2
     for key in ("pretrained_return", "exported_return"):
         assert disturbed[key] == undisturbed[key], key
+
+
+def resident_mb(pid: int) -> float:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    raise AssertionError(f"no VmRSS for process {pid}")
+
+
+def test_seven_clients_with_the_secret_keep_the_server_within_its_memory_budget():
+    """Seven connections of the run each send a 200 MB message and stay (before the fix, the buffers kept that
+    memory after the message was answered and took the real server to 1.5 GB): the server stays within its
+    documented 512 MiB for connections, and the run's own connection goes on."""
+    with TrainingServer(1) as server:
+        start = resident_mb(server.pid)
+        header = json.dumps({"type": "hoard", "arrays": [{"name": "a", "shape": [50_000_000]}]}).encode()
+        message = struct.pack("<II", len(header), 200_000_000) + header + bytes(200_000_000)
+        clients, answered = [], 0
+        for _ in range(7):
+            client = socket.create_connection(("127.0.0.1", server.port), timeout=30)
+            client.sendall(hello_message(server.secret).encode())
+            assert b"hello" in client.recv(65536)
+            clients.append(client)
+            try:
+                client.sendall(message)
+                answered += b"error" in client.recv(65536)
+            except OSError:  # closed by the server: its budget is full
+                pass
+        peak = resident_mb(server.pid)
+        server.rollout(np.zeros((1, 10, 10), np.float32), smoothing_window=3)
+        for client in clients:
+            client.close()
+    assert answered >= 1
+    assert peak - start < 512 + 64, f"the server grew from {start:.0f} MB to {peak:.0f} MB ({answered} messages answered)"
