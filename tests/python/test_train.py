@@ -39,6 +39,10 @@ def test_small_training_run_exports_a_policy_that_repeats_its_punch(tmp_path, st
                 "punch_physics_hz", "punch_reward", "punch_training_summary"]:
         assert metadata.get(key), key
     assert metadata["punch_style"] == ("none" if style == "none" else "boxing@1")
+    # A styled policy spreads a game's runtime noise as its style searched: the guard arm nearly still.
+    assert ("punch_noise_scale" in metadata) == (style != "none")
+    if style != "none":
+        assert json.loads(metadata["punch_noise_scale"]) == [0.1, 1, 1, 1, 1, 1, 0.05, 0.05, 0.05, 0.05]
     assert json.loads((out / "config.json").read_text())["style"] == style
     assert [i.name for i in model.graph.input] == ["obs"] and [o.name for o in model.graph.output] == ["mean", "sigma"]
     summary = json.loads((out / "summary.json").read_text())

@@ -13,7 +13,7 @@ use crate::character::DOF_COUNT;
 use crate::error::{CoreError, CoreResult};
 use crate::observation::{OBS_DIM, spec_hash};
 use crate::policy::{Policy, Tensor};
-use crate::spec::{POLICY_INPUT, POLICY_OUTPUTS, PolicySpec, ReachVolume, keys};
+use crate::spec::{NoiseScale, POLICY_INPUT, POLICY_OUTPUTS, PolicySpec, ReachVolume, keys, noise_scale_from_metadata};
 
 /// A model checked as a punching policy, shared by every controller that plays it.
 pub struct PunchingPolicy {
@@ -26,6 +26,8 @@ pub struct PunchingPolicy {
     pub spec_hash: String,
     /// The target placements it was trained to punch.
     pub reach: ReachVolume,
+    /// How the runtime noise is spread over its degrees of freedom (`punch_noise_scale`; uniform without).
+    pub noise_scale: NoiseScale,
 }
 
 impl PunchingPolicy {
@@ -38,9 +40,12 @@ impl PunchingPolicy {
             .map_err(|e| incompatible(e.to_string()))?;
         let spec = PolicySpec::from_metadata(|key| policy.metadata(key)).map_err(|e| incompatible(e.to_string()))?;
         let reach = ReachVolume::from_metadata(|key| policy.metadata(key)).map_err(|e| incompatible(e.to_string()))?;
+        let noise_scale =
+            noise_scale_from_metadata(|key| policy.metadata(key)).map_err(|e| incompatible(e.to_string()))?;
         Ok(Self {
             spec,
             reach,
+            noise_scale,
             spec_hash: policy.metadata(keys::SPEC_HASH).unwrap_or_default(),
             policy: RefCell::new(policy),
         })

@@ -14,7 +14,7 @@ use crate::error::{CoreError, CoreResult};
 use crate::noise::GaussianNoise;
 use crate::observation::{OBS_DIM, observation};
 use crate::sensing::{CharacterGeometry, FEATURE_COUNT, FIST_CONTACT_MARGIN_M, FrameReading, columns, feature_vector};
-use crate::spec::PolicySpec;
+use crate::spec::{NoiseScale, PolicySpec, UNIFORM_NOISE};
 
 /// Impulse (N s) on the target above which a fist counts as hitting it.
 pub const HIT_IMPULSE_NS: f32 = 0.05;
@@ -39,13 +39,14 @@ impl RuntimeNoise {
         self.sigma > 0.0 && (self.noisy_decisions < 0 || (decision as i64) < self.noisy_decisions as i64)
     }
 
-    /// The action played at decision `index`: the mean plus noise when the decision is noisy. The noise
-    /// sequence advances only on noisy decisions.
-    pub fn apply(&mut self, decision: u32, mean: &[f32]) -> Vec<f32> {
+    /// The action played at decision `index`: the mean plus noise when the decision is noisy, each degree of
+    /// freedom's scaled by `scale` (the policy's `punch_noise_scale`). The noise sequence advances only on
+    /// noisy decisions, by one sample per degree of freedom whatever its scale.
+    pub fn apply(&mut self, decision: u32, mean: &[f32], scale: &NoiseScale) -> Vec<f32> {
         if !self.is_noisy(decision) {
             return mean.to_vec();
         }
-        mean.iter().map(|m| m + self.sigma * self.rng.sample()).collect()
+        mean.iter().zip(scale).map(|(m, s)| m + self.sigma * s * self.rng.sample()).collect()
     }
 }
 
@@ -129,6 +130,8 @@ pub enum Sensed {
 pub struct Punch {
     controller: CharacterController,
     spec: PolicySpec,
+    /// How the runtime noise is spread over the degrees of freedom (the policy's; uniform by default).
+    noise_scale: NoiseScale,
     frame: u32,
     /// This frame's reading, kept from sensing to acting.
     reading: FrameReading,
@@ -144,10 +147,18 @@ pub struct Punch {
 impl Punch {
     /// A punch of a character with `geometry`, timed and smoothed as `spec` says; with `record`, it keeps
     /// its `PunchRecord`.
+    /// Spreads the runtime noise over the degrees of freedom as the punch's policy asks
+    /// (`PunchingPolicy::noise_scale`).
+    pub fn with_noise_scale(mut self, scale: NoiseScale) -> Self {
+        self.noise_scale = scale;
+        self
+    }
+
     pub fn new(geometry: CharacterGeometry, spec: PolicySpec, record: bool) -> Self {
         Self {
             controller: CharacterController::new(geometry, spec.smoothing_window as usize),
             spec,
+            noise_scale: UNIFORM_NOISE,
             frame: 0,
             reading: FrameReading::default(),
             in_contact: Vec::new(),
@@ -215,7 +226,7 @@ impl Punch {
             if mean.iter().any(|v| !v.is_finite()) {
                 return Err(CoreError::Inference("the policy returned NaN or infinite actions".into()));
             }
-            let action = noise.apply(self.decision(), mean);
+            let action = noise.apply(self.decision(), mean, &self.noise_scale);
             self.controller.set_action(&action)?;
             if let Some(record) = self.record.as_mut() {
                 record.mean_actions.extend_from_slice(mean);
@@ -325,11 +336,22 @@ mod tests {
     fn play(
         spec: PolicySpec,
         noise: &mut RuntimeNoise,
+        policy: impl FnMut(&[f32; OBS_DIM]) -> Vec<f32>,
+        between_frames: impl FnMut(u32, &mut RuntimeNoise),
+    ) -> (Vec<u32>, PunchRecord, Vec<Hit>, PunchSummary) {
+        play_scaled(spec, UNIFORM_NOISE, noise, policy, between_frames)
+    }
+
+    /// `play`, with the runtime noise spread over the degrees of freedom by `scale`.
+    fn play_scaled(
+        spec: PolicySpec,
+        scale: NoiseScale,
+        noise: &mut RuntimeNoise,
         mut policy: impl FnMut(&[f32; OBS_DIM]) -> Vec<f32>,
         mut between_frames: impl FnMut(u32, &mut RuntimeNoise),
     ) -> (Vec<u32>, PunchRecord, Vec<Hit>, PunchSummary) {
         let mut world = FakeWorld::new(1);
-        let mut punch = Punch::new(rest_geometry(), spec, true);
+        let mut punch = Punch::new(rest_geometry(), spec, true).with_noise_scale(scale);
         let (mut decided_at, mut hits) = (Vec::new(), Vec::new());
         loop {
             let (hit, sensed) = punch.sense(world.read_slot(0), &world.touches_slot(0));
@@ -479,6 +501,25 @@ mod tests {
         let noisy: Vec<bool> =
             record.actions.chunks(10).zip(record.mean_actions.chunks(10)).map(|(a, m)| a != m).collect();
         assert_eq!(noisy, [false, false, true, true, true, true, true, true, true, true]);
+    }
+
+    #[test]
+    fn a_policys_noise_scale_spreads_the_noise_over_its_degrees_of_freedom() {
+        let spec = PolicySpec::new(5, 50, 1).expect("valid");
+        let mut scale = UNIFORM_NOISE;
+        scale[6..].fill(0.0); // the guard arm held still
+        scale[0] = 0.5;
+        let uniform = play(spec, &mut RuntimeNoise::new(5, 0.3, -1), forward, |_, _| {}).1;
+        let (_, scaled, _, _) = play_scaled(spec, scale, &mut RuntimeNoise::new(5, 0.3, -1), forward, |_, _| {});
+        for ((played, mean), uniform) in
+            scaled.actions.chunks(10).zip(scaled.mean_actions.chunks(10)).zip(uniform.actions.chunks(10))
+        {
+            assert_eq!(played[6..], mean[6..]);
+            assert!(played[1..6].iter().zip(&mean[1..6]).all(|(p, m)| p != m));
+            // The same samples, scaled: half the uniform punch's deviation on the waist's flexion.
+            assert!(((played[0] - mean[0]) - 0.5 * (uniform[0] - mean[0])).abs() < 1e-6);
+            assert_eq!(played[1..6], uniform[1..6]);
+        }
     }
 
     #[test]

@@ -274,6 +274,32 @@ pub mod keys {
     pub const ACTION_SPEC: &str = "punch_action_spec";
     /// The target placements the policy covers (`ReachVolume::to_json`), written by the trainer.
     pub const REACH_VOLUME: &str = "punch_reach_volume";
+    /// Optional: how the designer's runtime noise is spread over the degrees of freedom (`NoiseScale`).
+    pub const NOISE_SCALE: &str = "punch_noise_scale";
+}
+
+/// Per degree of freedom (action order), the share of the designer's runtime noise sigma it gets: 0 to 1.
+/// A policy trained with a motion style keeps its guard arm and the waist's flexion nearly still under
+/// noise (the style explored them that narrowly), so a designer's sigma varies the punch, not the guard.
+pub type NoiseScale = [f32; DOF_COUNT];
+
+/// Every degree of freedom gets the whole sigma: a policy without `punch_noise_scale`.
+pub const UNIFORM_NOISE: NoiseScale = [1.0; DOF_COUNT];
+
+/// The policy's noise scale (`keys::NOISE_SCALE`): a JSON array of `DOF_COUNT` numbers from 0 to 1, or
+/// `UNIFORM_NOISE` when the key is absent. Anything else is an error naming the key.
+pub fn noise_scale_from_metadata(lookup: impl Fn(&str) -> Option<String>) -> Result<NoiseScale, SpecError> {
+    let key = keys::NOISE_SCALE;
+    let Some(text) = lookup(key) else { return Ok(UNIFORM_NOISE) };
+    let bad = |reason: String| SpecError::BadValue { key, value: text.chars().take(200).collect(), reason };
+    let value: Value = serde_json::from_str(&text).map_err(|e| bad(format!("not JSON: {e}")))?;
+    let numbers: Option<Vec<f32>> = value.as_array().filter(|items| items.len() == DOF_COUNT).and_then(|items| {
+        items.iter().map(|v| v.as_f64().filter(|x| (0.0..=1.0).contains(x)).map(|x| x as f32)).collect()
+    });
+    let numbers = numbers.ok_or_else(|| bad(format!("must be a list of {DOF_COUNT} numbers from 0 to 1")))?;
+    let mut scale = UNIFORM_NOISE;
+    scale.copy_from_slice(&numbers);
+    Ok(scale)
 }
 
 /// The entries a policy file must have to be played; a missing one is an error, never a default.
@@ -454,6 +480,27 @@ mod tests {
         assert_eq!(PolicySpec::from_metadata(lookup(&spec.metadata())), Ok(spec));
         assert_eq!(spec.decisions(), 10);
         assert_eq!(spec.metadata_json()[keys::SMOOTHING_WINDOW], json!("3"));
+    }
+
+    #[test]
+    fn the_noise_scale_is_uniform_without_its_key_and_refused_when_it_lies() {
+        assert_eq!(noise_scale_from_metadata(lookup(&[])), Ok(UNIFORM_NOISE));
+        let styled = "[0.1, 1, 1, 1, 1, 1, 0.05, 0.05, 0.05, 0.05]".to_string();
+        let scale = noise_scale_from_metadata(lookup(&[(keys::NOISE_SCALE, styled)])).expect("valid");
+        assert_eq!((scale[0], scale[1], scale[9]), (0.1, 1.0, 0.05));
+        for bad in [
+            "[1, 1]",
+            "[1,1,1,1,1,1,1,1,1,2]",
+            "[1,1,1,1,1,1,1,1,1,-0.1]",
+            "[1,1,1,1,1,1,1,1,1,\"a\"]",
+            "{\"a\": 1}",
+            "nan",
+            "[1,1,1,1,1,1,1,1,1,1e999]",
+            "",
+        ] {
+            let error = noise_scale_from_metadata(lookup(&[(keys::NOISE_SCALE, bad.to_string())])).expect_err(bad);
+            assert!(error.to_string().contains(keys::NOISE_SCALE), "{error}");
+        }
     }
 
     #[test]

@@ -355,7 +355,7 @@ impl PunchController {
         });
         target.describe(&mut geometry);
         self.aim = Some(target);
-        let punch = Punch::new(geometry, policy.spec, self.record);
+        let punch = Punch::new(geometry, policy.spec, self.record).with_noise_scale(policy.noise_scale);
         let identity = Rc::as_ptr(&policy) as usize;
         let start = PunchStart { punch, policy, guard_first: self.guard_first, out_of_reach };
         self.lifecycle.start(start, identity, self.noise());

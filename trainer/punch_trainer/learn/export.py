@@ -25,6 +25,7 @@ from punch_trainer.errors import ExportError
 from punch_trainer.learn.policy import Actor, ActorCritic
 from punch_trainer.learn.reach import METADATA_KEY as REACH_KEY
 from punch_trainer.learn.reach import ReachVolume
+from punch_trainer.sim.style import Style, style_label
 
 EXPORT_TOLERANCE = 1e-5
 
@@ -33,18 +34,22 @@ logging.getLogger("torch.onnx._internal.exporter._registration").setLevel(loggin
 
 
 def export_policy(model: ActorCritic, path: Path, *, contract: dict[str, str], reward: str, summary: dict[str, Any],
-                  style: str = "none", verify: bool = True) -> Path:
+                  style: Style | None = None, verify: bool = True) -> Path:
     """Writes the actor of `model` as a policy file: input `obs` [B, O], outputs `mean` and `sigma` [B, A],
     metadata = the policy `contract` (as announced by the training server for the episodes the policy learned
     from) + `punch_reward`, `punch_style` (the motion style it was trained with: `none` or NAME@WEIGHT),
-    `punch_trainer_version` and `punch_training_summary` (JSON). Which keys the
+    `punch_trainer_version` and `punch_training_summary` (JSON); with a style, `punch_noise_scale` too (JSON,
+    per degree of freedom: the share of a game's runtime noise sigma it gets, the style's search cap, so
+    that noise varies the punch and not the guard the style keeps). Which keys the
     contract holds is punch_core's business (the game checks them), so it is copied whole, not re-listed here."""
     if not contract:
         raise ExportError("no policy contract: pass the `policy_metadata` of the training server's reset reply (a dataset's)")
     if REACH_KEY in contract:  # a dataset's contract is a file's: a reach of no sense never reaches a policy
         ReachVolume.from_json(contract[REACH_KEY])
-    metadata = {**contract, "punch_reward": reward, "punch_style": style, "punch_trainer_version": __version__,
+    metadata = {**contract, "punch_reward": reward, "punch_style": style_label(style), "punch_trainer_version": __version__,
                 "punch_training_summary": json.dumps(summary)}
+    if style is not None:
+        metadata["punch_noise_scale"] = json.dumps([min(1.0, s) for s in style.search_sigma])
     return export_onnx(Actor(model), int(model.obs_mean.shape[0]), path, metadata=metadata, verify=verify)
 
 

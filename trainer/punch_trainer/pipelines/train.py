@@ -244,7 +244,7 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
         if validated is not None:
             summary["validation"] = validated.to_json()
         policy_path = export_policy(model, out / "policy.onnx", contract=data["policy_metadata"], reward=reward.name,
-                                    style=style_label(reward.style), summary=summary)
+                                    style=reward.style, summary=summary)
         exported_return, features = restarts.run(functools.partial(run_exported_policy, policy_path, env, reward))
     finally:
         env.close()
