@@ -58,7 +58,9 @@ pub struct PunchController {
     policy: Option<Gd<PunchPolicy>>,
     /// Standard deviation of the noise added to the policy's mean action, in action units (actions lie in
     /// [-1, 1]). Values outside 0..1 are clamped, and values that are not numbers refused, with a warning.
-    /// Takes effect at the next decision.
+    /// Takes effect at the next decision. A policy trained with a motion style spreads it over its joints
+    /// (its `punch_noise_scale` metadata): the guard arm and the trunk's lean get a twentieth and a tenth of
+    /// it, so the punch varies and the guard holds.
     #[export(range = (0.0, 1.0, 0.01))]
     #[var(set = set_noise_sigma)]
     noise_sigma: f32,
