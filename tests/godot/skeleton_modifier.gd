@@ -5,13 +5,14 @@
 ## that moves spine, arms and legs. Each rig has a twin that plays the same animation with no modifier: what the
 ## animation alone gives. Each (mapped) rig's modifier drives it from a PunchController punching a sandbag with
 ## the shipped straight policy (--policy=PATH, no noise). Glb files given with --glb=PATH (repeatable) are loaded
-## with GLTFDocument and run alike.
+## with GLTFDocument and run alike. The hands close into fists while punching (`fist_curl`) unless --open-hands.
 ##
-## Prints `SKELETON_MODIFIER <json>`: per rig its mapping, warnings, the fist gap (rig fist: the middle of the hand,
-## halfway from the hand bone's head to its knuckles; simulated: FistR) at the first hit and its largest while fully
-## blended, for a rig with a skinned mesh the gap of its skinned hand's centre at the first hit, the simulated arms'
-## lengths (sized to the rig) and the rig's own (measured here from its rest, the same way: upper arm head to
-## forearm head, forearm head to the middle of the hand, between the upper arms' heads; the mean of both sides), the
+## Prints `SKELETON_MODIFIER <json>`: per rig its mapping, warnings, the fist gap (rig fist: the fist centre, three
+## quarters of the way from the hand bone's head to its knuckles; simulated: FistR) at the first hit and its largest
+## while fully blended, for a rig with a skinned mesh the gap of its skinned hand's centre at the first hit and how far
+## its skinned front lies past the simulated fist's front (FistR plus the fist's radius, along the simulated forearm),
+## the simulated arms' lengths (sized to the rig) and the rig's own (measured here from its rest, the same way: upper
+## arm head to forearm head, forearm head to the fist centre, between the upper arms' heads; the mean of both sides), the
 ## largest per-frame rotation of each written bone in the blend-in and blend-out windows, of the animation alone and
 ## of the fully simulated pose, and the legs' largest difference from the twin. The tiny rig's arms (0.6 of the
 ## simulated ones) are outside the range the simulated arms can be sized to.
@@ -41,13 +42,17 @@ const NAMES := {
 		"leg": ["%sUpperLeg", "%sLowerLeg", "%sFoot"], "sides": ["Left", "Right"]},
 }
 ## The simulated body's proportions (the addon's character scene): shoulder joints 0.36 m apart at 1.42 m,
-## upper arm 0.282 m, elbow to fist centre 0.337 m (the wrist 0.269 m from the elbow, the fist centre 0.068 m on).
+## upper arm 0.282 m, elbow to fist centre 0.337 m (the wrist 0.269 m from the elbow, the fist centre 0.068 m on:
+## three quarters of the way to the knuckles).
 const SHOULDER_Y := 1.42
 const UPPER_ARM_M := 0.282
 const FOREARM_M := 0.269
-const HAND_M := 0.136
+const HAND_M := 0.068 / 0.75
+## The simulated fist's radius (the addon's character scene).
+const FIST_RADIUS_M := 0.045
 
 var _policy := ""
+var _fist_curl := true
 var _rigs: Array[Dictionary] = []
 var _frames := 0
 
@@ -59,6 +64,8 @@ func _initialize() -> void:
 			_policy = argument.trim_prefix("--policy=")
 		elif argument.begins_with("--glb="):
 			glbs.append(argument.trim_prefix("--glb="))
+		elif argument == "--open-hands":
+			_fist_curl = false
 	for spec in RIGS:
 		var units := 100.0 if spec[0].ends_with("_cm") else 1.0
 		var rig := _build_rig(spec[1], spec[2], spec[3], spec[4], units)
@@ -101,10 +108,12 @@ func _add(name: String, rig: Node3D, twin: Node3D, yaw_deg: float, at: Vector3) 
 	root.add_child(controller)
 	var modifier: Node = ClassDB.instantiate("PunchSkeletonModifier")
 	modifier.set("controller", controller)
+	modifier.set("fist_curl", _fist_curl)
 	skeleton.add_child(modifier)
 	var entry := {"name": name, "rig": rig, "skeleton": skeleton, "twin": twin_skeleton, "character": character,
 		"controller": controller, "modifier": modifier, "frames": [], "hit_gap_m": -1.0, "hits": 0,
-		"hit_pending": false, "skinned_hit_gap_m": -1.0, "hand_skin": {}}
+		"hit_pending": false, "skinned_hit_gap_m": -1.0, "skinned_front_m": -1.0,
+		"hand_skin": {}}
 	controller.connect("hit", func(_impulse, _speed, _position, _body, _push):
 		entry.hits += 1
 		# The skeleton's pose is the modified one only while it updates: measured at its next update.
@@ -226,6 +235,10 @@ func _skinned_fist(entry: Dictionary) -> Vector3:
 	var bones: PackedInt32Array = hand_skin.bones
 	var weights: PackedFloat32Array = hand_skin.weights
 	var centre := Vector3.ZERO
+	# The front: the furthest skinned point along the simulated forearm (elbow side to fist), past FistR.
+	var fist: Node3D = entry.character.get_node("ForearmR/FistR")
+	var along: Vector3 = (fist.global_position - entry.character.get_node("ForearmR").global_position).normalized()
+	var front := -INF
 	for i in vertices.size():
 		var sum := Vector3.ZERO
 		for k in per_vertex:
@@ -233,6 +246,8 @@ func _skinned_fist(entry: Dictionary) -> Vector3:
 			if w > 0.0:
 				sum += w * (matrices[bones[i * per_vertex + k]] * vertices[i])
 		centre += sum
+		front = maxf(front, (skeleton.global_transform * sum - fist.global_position).dot(along))
+	hand_skin.front = front
 	return skeleton.global_transform * (centre / vertices.size())
 
 
@@ -278,20 +293,20 @@ func _hand_skin(entry: Dictionary) -> Dictionary:
 	return found
 
 
-## The rig's right fist now (global): the middle of the bone the modifier maps as the right hand.
+## The rig's right fist now (global): the fist centre of the bone the modifier maps as the right hand.
 func _hand_fist(skeleton: Skeleton3D, bone_map: Dictionary) -> Vector3:
 	var hand := skeleton.find_bone(bone_map.get("hand_r", ""))
 	if hand < 0:
 		return Vector3.INF
 	var forearm := skeleton.find_bone(bone_map.get("forearm_r", ""))
-	return skeleton.global_transform * _middle_of_hand(skeleton, hand, forearm, false)
+	return skeleton.global_transform * _fist_centre(skeleton, hand, forearm, false)
 
 
-## The middle of the hand (skeleton space, posed or at rest): halfway from its head to its knuckles, the mean of
-## its fingers' roots: its children's heads, or for a child within a fifth of the forearm (from the `forearm` bone's
+## The fist centre (skeleton space, posed or at rest): three quarters of the way from the hand's head to its
+## knuckles, the mean of its fingers' roots: its children's heads, or for a child within a fifth of the forearm (from the `forearm` bone's
 ## head to the wrist) of the wrist (a metacarpal), the mean of that child's children's; with no children, a quarter
 ## of the forearm on.
-func _middle_of_hand(skeleton: Skeleton3D, hand: int, forearm_bone: int, rest: bool) -> Vector3:
+func _fist_centre(skeleton: Skeleton3D, hand: int, forearm_bone: int, rest: bool) -> Vector3:
 	var at := func(bone: int) -> Vector3:
 		return skeleton.get_bone_global_rest(bone).origin if rest else skeleton.get_bone_global_pose(bone).origin
 	var head: Vector3 = at.call(hand)
@@ -310,10 +325,10 @@ func _middle_of_hand(skeleton: Skeleton3D, hand: int, forearm_bone: int, rest: b
 			knuckles += at.call(child)
 	if children.is_empty():
 		return head + 0.25 * (head - forearm)
-	return head + 0.5 * (knuckles / children.size() - head)
+	return head + 0.75 * (knuckles / children.size() - head)
 
 
-## The rig's arm lengths at rest, m: [upper arm, forearm to the middle of the hand, shoulder width].
+## The rig's arm lengths at rest, m: [upper arm, forearm to the fist centre, shoulder width].
 func _rig_arm_lengths(skeleton: Skeleton3D, bone_map: Dictionary) -> Array:
 	var at := func(role: String) -> Vector3:
 		return skeleton.get_bone_global_rest(skeleton.find_bone(bone_map[role])).origin
@@ -324,7 +339,7 @@ func _rig_arm_lengths(skeleton: Skeleton3D, bone_map: Dictionary) -> Array:
 		upper += 0.5 * at.call("upper_arm_" + side).distance_to(at.call("forearm_" + side))
 		var hand := skeleton.find_bone(bone_map["hand_" + side])
 		var forearm := skeleton.find_bone(bone_map["forearm_" + side])
-		fore += 0.5 * at.call("forearm_" + side).distance_to(_middle_of_hand(skeleton, hand, forearm, true))
+		fore += 0.5 * at.call("forearm_" + side).distance_to(_fist_centre(skeleton, hand, forearm, true))
 	var width: float = at.call("upper_arm_r").distance_to(at.call("upper_arm_l"))
 	return [scale * upper, scale * fore, scale * width]
 
@@ -354,6 +369,7 @@ func _record(entry: Dictionary) -> void:
 		if skinned != Vector3.INF:
 			var fist: Node3D = entry.character.get_node("ForearmR/FistR")
 			entry.skinned_hit_gap_m = skinned.distance_to(fist.global_position)
+			entry.skinned_front_m = entry.hand_skin.front - FIST_RADIUS_M
 		entry.hit_pending = false
 
 
@@ -435,7 +451,7 @@ func _summary(entry: Dictionary) -> Dictionary:
 	return {"name": entry.name, "mapped": modifier.call("is_mapped"), "bone_map": modifier.get("bone_map"),
 		"written": written, "warnings": Array(modifier.call("configuration_warnings")),
 		"problem": modifier.call("mapping_problem"), "hits": entry.hits, "hit_gap_m": entry.hit_gap_m,
-		"skinned_hit_gap_m": entry.skinned_hit_gap_m,
+		"skinned_hit_gap_m": entry.skinned_hit_gap_m, "skinned_front_m": entry.skinned_front_m,
 		"max_gap_full_m": max_gap_full, "jumps_rad": jumps, "worst_bone": worst_bone, "blend_frames": blend_frames,
 		"untouched_max_rad": untouched, "frames": frames.size(), "pose_gap_rad": pose_gap, "gaps": gaps,
 		"arm_lengths_m": _array(entry.character.call("arm_lengths")),

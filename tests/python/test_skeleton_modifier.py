@@ -36,7 +36,8 @@ def run_scene(*args: str) -> list[dict]:
               f"{jumps['animation'] * 57.3:.1f} simulated {jumps['simulated'] * 57.3:.1f}; unwritten bones off the "
               f"animation by {rig['untouched_max_rad']:.1e} rad; arms (upper, fore, shoulders) simulated "
               f"{fmt(rig['arm_lengths_m'])} rig {fmt(rig['rig_arm_lengths_m'])} m"
-              + (f"; skinned hand at the hit {100 * rig['skinned_hit_gap_m']:.1f} cm off" if rig["skinned_hit_gap_m"] >= 0 else ""))
+              + (f"; skinned hand at the hit {100 * rig['skinned_hit_gap_m']:.1f} cm off, its front "
+                 f"{100 * rig['skinned_front_m']:+.1f} cm past the simulated fist's" if rig["skinned_hit_gap_m"] >= 0 else ""))
     # One error per rig whose bones cannot be mapped and per rig whose arms are outside the range the simulated
     # ones can be sized to (saying so), and nothing else.
     errors = [line for line in run.log.splitlines() if "ERROR" in line]
@@ -82,8 +83,8 @@ def test_every_naming_is_mapped_without_hand_work(rigs):
         rig = rigs[name]
         assert rig["mapped"] and rig["problem"] == "", rig
         assert rig["bone_map"]["upper_arm_r"] == upper_arm
-        # Spine (3), clavicle, upper arm, forearm and hand per side.
-        assert len(rig["written"]) == 3 + 2 * 4, rig["written"]
+        # Spine (3), clavicle, upper arm, forearm, hand and its one finger (curled into a fist) per side.
+        assert len(rig["written"]) == 3 + 2 * 5, rig["written"]
         assert rig["warnings"] == [], rig["warnings"]
 
 
@@ -169,14 +170,31 @@ def test_the_cc0_characters_are_sized_and_their_visible_fists_land_within_3_cm(c
             assert rig["arm_lengths_m"] == pytest.approx(SCENE_ARMS, abs=0.002), name
 
 
-@pytest.mark.xfail(strict=True, reason="the skinned hand is open (its fingers are not curled into a fist), so the centre "
-                   "of its skin lies 7-10 cm beyond the middle of the hand (wrist to knuckles), which is what lands on the simulated fist")
-def test_the_skinned_hand_of_the_cc0_characters_lands_within_3_cm_of_the_simulated_fist(characters):
-    """The visible fist as the skin shows it: the centre of the vertices bound mostly to the right hand and the
-    bones below it, skinned on the CPU at the hit (tests/godot/skeleton_modifier.gd)."""
-    for name, rig in characters.items():
-        if in_range(rig):
-            assert 0.0 <= rig["skinned_hit_gap_m"] <= 0.03, (name, rig["skinned_hit_gap_m"])
+# CMU-named rigs have one bone for all four fingers, rooted at the index finger's knuckle: the modifier takes that
+# knuckle for the middle of the knuckles, so the fist centre it sizes to lies 1.5-2 cm toward the index finger.
+ONE_FINGER_BONE = ("cmu_",)
+
+
+def test_the_skinned_fist_of_the_cc0_characters_lands_within_3_cm_of_the_simulated_fist(characters):
+    """The visible fist as the skin shows it, with the fingers curled into a fist (`fist_curl`): the centre of the
+    vertices bound mostly to the right hand and the bones below it, skinned on the CPU at the hit
+    (tests/godot/skeleton_modifier.gd), and its front (the furthest of them along the simulated forearm) against
+    the simulated fist's front. Open, these hands lay 7-10 cm past the simulated fist."""
+    checked = [name for name, rig in characters.items() if in_range(rig) and not name.startswith(ONE_FINGER_BONE)]
+    assert len(checked) >= 8, checked
+    for name in checked:
+        rig = characters[name]
+        assert 0.0 <= rig["skinned_hit_gap_m"] <= 0.03, (name, rig["skinned_hit_gap_m"])
+        assert abs(rig["skinned_front_m"]) <= 0.03, (name, rig["skinned_front_m"])
+
+
+@pytest.mark.xfail(strict=True, reason="CMU rigs have one finger bone, rooted at the index finger's knuckle: the fist "
+                   "centre found from it lies toward the index finger, and the skinned fist 4-5 cm from the simulated one")
+def test_the_skinned_fist_of_a_rig_with_one_finger_bone_lands_within_3_cm_of_the_simulated_fist(characters):
+    checked = [name for name, rig in characters.items() if in_range(rig) and name.startswith(ONE_FINGER_BONE)]
+    assert checked, list(characters)
+    for name in checked:
+        assert 0.0 <= characters[name]["skinned_hit_gap_m"] <= 0.03, (name, characters[name]["skinned_hit_gap_m"])
 
 
 def test_the_own_character_demo_punches_the_bag_and_spars():

@@ -8,6 +8,8 @@
 //!   server's episodes over N slots; `protocol`: the trainer's wire format; `access`: who may use a server.
 //! - `bone_map`: finds the punching body's bones (hips, spine to chest, neck, head, shoulders, arms, hands) in a
 //!   user's skeleton from its bone names and hierarchy (Godot humanoid, Mixamo, Unreal, CMU, MakeHuman, Blender).
+//! - `fist`: closes the rig's hands into fists (the finger bones below each hand bend toward the palm, about
+//!   axes read from the rest).
 //! - `policy`, `model_check`, `runtime`, `noise`: ONNX Runtime inference (of files checked to be plain
 //!   feed-forward graphs) and seeded Gaussian noise.
 //!
@@ -25,6 +27,7 @@ pub mod controller;
 pub mod error;
 #[cfg(test)]
 mod fake_world;
+pub mod fist;
 pub mod lifecycle;
 pub mod log_budget;
 pub mod model_check;

@@ -389,8 +389,8 @@ impl SkeletonPoser {
     }
 }
 
-/// The rig's fist centre at rest (skeleton space): halfway from the hand bone's head (the wrist) to its knuckles,
-/// the mean of its fingers' roots. A finger root is a child of the hand, or, for a child that starts within a fifth
+/// The rig's fist centre at rest (skeleton space): three quarters of the way (`FIST_ALONG_HAND`) from the hand bone's
+/// head (the wrist) to its knuckles, the mean of its fingers' roots: where a closed fist's centre is. A finger root is a child of the hand, or, for a child that starts within a fifth
 /// of the forearm bone's head from the wrist (a metacarpal or a finger base, as MakeHuman and CMU rigs have), the
 /// mean of that child's children. A hand without children: a quarter of that forearm on past the wrist. The forearm's rest
 /// direction is taken toward it, so the visible fist lies on the line of the simulated forearm even when the
@@ -417,8 +417,14 @@ pub fn rig_fist(parents: &[i32], rest: &[(Quat, Vec3)], hand: usize, forearm: us
         return head + 0.25 * (head - forearm);
     }
     let knuckles = roots.iter().sum::<Vec3>() / roots.len() as f32;
-    head + 0.5 * (knuckles - head)
+    head + FIST_ALONG_HAND * (knuckles - head)
 }
+
+/// How far the fist centre lies from the wrist toward the knuckles (a fraction of that distance). Measured on the
+/// converted CC0 characters with their fingers curled into fists (`crate::fist`), skinned at the hit: at three
+/// quarters, the skinned fist's front meets the simulated fist's front within 5 mm and its centre is about
+/// 1.5 cm further along and 1.8 cm toward the palm; at half, the skin reached 1.5 to 3 cm past the simulated fist.
+pub const FIST_ALONG_HAND: f32 = 0.75;
 
 /// The rig's arm proportions at rest (the mean of its two sides, in the skeleton's units times `scale`): upper
 /// arm from its head to the forearm's, forearm from its head to the fist centre (`rig_fist`), and the distance

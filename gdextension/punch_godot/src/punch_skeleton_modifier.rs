@@ -13,13 +13,14 @@
 //!   inverse times the bone's rest rotation: it points along the segment and turns about itself as the segment
 //!   does, whatever axis convention (+Y, +X, any roll) the rig uses.
 //! - The chest takes the simulated torso's rotation, shared evenly along the spine; the clavicles, twist bones
-//!   on the arm and the hand follow their segment rigidly, as at rest. Hips, legs, neck, head and fingers keep
-//!   the animation's pose. Only rotations are written (`set_bone_pose_rotation`), so the rig keeps its own bone
-//!   lengths.
-//! - Blending: each written bone's local rotation is `slerp(animation, simulated, w)`; `w` eases from 0 to 1
-//!   over `blend_in_s` when a punch (or the recovery after it) starts and back over `blend_out_s` when it is
-//!   over (smoothstep: no step in the weight nor its rate). With `guard_source` Controller, `w` stays 1 and the
-//!   guard between punches is the simulated one.
+//!   on the arm and the hand follow their segment rigidly, as at rest. With `fist_curl`, the fingers below each
+//!   hand close into a fist (`punch_core::fist`: each finger bone bends toward the palm about an axis read from
+//!   the rest). Hips, legs, neck and head keep the animation's pose. Only rotations are written
+//!   (`set_bone_pose_rotation`), so the rig keeps its own bone lengths.
+//! - Blending: each written bone's local rotation (the fingers' included) is `slerp(animation, simulated, w)`;
+//!   `w` eases from 0 to 1 over `blend_in_s` when a punch (or the recovery after it) starts and back over
+//!   `blend_out_s` when it is over (smoothstep: no step in the weight nor its rate). With `guard_source`
+//!   Controller, `w` stays 1 and the guard between punches is the simulated one.
 //! - The spine bends about other points than the simulated waist joint, so the spine's first bone is shifted
 //!   (by the blend weight's share) until the rig's shoulders sit on the simulated ones.
 //! - Placing: with `follow_rig`, the simulated character is moved, while it is neither punching nor recovering,
@@ -41,6 +42,7 @@ use godot::obj::{Base, Gd, InstanceId, Singleton, WithBaseField};
 use godot::prelude::{GodotClass, godot_api};
 use punch_core::bone_map::{BoneMap, Role, map_bones_with};
 use punch_core::character::Body;
+use punch_core::fist::FistPose;
 use punch_core::skeleton_pose::{Blend, BodyFrames, BodyRotations, SkeletonPoser, rig_arm_lengths};
 
 use crate::convert::{quat, rotation, vec3, vector3};
@@ -59,8 +61,8 @@ const GUARD_FROM_CONTROLLER: i32 = 1;
 /// Makes a game's own rigged character punch: add it as a child of the character's `Skeleton3D` (after any
 /// modifier that must run first) and point `controller` at the `PunchController` that drives a
 /// `PunchCharacter`. Every physics frame it writes the simulated upper body (spine to chest, clavicles, arms
-/// and hands) onto the skeleton after the animation, blended with it around punches; the legs, head and
-/// everything else keep the animation. Bones are found by name (`bone_map`, filled in automatically and
+/// and hands, the fingers closed into fists) onto the skeleton after the animation, blended with it around
+/// punches; the legs, head and everything else keep the animation. Bones are found by name (`bone_map`, filled in automatically and
 /// editable); a skeleton without the bones it needs gets one error, and then keeps its animation.
 #[derive(GodotClass)]
 #[class(base = SkeletonModifier3D, init, tool)]
@@ -90,15 +92,23 @@ pub struct PunchSkeletonModifier {
     #[export(enum = (Animation = 0, Controller = 1))]
     #[init(val = GUARD_FROM_ANIMATION)]
     guard_source: i32,
+    /// Close the hands into fists while the simulated body shows (by the same blend weight), so the skinned fist
+    /// is where the simulated one lands: the finger bones below each mapped hand bend toward the palm (the thumb
+    /// less), about axes read from the rig's rest (the finger's direction and the side its palm faces). Off: the
+    /// fingers keep the animation's pose.
+    #[export_group(name = "Hands")]
+    #[export]
+    #[init(val = true)]
+    fist_curl: bool,
     /// Move the simulated character onto the rig (facing its front, shoulders on its shoulders) whenever it is
     /// neither punching nor recovering, so the skeleton's fists go where the simulated ones go.
     #[export_group(name = "Simulated body")]
     #[export]
     #[init(val = true)]
     follow_rig: bool,
-    /// Size the simulated arms to the rig's (upper arm, forearm to the middle of the hand, shoulder width), so the
-    /// skeleton's fists land where the simulated ones do: `PunchCharacter.size_arms`, once, before the first
-    /// punch. A rig whose arm is outside 0.75 to 1.25 times the simulated one (shoulder to fist 0.619 m) gets one
+    /// Size the simulated arms to the rig's (upper arm, forearm to the fist centre, three quarters of the way from
+    /// the wrist to the knuckles, and shoulder width), so the skeleton's fists land where the simulated ones do:
+    /// `PunchCharacter.size_arms`, once, before the first punch. A rig whose arm is outside 0.75 to 1.25 times the simulated one (shoulder to fist 0.619 m) gets one
     /// error and punches with the simulated body's own arms.
     #[export]
     #[init(val = true)]
@@ -128,6 +138,8 @@ struct Mapped {
     map: BoneMap,
     parents: Vec<i32>,
     rest: Vec<(Quat, Vec3)>,
+    /// The finger bones' local rotations in a fist.
+    fist: FistPose,
 }
 
 #[godot_api]
@@ -251,6 +263,9 @@ impl PunchSkeletonModifier {
             for bone in poser.written_bones() {
                 names.push(&skeleton.get_bone_name(bone as i32));
             }
+            for (bone, _) in self.fist_bones() {
+                names.push(&skeleton.get_bone_name(bone as i32));
+            }
         }
         names
     }
@@ -268,6 +283,11 @@ impl PunchSkeletonModifier {
 }
 
 impl PunchSkeletonModifier {
+    /// The finger bones curled into fists (none when `fist_curl` is off).
+    fn fist_bones(&self) -> impl Iterator<Item = (usize, Quat)> + '_ {
+        self.mapped.as_ref().filter(|_| self.fist_curl).into_iter().flat_map(|m| m.fist.bones())
+    }
+
     fn name(&self) -> String {
         self.base().get_name().to_string()
     }
@@ -328,13 +348,14 @@ impl PunchSkeletonModifier {
             .collect();
         let chosen: Vec<(Role, &str)> = chosen_names.iter().map(|(r, n)| (*r, n.as_str())).collect();
         let map = map_bones_with(&names, &parents, &chosen).map_err(|e| e.to_string())?;
-        let rest = (0..count)
+        let rest: Vec<(Quat, Vec3)> = (0..count)
             .map(|b| {
                 let t = skeleton.get_bone_global_rest(b);
                 (rotation(t.basis), vec3(t.origin))
             })
             .collect();
-        Ok(Mapped { skeleton: skeleton.instance_id(), version: skeleton.get_version(), map, parents, rest })
+        let fist = FistPose::new(&map, &names, &parents, &rest);
+        Ok(Mapped { skeleton: skeleton.instance_id(), version: skeleton.get_version(), map, parents, rest, fist })
     }
 
     /// The character the controller drives, if both are alive.
@@ -455,6 +476,10 @@ impl PunchSkeletonModifier {
         let mut skeleton = skeleton;
         for ((&bone, anim), target) in written.iter().zip(&animated).zip(&targets) {
             let q = anim.slerp(*target, weight).normalize();
+            skeleton.set_bone_pose_rotation(bone as i32, Quaternion::new(q.x, q.y, q.z, q.w));
+        }
+        for (bone, fist) in self.fist_bones() {
+            let q = quat(skeleton.get_bone_pose_rotation(bone as i32)).slerp(fist, weight).normalize();
             skeleton.set_bone_pose_rotation(bone as i32, Quaternion::new(q.x, q.y, q.z, q.w));
         }
         // The spine bends about other points than the simulated waist: the spine's first bone is shifted so that
