@@ -8,12 +8,14 @@ import pytest
 from punch_trainer.sim.style import Style, StyleError, style_from_label, style_label, style_named
 
 FRAMES = 50
+NAMES = [f"{stem}_{axis}" for stem in ("fist_l_pos", "fist_l_vel", "fist_r_vel", "fist_r_pos", "fist_r_impulse", "bag_pos")
+         for axis in "xyz"] + ["angle_waist_flexion"]
+"""every feature the style reads"""
 
 
 def features(**columns: np.ndarray) -> dict[str, np.ndarray]:
     """Per-frame features of one punch: every feature the style reads, 0 unless given."""
-    names = [f"{stem}_{axis}" for stem in ("fist_l_pos", "fist_l_vel", "fist_r_vel") for axis in "xyz"]
-    values = {name: np.zeros(FRAMES) for name in [*names, "angle_waist_flexion"]}
+    values = {name: np.zeros(FRAMES) for name in NAMES}
     values.update(columns)
     return values
 
@@ -48,6 +50,18 @@ def test_each_excess_costs_and_the_discount_grows_with_the_cost_so_far() -> None
         expected = np.exp(-every_cost - style.later_cost_share * (every_cost[-1] - every_cost)).sum()
         np.testing.assert_allclose(so_far[-1], expected, rtol=1e-9, atol=1e-12)
         np.testing.assert_array_equal(styled["back"], -np.ones(FRAMES))  # losses are not discounted
+
+
+def test_drawing_the_fist_back_before_it_lands_costs_and_its_rebound_after_does_not() -> None:
+    style = Style("boxing")
+    ahead = {"bag_pos_z": np.full(FRAMES, 0.7), "fist_r_pos_z": np.full(FRAMES, 0.2)}  # the bag straight ahead
+    wind_up = features(**ahead, fist_r_vel_z=np.where(np.arange(FRAMES) < 10, -3.0, 0.0))
+    assert np.all(style.cost(frames_of(wind_up))[:10] > 0.0) and np.all(style.cost(frames_of(wind_up))[10:] == 0.0)
+    straight_in = features(**ahead, fist_r_vel_z=np.full(FRAMES, 3.0))
+    assert np.all(style.cost(frames_of(straight_in)) == 0.0)
+    landed = np.where(np.arange(FRAMES) == 20, 1.0, 0.0)
+    rebound = features(**ahead, fist_r_impulse_z=landed, fist_r_vel_z=np.where(np.arange(FRAMES) > 20, -3.0, 0.0))
+    assert np.all(style.cost(frames_of(rebound)) == 0.0)
 
 
 def test_flailing_after_the_punch_has_landed_costs_what_it_earned() -> None:
@@ -99,8 +113,7 @@ def test_a_reward_with_a_style_is_scored_with_it() -> None:
 
     from punch_trainer.sim.rewards import load_reward, score_terms
 
-    names = ["fist_l_pos_x", "fist_l_pos_y", "fist_l_pos_z", "fist_l_vel_x", "fist_l_vel_y", "fist_l_vel_z",
-             "fist_r_vel_x", "fist_r_vel_y", "fist_r_vel_z", "angle_waist_flexion", "fist_r_bag_distance", "exploit_flags"]
+    names = [*NAMES, "fist_r_bag_distance", "exploit_flags"]
     values = np.zeros((2, FRAMES, len(names)))
     values[..., names.index("fist_r_vel_z")] = 5.0  # toward the bag, close to it: the straight earns every frame
     values[1, 10:, names.index("fist_l_pos_y")] = 0.4  # the second punch's guard hand flies off
@@ -124,8 +137,7 @@ def test_an_episode_scored_decision_by_decision_adds_up_to_its_return_with_and_w
         score,
     )
 
-    names = ["fist_l_pos_x", "fist_l_pos_y", "fist_l_pos_z", "fist_l_vel_x", "fist_l_vel_y", "fist_l_vel_z",
-             "fist_r_vel_x", "fist_r_vel_y", "fist_r_vel_z", "angle_waist_flexion", "fist_r_bag_distance", "exploit_flags"]
+    names = [*NAMES, "fist_r_bag_distance", "exploit_flags"]
     rng = np.random.default_rng(3)
     values = np.zeros((3, FRAMES, len(names)))
     values[..., names.index("fist_r_vel_z")] = rng.uniform(0, 12, (3, FRAMES))

@@ -4,7 +4,8 @@
 A style has two parts, chosen by measurement (docs/experiments.md, "A motion style"):
 
 1. **A discount on what a punch earns.** Every frame has a style cost: the off (left) fist's distance from
-   its guard and its speed, the waist's forward flexion and the punching fist's speed, each counted only
+   its guard and its speed, the waist's forward flexion, the punching fist's speed and, until it lands, its
+   speed away from the target (a wind-up: captured punches go straight at it), each counted only
    beyond a free range that captured punches stay within (../shared/data, CMU 143/23: the other hand moves
    12-20 cm at 1.2-1.8 m/s, the trunk leans 7-17 degrees, the fist peaks at 6.3-8.4 m/s), and growing with the
    square of the excess. A frame's positive reward is multiplied by exp(-weight x the cost so far), and a
@@ -56,6 +57,9 @@ class Style:
     waist_flexion_cost_per_rad2: float = 20.0
     fist_free_mps: float = 9.0
     fist_cost_per_mps2: float = 0.2
+    fist_back_free_mps: float = 0.5
+    """the punching fist's speed away from the target before it lands (a wind-up, drawing the fist back)"""
+    fist_back_cost_per_mps2: float = 0.5
     later_cost_share: float = 0.1
     """how much of the cost after a frame still discounts what that frame earned (0: only the cost before it;
     1: all of it, the whole punch's)"""
@@ -73,6 +77,11 @@ class Style:
         off_speed_mps = np.linalg.norm(vector("fist_l_vel"), axis=-1)
         fist_speed_mps = np.linalg.norm(vector("fist_r_vel"), axis=-1)
         waist_flexion_rad = frames("angle_waist_flexion")
+        to_bag = vector("bag_pos") - vector("fist_r_pos")
+        to_bag_unit = to_bag / np.maximum(np.linalg.norm(to_bag, axis=-1, keepdims=True), 1e-6)
+        touching = np.linalg.norm(vector("fist_r_impulse"), axis=-1) > 1e-3
+        before_contact = np.cumsum(touching, axis=-1) == 0
+        fist_back_mps = np.where(before_contact, -np.sum(vector("fist_r_vel") * to_bag_unit, axis=-1), 0.0)
 
         def beyond(value: np.ndarray, free: float) -> np.ndarray:
             return np.asarray(np.maximum(0.0, value - free) ** 2)
@@ -80,7 +89,8 @@ class Style:
         cost = (self.off_fist_cost_per_m2 * beyond(off_from_guard_m, self.off_fist_free_m)
                 + self.off_fist_cost_per_mps2 * beyond(off_speed_mps, self.off_fist_free_mps)
                 + self.waist_flexion_cost_per_rad2 * beyond(waist_flexion_rad, self.waist_flexion_free_rad)
-                + self.fist_cost_per_mps2 * beyond(fist_speed_mps, self.fist_free_mps))
+                + self.fist_cost_per_mps2 * beyond(fist_speed_mps, self.fist_free_mps)
+                + self.fist_back_cost_per_mps2 * beyond(fist_back_mps, self.fist_back_free_mps))
         return np.asarray(self.weight * cost, dtype=np.float64)
 
     def apply(self, terms: Mapping[str, np.ndarray], frames: FramesLike) -> dict[str, np.ndarray]:
