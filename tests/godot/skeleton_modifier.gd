@@ -16,6 +16,12 @@
 ## largest per-frame rotation of each written bone in the blend-in and blend-out windows, of the animation alone and
 ## of the fully simulated pose, and the legs' largest difference from the twin. The tiny rig's arms (0.6 of the
 ## simulated ones) are outside the range the simulated arms can be sized to.
+##
+## With --bench=N (for `punch bench inference`): N copies of the first --glb (else of the mixamo_t_y rig), no twins
+## and nothing recorded, each punching its sandbag --bench-punches=P times (3) one after another; prints
+## `SKELETON_BENCH <json>`: the rig, its bone count, the bones written, the modifiers' mean time per character-frame
+## in which they wrote (`PunchSkeletonModifier.take_cost_usec`) and the controllers' mean work per physics frame
+## since the first punch over N (`PunchInference.take_frame_cost_usec`).
 extends SceneTree
 
 ## name, naming, arm drop (deg: 0 T-pose), convention ("y" or "x"), arm scale, yaw (deg), position
@@ -55,6 +61,9 @@ var _policy := ""
 var _fist_curl := true
 var _rigs: Array[Dictionary] = []
 var _frames := 0
+var _bench := 0
+var _bench_punches := 3
+var _bench_rig := ""
 
 
 func _initialize() -> void:
@@ -66,6 +75,13 @@ func _initialize() -> void:
 			glbs.append(argument.trim_prefix("--glb="))
 		elif argument == "--open-hands":
 			_fist_curl = false
+		elif argument.begins_with("--bench="):
+			_bench = int(argument.trim_prefix("--bench="))
+		elif argument.begins_with("--bench-punches="):
+			_bench_punches = int(argument.trim_prefix("--bench-punches="))
+	if _bench > 0:
+		_initialize_bench(glbs)
+		return
 	for spec in RIGS:
 		var units := 100.0 if spec[0].ends_with("_cm") else 1.0
 		var rig := _build_rig(spec[1], spec[2], spec[3], spec[4], units)
@@ -82,6 +98,18 @@ func _initialize() -> void:
 		index += 1
 
 
+func _initialize_bench(glbs: Array[String]) -> void:
+	var original: Node3D = _load_glb(glbs[0]) if not glbs.is_empty() else _build_rig("mixamo", 0.0, "y", 1.0, 1.0)
+	if original == null:
+		print("SKELETON_MODIFIER_GLB_FAILED ", glbs[0])
+		quit(1)
+		return
+	_bench_rig = glbs[0].get_file().get_basename() if not glbs.is_empty() else "mixamo_t_y"
+	for i in _bench:
+		var rig: Node3D = original if i == 0 else original.duplicate()
+		_add(_bench_rig, rig, null, 0.0, Vector3(4.0 * (i % 16), 0, 6.0 * (i / 16)))
+
+
 func _load_glb(path: String) -> Node3D:
 	var document := GLTFDocument.new()
 	var state := GLTFState.new()
@@ -93,12 +121,14 @@ func _load_glb(path: String) -> Node3D:
 func _add(name: String, rig: Node3D, twin: Node3D, yaw_deg: float, at: Vector3) -> void:
 	rig.transform = Transform3D(Basis(Vector3.UP, deg_to_rad(yaw_deg)), at)
 	root.add_child(rig)
-	twin.transform = Transform3D(Basis(Vector3.UP, deg_to_rad(yaw_deg)), at + Vector3(0, 0, 200))
-	root.add_child(twin)
 	var skeleton: Skeleton3D = rig.find_children("*", "Skeleton3D", true, false)[0]
-	var twin_skeleton: Skeleton3D = twin.find_children("*", "Skeleton3D", true, false)[0]
-	for pair in [[rig, skeleton], [twin, twin_skeleton]]:
-		_animate(pair[0], pair[1])
+	_animate(rig, skeleton)
+	var twin_skeleton: Skeleton3D = null
+	if twin != null:
+		twin.transform = Transform3D(Basis(Vector3.UP, deg_to_rad(yaw_deg)), at + Vector3(0, 0, 200))
+		root.add_child(twin)
+		twin_skeleton = twin.find_children("*", "Skeleton3D", true, false)[0]
+		_animate(twin, twin_skeleton)
 	var character: Node3D = load("res://addons/punch_controller/scenes/punch_character.tscn").instantiate()
 	character.position = at + Vector3(0, 0, -3)  # anywhere: the modifier puts it on the rig
 	root.add_child(character)
@@ -118,7 +148,8 @@ func _add(name: String, rig: Node3D, twin: Node3D, yaw_deg: float, at: Vector3) 
 		entry.hits += 1
 		# The skeleton's pose is the modified one only while it updates: measured at its next update.
 		entry.hit_pending = entry.hit_gap_m < 0.0)
-	skeleton.connect("skeleton_updated", func(): _record(entry))
+	if twin != null:
+		skeleton.connect("skeleton_updated", func(): _record(entry))
 	_rigs.append(entry)
 
 
@@ -395,6 +426,13 @@ func _physics_process(_delta: float) -> bool:
 		for entry in _rigs:
 			if entry.modifier.call("is_mapped"):
 				entry.controller.call("punch")
+		if _bench > 0:
+			PunchSkeletonModifier.take_cost_usec()
+			Engine.get_singleton("PunchInference").take_frame_cost_usec()
+	if _bench > 0:
+		if _frames > 8:
+			_bench_frame()
+		return false
 	if _frames == 230:
 		var report := []
 		for entry in _rigs:
@@ -403,6 +441,38 @@ func _physics_process(_delta: float) -> bool:
 		print("SKELETON_MODIFIER ", JSON.stringify(report))
 		quit(0)
 	return false
+
+
+## Punches again every character that is over its punch; once each has punched `_bench_punches` times and is over
+## it, prints SKELETON_BENCH and quits (or after 400 frames a punch, saying how many punches were done).
+func _bench_frame() -> void:
+	var done := 0
+	for entry in _rigs:
+		var controller: Node = entry.controller
+		var busy: bool = controller.call("is_punching") or controller.call("is_recovering")
+		if busy:
+			continue
+		entry.punches = entry.get("punches", 1)
+		if entry.punches < _bench_punches:
+			controller.call("punch")
+			entry.punches += 1
+		else:
+			done += 1
+	if done < _rigs.size() and _frames < 8 + 400 * _bench_punches:
+		return
+	var cost: Dictionary = PunchSkeletonModifier.take_cost_usec()
+	var skeleton: Skeleton3D = _rigs[0].skeleton
+	var punches := 0
+	for entry in _rigs:
+		punches += entry.get("punches", 1)
+	# The controllers' mean work per physics frame since the first punch, all of them together.
+	var controller_usec: float = Engine.get_singleton("PunchInference").take_frame_cost_usec()
+	print("SKELETON_BENCH ", JSON.stringify({"rig": _bench_rig, "characters": _rigs.size(),
+		"bones": skeleton.get_bone_count(), "written": _rigs[0].modifier.call("written_bones").size(),
+		"punches": punches, "character_frames": cost.frames,
+		"skeleton_usec_per_character_frame": cost.usec_per_frame,
+		"controller_usec_per_character_frame": controller_usec / _rigs.size()}))
+	quit(0)
 
 
 func _summary(entry: Dictionary) -> Dictionary:

@@ -303,6 +303,11 @@ impl SkeletonPoser {
         self.hips
     }
 
+    /// The spine chain, from the hips' child up to the chest: the bones whose animated pose `pose` reads.
+    pub fn spine(&self) -> &[usize] {
+        &self.spine
+    }
+
     /// The first bone of the spine chain (the hips' child).
     pub fn spine_root(&self) -> usize {
         self.spine[0]

@@ -33,7 +33,7 @@ use std::cell::Cell;
 use std::time::Instant;
 
 use glam::{Quat, Vec3};
-use godot::builtin::{Basis, GString, PackedStringArray, Quaternion, Transform3D, VarDictionary};
+use godot::builtin::{Basis, GString, PackedStringArray, Quaternion, StringName, Transform3D, VarDictionary};
 use godot::classes::skeleton_3d::ModifierCallbackModeProcess;
 use godot::classes::{Engine, ISkeletonModifier3D, Node3D, Skeleton3D, SkeletonModifier3D};
 use godot::global::godot_error;
@@ -129,7 +129,25 @@ pub struct PunchSkeletonModifier {
     /// The shoulder joints in the upper arms' frames ([right, left]), where the simulated shoulders are.
     shoulder_anchors: [Vec3; 2],
     blend: Blend,
+    /// Names the pass calls every frame, made once (making one takes a lock).
+    names: Names,
     base: Base<SkeletonModifier3D>,
+}
+
+struct Names {
+    character: StringName,
+    is_punching: StringName,
+    is_recovering: StringName,
+}
+
+impl Default for Names {
+    fn default() -> Self {
+        Names {
+            character: StringName::from("character"),
+            is_punching: StringName::from("is_punching"),
+            is_recovering: StringName::from("is_recovering"),
+        }
+    }
 }
 
 struct Mapped {
@@ -361,7 +379,7 @@ impl PunchSkeletonModifier {
     /// The character the controller drives, if both are alive.
     fn character(&self) -> Option<Gd<PunchCharacter>> {
         let controller = self.controller.as_ref().filter(|c| c.is_instance_valid())?;
-        controller.get("character").try_to::<Option<Gd<PunchCharacter>>>().ok().flatten()
+        controller.get(&self.names.character).try_to::<Option<Gd<PunchCharacter>>>().ok().flatten()
     }
 
     fn apply_visibility(&mut self) {
@@ -440,8 +458,8 @@ impl PunchSkeletonModifier {
         }
         // Called, not bound: a pass may run while the controller is bound (a signal handler moving a node).
         let mut controller = controller.upcast::<godot::classes::Object>();
-        let punching = controller.call("is_punching", &[]).try_to::<bool>().unwrap_or(false);
-        let recovering = controller.call("is_recovering", &[]).try_to::<bool>().unwrap_or(false);
+        let punching = controller.call(&self.names.is_punching, &[]).try_to::<bool>().unwrap_or(false);
+        let recovering = controller.call(&self.names.is_recovering, &[]).try_to::<bool>().unwrap_or(false);
         let busy = punching || recovering;
         if let Err(problem) = self.ensure_poser(&character, busy) {
             if self.problem.is_none() {
@@ -469,17 +487,32 @@ impl PunchSkeletonModifier {
             forearm: [rotation(2), rotation(4)],
         };
         let written: Vec<usize> = poser.written_bones().collect();
-        let animated: Vec<Quat> = written.iter().map(|&b| quat(skeleton.get_bone_pose_rotation(b as i32))).collect();
+        // The animation's pose: read for the blend, and for the spine (whose turn is shared from it) always.
+        let blending = weight < 1.0;
+        let animated: Vec<Quat> = written
+            .iter()
+            .map(|&b| {
+                if blending || poser.spine().contains(&b) {
+                    quat(skeleton.get_bone_pose_rotation(b as i32))
+                } else {
+                    Quat::IDENTITY
+                }
+            })
+            .collect();
         let hips = quat(skeleton.get_bone_global_pose(poser.hips() as i32).basis.get_quaternion());
         let lookup = |bone: usize| written.iter().position(|&b| b == bone).map_or(Quat::IDENTITY, |i| animated[i]);
         let targets = poser.pose(&rotations, hips, lookup);
         let mut skeleton = skeleton;
         for ((&bone, anim), target) in written.iter().zip(&animated).zip(&targets) {
-            let q = anim.slerp(*target, weight).normalize();
+            let q = if blending { anim.slerp(*target, weight).normalize() } else { *target };
             skeleton.set_bone_pose_rotation(bone as i32, Quaternion::new(q.x, q.y, q.z, q.w));
         }
         for (bone, fist) in self.fist_bones() {
-            let q = quat(skeleton.get_bone_pose_rotation(bone as i32)).slerp(fist, weight).normalize();
+            let q = if blending {
+                quat(skeleton.get_bone_pose_rotation(bone as i32)).slerp(fist, weight).normalize()
+            } else {
+                fist
+            };
             skeleton.set_bone_pose_rotation(bone as i32, Quaternion::new(q.x, q.y, q.z, q.w));
         }
         // The spine bends about other points than the simulated waist: the spine's first bone is shifted so that

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime
+import json
 import os
 import platform
 import re
@@ -15,10 +16,11 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from punch_trainer.errors import PunchError
+from punch_trainer.errors import GodotRunError, PunchError
+from punch_trainer.options import bounds
 from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.cluster import RayBackend
-from punch_trainer.sim.godot import ADDON_POLICIES, PROJECT_ROOT
+from punch_trainer.sim.godot import ADDON_POLICIES, GODOT_PROJECT, PROJECT_ROOT, run_godot
 from punch_trainer.sim.protocol import Message, reset_message, rollout_message, step_message
 from punch_trainer.sim.server import ServerConnection, exchange
 
@@ -50,6 +52,9 @@ class BenchInferenceArgs:
     """controllers measured at once, one measurement per count"""
     batches: int = 3
     """punches per controller"""
+    skeleton_characters: list[int] = field(default_factory=lambda: [1, 16, 64], metadata=bounds(1, 256, max_items=8))
+    """counts (of those in --characters) at which the skeleton writing is measured too: that many rigged characters
+    (PunchSkeletonModifier on a converted CC0 character) punching at once"""
 
 
 @dataclass
@@ -111,6 +116,24 @@ class InferenceCost:
     controller_usec_per_character_frame: float
     idle_controller_usec_per_frame: float
     """the same pass while they stand idle after their punches (median frame)"""
+    skeleton: SkeletonCost | None = None
+    """the skeleton writing at this count, where measured"""
+
+
+@dataclass(frozen=True)
+class SkeletonCost:
+    """PunchSkeletonModifier's cost: `characters` rigged characters punching at once (`bench_skeleton`)."""
+
+    rig: str
+    bones: int
+    written: int
+    """bones the modifier writes each frame (spine, arms, hands and the fingers it curls into fists)"""
+    characters: int
+    character_frames: int
+    """character-frames in which the modifiers wrote poses"""
+    skeleton_usec_per_character_frame: float
+    controller_usec_per_character_frame: float
+    """the controllers' work in the same run, per character and physics frame"""
 
 
 @dataclass(frozen=True)
@@ -360,11 +383,48 @@ def search_table(rows: list[SearchBenchRun]) -> str:
 IDLE_FRAMES = 120
 
 
+# The converted CC0 character the skeleton writing is measured on (52 bones, 30 of them fingers), when it can be made.
+SKELETON_BENCH_CHARACTER = "mixamo_190"
+
+
+def skeleton_bench_rig() -> Path | None:
+    """The converted CC0 character's glb (made if it is not yet), or None when it cannot be made (then the rig
+    the test script builds at run time is measured)."""
+    from punch_trainer.characters import DEFAULT_OUT, make_characters
+
+    try:
+        manifest = make_characters(DEFAULT_OUT, only=[SKELETON_BENCH_CHARACTER])
+    except (PunchError, OSError):
+        return None
+    files = [DEFAULT_OUT / c["file"] for c in manifest["characters"] if c["name"] == SKELETON_BENCH_CHARACTER]
+    return files[0] if files and files[0].is_file() else None
+
+
+def bench_skeleton(policy: Path, characters: int, glb: Path | None, punches: int = 3) -> SkeletonCost:
+    """PunchSkeletonModifier's time per character-frame, from `characters` copies of a rigged character (`glb`, else
+    the test script's run-time rig), each playing an idle animation and punching a sandbag `punches` times with
+    `policy` (tests/godot/skeleton_modifier.gd --bench), fingers curled into fists."""
+    script = PROJECT_ROOT / "tests" / "godot" / "skeleton_modifier.gd"
+    run = run_godot(["--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), "--script", str(script), "--",
+                     f"--policy={Path(policy).resolve()}", f"--bench={characters}", f"--bench-punches={punches}",
+                     *([f"--glb={glb.resolve()}"] if glb else [])], check=False, timeout_s=600)
+    line = next((line for line in run.log.splitlines() if line.startswith("SKELETON_BENCH ")), None)
+    if run.returncode != 0 or run.fatal_lines() or line is None:
+        raise GodotRunError(f"the skeleton benchmark failed (exit code {run.returncode}):\n{run.log[-3000:]}", run.log)
+    report = json.loads(line[len("SKELETON_BENCH "):])
+    return SkeletonCost(rig=report["rig"], bones=report["bones"], written=report["written"], characters=report["characters"],
+                        character_frames=report["character_frames"],
+                        skeleton_usec_per_character_frame=report["skeleton_usec_per_character_frame"],
+                        controller_usec_per_character_frame=report["controller_usec_per_character_frame"])
+
+
 def bench_inference(args: BenchInferenceArgs, sigma: float = 0.3) -> list[InferenceCost]:
     """PunchController's cost in Godot, from `batches` punches of every controller at once for each count:
     ONNX Runtime time per call and per character-decision (all controllers share the policy, so one call per
-    decision tick), and the controllers' whole work per physics frame (sensing, inference, driving)."""
+    decision tick), and the controllers' whole work per physics frame (sensing, inference, driving); at the counts
+    in `skeleton_characters`, also PunchSkeletonModifier's writing of rigged skeletons (`bench_skeleton`)."""
     policy, characters, batches = args.policy, args.characters, args.batches
+    rig = skeleton_bench_rig() if set(characters) & set(args.skeleton_characters) else None
     import tempfile
 
     from punch_trainer.pipelines.replay import ReplayArgs, run_godot_replay
@@ -378,19 +438,38 @@ def bench_inference(args: BenchInferenceArgs, sigma: float = 0.3) -> list[Infere
         frame_usec = float(np.mean(meta["controller_frame_usec_per_batch"]))
         # Per frame: the median, as a rare frame in which the OS took the thread away outweighs a mean of ~1 µs.
         idle_usec = float(np.median(np.concatenate(meta["idle_controller_frame_usec_per_batch"])))
+        skeleton = bench_skeleton(policy, count, rig, batches) if count in args.skeleton_characters else None
         rows.append(InferenceCost(controllers=count, calls=inference["calls"], rows=inference["rows"],
                                   usec_per_call=inference["usec"] / inference["calls"],
                                   usec_per_character_decision=inference["usec"] / inference["rows"],
                                   controller_usec_per_frame=frame_usec, controller_usec_per_character_frame=frame_usec / count,
-                                  idle_controller_usec_per_frame=idle_usec))
+                                  idle_controller_usec_per_frame=idle_usec, skeleton=skeleton))
     return rows
 
 
 def inference_table(rows: list[InferenceCost]) -> str:
+    """The controllers' table; then, where measured, the skeleton writing beside the controllers' work."""
     lines = ["| controllers | ONNX Runtime calls | µs per call | µs per character-decision | controller work per physics frame (µs) | per character (µs) | all idle: work per frame (µs) |",
              "|---|---|---|---|---|---|---|"]
     for r in rows:
         lines.append(f"| {r.controllers} | {r.calls} | {r.usec_per_call:.1f} | {r.usec_per_character_decision:.2f} | "
                      f"{r.controller_usec_per_frame:.0f} | {r.controller_usec_per_character_frame:.2f} | "
                      f"{r.idle_controller_usec_per_frame:.2f} |")
+    measured = [r.skeleton for r in rows if r.skeleton]
+    if not measured:
+        return "\n".join(lines)
+    first = measured[0]
+    rig = (f"the converted CC0 character `{first.rig}` ({first.bones} bones)" if first.rig == SKELETON_BENCH_CHARACTER
+           else f"the test script's run-time rig `{first.rig}` ({first.bones} bones; the CC0 character could not be made)")
+    lines += ["", f"Skeleton writing (PunchSkeletonModifier): its own pass per character-frame in which it wrote (reading the "
+              f"simulated bodies and the animation's pose, posing, writing {first.written} bones: spine, clavicles, arms, hands and "
+              f"the fingers curled into fists), on that many copies of {rig} with an idle animation, each punching its sandbag "
+              "as often as the controllers above (tests/godot/skeleton_modifier.gd --bench); beside it, the controllers' work "
+              "per character-frame in the same run. Skinning and the skeleton's own update are the engine's, as without the "
+              "modifier. Target: under 10 µs per character-frame.", "",
+              "| rigged characters | skeleton writing per character-frame (µs) | controller work per character-frame, same run (µs) | "
+              "character-frames written |", "|---|---|---|---|"]
+    for s in measured:
+        lines.append(f"| {s.characters} | {s.skeleton_usec_per_character_frame:.2f} | {s.controller_usec_per_character_frame:.2f} | "
+                     f"{s.character_frames} |")
     return "\n".join(lines)
