@@ -131,6 +131,9 @@ pub struct PunchSkeletonModifier {
     blend: Blend,
     /// Names the pass calls every frame, made once (making one takes a lock).
     names: Names,
+    /// The character read from the controller when its punch (or recovery) began: a punch keeps its character,
+    /// so frames within one need not ask again (asking is a tenth of the pass).
+    punching_character: Option<Gd<PunchCharacter>>,
     base: Base<SkeletonModifier3D>,
 }
 
@@ -447,20 +450,23 @@ impl PunchSkeletonModifier {
             return false;
         }
         let Some(skeleton) = self.base().get_skeleton() else { return false };
-        let (Some(controller), Some(character)) =
-            (self.controller.clone().filter(|c| c.is_instance_valid()), self.character())
-        else {
+        let Some(controller) = self.controller.clone().filter(|c| c.is_instance_valid()) else {
             self.blend.set(false);
             return false;
         };
-        if character.bind().rig().is_none() {
-            return false;
-        }
         // Called, not bound: a pass may run while the controller is bound (a signal handler moving a node).
         let mut controller = controller.upcast::<godot::classes::Object>();
         let punching = controller.call(&self.names.is_punching, &[]).try_to::<bool>().unwrap_or(false);
-        let recovering = controller.call(&self.names.is_recovering, &[]).try_to::<bool>().unwrap_or(false);
-        let busy = punching || recovering;
+        let busy = punching || controller.call(&self.names.is_recovering, &[]).try_to::<bool>().unwrap_or(false);
+        let cached = self.punching_character.clone().filter(|c| busy && c.is_instance_valid());
+        let Some(character) = cached.or_else(|| self.character()) else {
+            self.blend.set(false);
+            return false;
+        };
+        self.punching_character = Some(character.clone());
+        if character.bind().rig().is_none() {
+            return false;
+        }
         if let Err(problem) = self.ensure_poser(&character, busy) {
             if self.problem.is_none() {
                 godot_error!("PunchSkeletonModifier '{}': {problem}. The skeleton keeps its animation.", self.name());
