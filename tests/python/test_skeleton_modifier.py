@@ -141,16 +141,19 @@ def test_blending_eases_without_steps(rigs):
     """A blend over n frames must turn a bone by (angle between the animation's and the simulated pose) / n per
     frame beyond their own motion; smoothstep adds at most 1.5 times that and no step in speed at either end.
     Here the animation is a T-pose idle, up to 180 degrees from the simulated guard (forearms folded back), so
-    the default 0.1 s blend turns bones faster than the punch itself does: the README says to lengthen it
-    when the animation's guard is far from the simulated one."""
-    frames_per_blend = 0.1 * 120
+    the default blends (0.05 s in, 0.1 s out) turn bones faster than the punch itself does: the README says to
+    lengthen them when the animation's guard is far from the simulated one."""
+    frames_in, frames_out = 0.05 * 120, 0.1 * 120
     for name in MAPPED:
         rig = rigs[name]
         jumps = rig["jumps_rad"]
-        assert rig["blend_frames"] >= 2 * (frames_per_blend - 1), rig["blend_frames"]  # 0.1 s in and out
+        assert rig["blend_frames"] >= frames_in - 1 + frames_out - 1, rig["blend_frames"]
         own = max(jumps["animation"], jumps["simulated"])
-        bound = own + 1.5 * rig["pose_gap_rad"] / frames_per_blend + 1e-3
-        assert jumps["blend_in"] <= bound and jumps["blend_out"] <= bound, (name, jumps, rig["worst_bone"])
+        for key, frames in (("blend_in", frames_in), ("blend_out", frames_out)):
+            # `simulated` is the simulated pose's own step at full weight only; a blend-in covers the punch's first
+            # frames, where it moves fastest (the shipped straight lands in its sixth), hence the 10% margin.
+            bound = 1.1 * (own + 1.5 * rig["pose_gap_rad"] / frames) + 1e-3
+            assert jumps[key] <= bound, (name, key, jumps, rig["worst_bone"])
 
 
 def test_the_cc0_characters_are_sized_and_their_visible_fists_land_within_3_cm(characters):
