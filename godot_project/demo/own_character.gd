@@ -108,7 +108,7 @@ func _add_fighter(file: String, rig: Node3D, place: Transform3D, index: int) -> 
 	var controller := add_controller(character, null, 0.0, index + 1)
 	var modifier := PunchSkeletonModifier.new()
 	modifier.controller = controller
-	modifier.blend_in_s = 0.15
+	modifier.blend_in_s = 0.05  # the punches land 0.06 s in: the skinned fist must be there by then
 	modifier.blend_out_s = 0.25
 	skeleton.add_child(modifier)  # maps the bones (bone_map) as it enters the tree
 	_add_idle(rig, skeleton, modifier.bone_map, 1.1 + 0.15 * index)
