@@ -213,6 +213,7 @@ def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVecto
         return result.mean_return, result.success_rate
 
     optimizer = torch.optim.Adam(model.parameters(), lr=args.learning_rate)
+    sigma_cap = style_sigma_cap(reward, env.info.action_size)
     restarts = SimulatorRestarts(env.restart, max_restarts)
     saved = load_checkpoint(run_dir, "a2c") if run_dir is not None else None
     if saved is None:
@@ -247,7 +248,7 @@ def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVecto
         b_adv = (b_adv - b_adv.mean()) / (b_adv.std() + 1e-8)
         per_epoch: dict[str, list[float]] = {"policy_loss": [], "value_loss": [], "entropy": [], "sigma_mean": []}
         for _ in range(args.epochs):
-            dist = model.distribution(b_obs, args.sigma_floor, style_sigma_cap(reward, b_actions.shape[-1]))
+            dist = model.distribution(b_obs, args.sigma_floor, sigma_cap)
             ratio = torch.exp(dist.log_prob(b_actions).sum(-1) - b_logp)
             policy_loss = -torch.min(ratio * b_adv, torch.clamp(ratio, 1 - args.clip, 1 + args.clip) * b_adv).mean()
             value_loss = ((model.value(b_obs) - b_returns) ** 2).mean()

@@ -21,7 +21,6 @@ from punch_trainer.sim.style import style_label, style_named
 PLACEMENTS_M = ((0.72, 1.35, 0.0), (0.62, 1.2, -0.2), (0.82, 1.5, 0.2), (0.7, 1.45, -0.1))
 """distance, height and side (m) of the bag, inside the shipped policies' reach volume: its middle, near and
 low to the right, far and high to the left, and one more"""
-PHYSICS_HZ = 120.0
 
 
 @dataclass
@@ -69,7 +68,7 @@ def style_experiment(args: StyleExperimentArgs, progress: bool = True) -> tuple[
                     touched = bool(first_right_contact(best.best_features, names)[0])
                     hits += int(touched and plain_return > 0)
                     returns.append(plain_return)
-                    punches.append(punch_naturalness(best.best_features, names, PHYSICS_HZ))
+                    punches.append(punch_naturalness(best.best_features, names, float(pool.info.physics_hz)))
             summary = summarise(punches)
             label = style_label(style)
             columns.append((label, summary))

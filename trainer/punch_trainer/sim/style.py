@@ -33,8 +33,6 @@ from punch_trainer.errors import PunchError
 FramesLike = Callable[[str], np.ndarray]
 """`frames[name]` of punch_trainer.sim.rewards.Frames: a feature's values [..., frames]"""
 
-PHYSICS_HZ = 120.0
-"""frames per second of the features the costs are counted over (punch_core::character::PHYSICS_HZ)"""
 
 
 class StyleError(PunchError):
