@@ -19,7 +19,7 @@
 ## seed * 1000003 + s * 100003 + e, whatever the batch size.
 ##
 ## Output per sigma index s in DIR: features_s.f32 [episodes, frames, F], observations_s.f32
-## [episodes, decisions, 45], mean_actions_s.f32 and actions_s.f32 [episodes, decisions, 10], all little-endian
+## [episodes, decisions, 51], mean_actions_s.f32 and actions_s.f32 [episodes, decisions, 10], all little-endian
 ## float32, and meta.json (with the controllers' inference counts and time, and their work per physics frame,
 ## punching and, with `--idle-frames`, idle, for `punch bench inference`). Progress lines:
 ## `REPLAY_PROGRESS done total`.

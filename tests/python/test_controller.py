@@ -74,7 +74,7 @@ def nan_policy(path, contract: dict[str, str]):
             mean = obs[:, :10] * torch.tensor(float("nan"))
             return mean, mean  # (ones_like would export as Expand, which a policy may not use)
 
-    return export_onnx(NanActor(), 45, path, metadata=contract, verify=False)
+    return export_onnx(NanActor(), 51, path, metadata=contract, verify=False)
 
 
 @pytest.mark.expensive
@@ -366,31 +366,31 @@ def hostile_policy_files(policy, directory):
             mean = torch.tanh(obs[:, :10])
             return mean * 0.5, mean
 
-    files["swapped"] = export_onnx(Swapped(), 45, directory / "swapped.onnx", metadata=contract,
+    files["swapped"] = export_onnx(Swapped(), 51, directory / "swapped.onnx", metadata=contract,
                                    output_names=("sigma", "mean"))
-    files["foo"] = export_onnx(Swapped(), 45, directory / "foo.onnx", metadata=contract, output_names=("foo", "sigma"))
+    files["foo"] = export_onnx(Swapped(), 51, directory / "foo.onnx", metadata=contract, output_names=("foo", "sigma"))
     for key, value in [("punch_frames", "0"), ("punch_frames", "7"), ("punch_frames", "1000000000000"),
                        ("punch_smoothing_window", "0"), ("punch_smoothing_window", "999"), ("punch_physics_hz", "60"),
                        ("punch_decision_period", "-5")]:
         name = f"{key}_{value}"
-        files[name] = export_onnx(Swapped(), 45, directory / f"{name}.onnx", metadata={**contract, key: value})
+        files[name] = export_onnx(Swapped(), 51, directory / f"{name}.onnx", metadata={**contract, key: value})
     # A noise scale that would multiply the designer's sigma by 5 on one joint.
-    files["noise_scale"] = export_onnx(Swapped(), 45, directory / "noise_scale.onnx",
+    files["noise_scale"] = export_onnx(Swapped(), 51, directory / "noise_scale.onnx",
                                        metadata={**contract, "punch_noise_scale": "[1, 1, 1, 1, 1, 1, 1, 1, 1, 5]"})
     # A Loop whose body runs 2^40 times: the graph is small and valid, and ONNX Runtime would run it.
     body = helper.make_graph(
         [helper.make_node("Identity", ["cond_in"], ["cond_out"]), helper.make_node("Identity", ["x_in"], ["x_out"])],
         "body", [helper.make_tensor_value_info("i", TensorProto.INT64, []),
                  helper.make_tensor_value_info("cond_in", TensorProto.BOOL, []),
-                 helper.make_tensor_value_info("x_in", TensorProto.FLOAT, ["batch", 45])],
+                 helper.make_tensor_value_info("x_in", TensorProto.FLOAT, ["batch", 51])],
         [helper.make_tensor_value_info("cond_out", TensorProto.BOOL, []),
-         helper.make_tensor_value_info("x_out", TensorProto.FLOAT, ["batch", 45])])
+         helper.make_tensor_value_info("x_out", TensorProto.FLOAT, ["batch", 51])])
     graph = helper.make_graph(
         [helper.make_node("Constant", [], ["trips"], value=helper.make_tensor("t", TensorProto.INT64, [], [2**40])),
          helper.make_node("Constant", [], ["go"], value=helper.make_tensor("g", TensorProto.BOOL, [], [True])),
          helper.make_node("Loop", ["trips", "go", "obs"], ["looped"], body=body),
          helper.make_node("Slice", ["looped", "starts", "ends", "axes"], ["mean"])],
-        "loop", [helper.make_tensor_value_info("obs", TensorProto.FLOAT, ["batch", 45])],
+        "loop", [helper.make_tensor_value_info("obs", TensorProto.FLOAT, ["batch", 51])],
         [helper.make_tensor_value_info("mean", TensorProto.FLOAT, ["batch", 10])],
         initializer=[helper.make_tensor("starts", TensorProto.INT64, [1], [0]),
                      helper.make_tensor("ends", TensorProto.INT64, [1], [10]),
@@ -422,3 +422,59 @@ def test_policy_files_that_lie_are_refused_once_per_file(policy, tmp_path):
                 "noise_scale": "punch_noise_scale"}
     for name, text in expected.items():
         assert text in next(e for e in errors if files[name].name in e), name
+
+
+WALK_MPS, TURN_RADPS, PHYSICS_HZ = 1.4, np.radians(120.0), 120.0
+
+
+def carried(*args: str) -> dict:
+    """tests/godot/moving_character.gd's report: the character's parent walked at 1.4 m/s and turned at 120°/s
+    every physics frame, then moved 5 m and turned 90° in one frame."""
+    return printed(run_script("moving_character.gd", f"--speed={WALK_MPS}", "--turn=120", *args), "MOVING_CHARACTER")
+
+
+def assert_carried_without_jumps(report: dict, arm_motion_m: float) -> None:
+    # The pelvis is where the root was carried to, and Jolt gives the kinematic body the velocity of that move.
+    assert report["max_pelvis_error_m"] < 1e-4 and report["max_pelvis_turn_error_rad"] < 2e-3, report
+    assert report["pelvis_speed_mps"] == pytest.approx(WALK_MPS, rel=1e-3)
+    assert report["pelvis_spin_radps"] == pytest.approx(TURN_RADPS, rel=1e-3)
+    assert report["max_pelvis_velocity_error_mps"] < 1e-3, report
+    # No body moves in a frame more than the walk and the turn (a point 0.7 m from the root) explain, plus the
+    # arm's own motion; and each moves as its velocity says: a body teleported by Godot's transform propagation
+    # would move a frame's walk (1.2 cm) with no velocity for it.
+    walk_and_turn_m = (WALK_MPS + TURN_RADPS * 0.7) / PHYSICS_HZ
+    for body, step in report["max_step_m"].items():
+        assert step < walk_and_turn_m + arm_motion_m, (body, step)
+        assert report["max_unexplained_m"][body] < 1e-3, (body, report["max_unexplained_m"])
+    assert report["max_joint_gap_m"] < 1e-3, report
+    # The teleport moved the whole body at once, in its pose, at rest.
+    assert report["teleport_pelvis_error_m"] < 1e-4, report
+    assert max(report["teleport_pose_error_m"].values()) < 1e-3, report["teleport_pose_error_m"]
+    assert report["teleport_max_speed_mps"] < 0.1, report
+
+
+def test_a_character_carried_by_a_walking_turning_parent_follows_it_under_physics():
+    """The parent moved every physics frame (as a game moves a CharacterBody3D): the kinematic pelvis follows
+    the root, the trunk and arms follow the pelvis through their joints without a jump, the joints stay
+    together; a 5 m move in one frame is a teleport of the whole body. Measured, idle: the pelvis exactly on
+    the root (Jolt moves the kinematic body by its set transform within the step, at 1.400 m/s and 2.094
+    rad/s), at most 1.6 cm per frame (fists), 0.2 mm beyond what a body's velocity explains, joint gaps
+    0.06 mm, 0.2 mm from the carried pose after the teleport."""
+    report = carried()
+    assert report["started"] == 0
+    assert_carried_without_jumps(report, arm_motion_m=0.0)
+
+
+@pytest.mark.expensive  # `policy` is trained
+def test_a_character_punches_while_its_parent_walks_and_turns(policy):
+    """The same, punching (the policy is started 30 frames into the walk): the punch completes with its
+    signals, its bodies move no more than the walk, the turn and the punch explain, its joints stay
+    together (the core's joint gap feature too)."""
+    report = carried(f"--policy={policy}")
+    assert report["punch_started"] and report["started"] == 1 and len(report["finished"]) == 1, report
+    finished = report["finished"][0]
+    print("punch while walking:", finished)
+    assert finished["ended"] == "completed" and finished["frames"] == 50, finished
+    assert finished["max_joint_gap_feature_m"] < 5e-3, finished
+    # A fist at up to 15 m/s moves 12.5 cm in a frame.
+    assert_carried_without_jumps(report, arm_motion_m=15.0 / PHYSICS_HZ)

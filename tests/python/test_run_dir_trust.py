@@ -27,7 +27,7 @@ from punch_trainer.learn.checkpoint import (
 from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.search import SearchArgs, restore_search
 
-DECISIONS, ACTIONS, FEATURES = 10, 10, 54
+DECISIONS, ACTIONS, FEATURES = 10, 10, 60
 SHAPE = (1, DECISIONS, ACTIONS)
 
 

@@ -5,6 +5,7 @@
 use glam::{Quat, Vec3};
 
 use crate::character::Body;
+use crate::motion::RootPose;
 use crate::punch::Touch;
 use crate::sensing::{BagContact, CharacterGeometry, FrameReading};
 use crate::session::World;
@@ -28,7 +29,14 @@ pub fn rest_geometry() -> CharacterGeometry {
         bag_mass_kg: 35.0,
         root_rotation: Quat::IDENTITY,
         root_position: Vec3::ZERO,
+        pelvis_rest_position: Vec3::ZERO,
     }
+}
+
+/// The fake world's character: every body starts at `START`, the pelvis too (the whole character slides, its
+/// root with it, so its features show the bag coming nearer).
+fn fake_geometry() -> CharacterGeometry {
+    CharacterGeometry { pelvis_rest_position: START, ..rest_geometry() }
 }
 
 pub struct FakeWorld {
@@ -37,11 +45,25 @@ pub struct FakeWorld {
     /// Every drive call: (slot, commands), for tests that check what was driven.
     pub driven: Vec<(usize, [Vec3; 5])>,
     pub resets: usize,
+    /// Every `move_pelvis` call: (slot, root pose).
+    pub pelvis_moves: Vec<(usize, RootPose)>,
+    /// Every `carry_bodies` call: (slot, root pose).
+    pub carried: Vec<(usize, RootPose)>,
+    /// Every `move_rope` call: (slot, how far the rope's top moved).
+    pub ropes: Vec<(usize, Vec3)>,
 }
 
 impl FakeWorld {
     pub fn new(slots: usize) -> Self {
-        let mut world = Self { readings: Vec::new(), commands: Vec::new(), driven: Vec::new(), resets: 0 };
+        let mut world = Self {
+            readings: Vec::new(),
+            commands: Vec::new(),
+            driven: Vec::new(),
+            resets: 0,
+            pelvis_moves: Vec::new(),
+            carried: Vec::new(),
+            ropes: Vec::new(),
+        };
         world.place(&vec![BagPlacement::DEFAULT; slots]);
         world
     }
@@ -121,7 +143,7 @@ impl World for FakeWorld {
     }
 
     fn geometry(&self, _slot: usize) -> CharacterGeometry {
-        rest_geometry()
+        fake_geometry()
     }
 
     fn read(&self, slot: usize) -> FrameReading {
@@ -130,5 +152,17 @@ impl World for FakeWorld {
 
     fn drive(&mut self, slot: usize, motor_velocities: &[Vec3; 5]) {
         self.drive_slot(slot, motor_velocities);
+    }
+
+    fn move_pelvis(&mut self, slot: usize, root: &RootPose) {
+        self.pelvis_moves.push((slot, *root));
+    }
+
+    fn carry_bodies(&mut self, slot: usize, root: &RootPose) {
+        self.carried.push((slot, *root));
+    }
+
+    fn move_rope(&mut self, slot: usize, moved: Vec3) {
+        self.ropes.push((slot, moved));
     }
 }

@@ -6,6 +6,7 @@
 //!   it senses each frame, the policy's observation, Eq. 1 smoothing, and the motor law.
 //! - `punch`: one punch in a game (decision clock, runtime noise, hits, its end); `session`: the training
 //!   server's episodes over N slots; `protocol`: the trainer's wire format; `access`: who may use a server.
+//! - `motion`: how training moves a character's root while it punches (walking, turning, a lunge, the bob).
 //! - `bone_map`: finds the punching body's bones (hips, spine to chest, neck, head, shoulders, arms, hands) in a
 //!   user's skeleton from its bone names and hierarchy (Godot humanoid, Mixamo, Unreal, CMU, MakeHuman, Blender).
 //! - `fist`: closes the rig's hands into fists (the finger bones below each hand bend toward the palm, about
@@ -31,6 +32,7 @@ pub mod fist;
 pub mod lifecycle;
 pub mod log_budget;
 pub mod model_check;
+pub mod motion;
 pub mod noise;
 pub mod observation;
 pub mod policy;

@@ -55,9 +55,12 @@ pub struct CharacterGeometry {
     pub bag_radius_m: f32,
     pub bag_height_m: f32,
     pub bag_mass_kg: f32,
-    /// World transform of the character's root (the frame features are expressed in).
+    /// World transform of the character's root in the rest pose. The pelvis carries the root (it is kinematic,
+    /// moved with the character), so each frame the root is where the pelvis now says (`Sensor::root_now`).
     pub root_rotation: Quat,
     pub root_position: Vec3,
+    /// World position of the pelvis in the rest pose (with `rest_rotations[Pelvis]`, the pelvis's rest place).
+    pub pelvis_rest_position: Vec3,
 }
 
 /// Guard flags (bits of the `exploit_flags` feature).
@@ -139,10 +142,16 @@ pub const FEATURE_NAMES: [&str; FEATURE_COUNT] = [
     "speed_shoulder_l_rotation",
     "speed_shoulder_l_abduction",
     "speed_elbow_l_extension",
+    "root_vel_x",
+    "root_vel_y",
+    "root_vel_z",
+    "root_spin_x",
+    "root_spin_y",
+    "root_spin_z",
     "joint_gap_max_m",
     "exploit_flags",
 ];
-pub const FEATURE_COUNT: usize = 54;
+pub const FEATURE_COUNT: usize = 60;
 
 /// First column of some three-component features (x, y, z follow), for code that reads them every frame.
 pub mod columns {
@@ -153,6 +162,9 @@ pub mod columns {
     /// The 10 joint angles (rad), then the 10 joint speeds (rad/s), in action order.
     pub const ANGLES: usize = 32;
     pub const SPEEDS: usize = 42;
+    /// The root's velocity (m/s), then its angular velocity (rad/s), in its own frame.
+    pub const ROOT_VEL: usize = 52;
+    pub const ROOT_SPIN: usize = 55;
 }
 
 /// The three components starting at `column` as a vector.
@@ -210,12 +222,29 @@ impl Sensor {
         })
     }
 
-    /// Features of one frame (see `FEATURE_NAMES`), in the character root's frame.
-    pub fn features(&mut self, reading: &FrameReading) -> [f32; FEATURE_COUNT] {
+    /// The character's root now (world rotation, position): the pelvis is moved with the root, so the root is
+    /// where the pelvis's rest offset puts it. A pelvis exactly at rest gives the rest root unchanged.
+    pub fn root_now(&self, reading: &FrameReading) -> (Quat, Vec3) {
         let g = &self.geometry;
-        let to_local_rotation = g.root_rotation.inverse();
-        let local_point = |p: Vec3| to_local_rotation * (p - g.root_position);
+        let pelvis = &reading.bodies[Body::Pelvis.index()];
+        let rest_rotation = g.rest_rotations[Body::Pelvis.index()];
+        if pelvis.rotation == rest_rotation && pelvis.position == g.pelvis_rest_position {
+            return (g.root_rotation, g.root_position);
+        }
+        let turn = (pelvis.rotation * rest_rotation.inverse()).normalize();
+        (turn * g.root_rotation, pelvis.position + turn * (g.root_position - g.pelvis_rest_position))
+    }
+
+    /// Features of one frame (see `FEATURE_NAMES`), in the frame of the character's root as it is now.
+    /// Velocities are the world's (a fist's includes its body's walking), expressed in the root's axes.
+    pub fn features(&mut self, reading: &FrameReading) -> [f32; FEATURE_COUNT] {
+        let (root_rotation, root_position) = self.root_now(reading);
+        let to_local_rotation = root_rotation.inverse();
+        let local_point = |p: Vec3| to_local_rotation * (p - root_position);
         let local_vector = |v: Vec3| to_local_rotation * v;
+        let g = &self.geometry;
+        let pelvis = &reading.bodies[Body::Pelvis.index()];
+        let root_velocity = pelvis.linear_velocity + pelvis.angular_velocity.cross(root_position - pelvis.position);
 
         let fists = self.fists(reading);
         let bag_position = reading.bag.position;
@@ -256,6 +285,8 @@ impl Sensor {
         push(&[fists[0].0.distance(bag_position), fists[1].0.distance(bag_position)]);
         push(&angles);
         push(&speeds);
+        push(&local_vector(root_velocity).to_array());
+        push(&local_vector(pelvis.angular_velocity).to_array());
         push(&[joint_gap, flags as f32]);
         debug_assert_eq!(cursor, FEATURE_COUNT);
         self.previous = Some(*reading);
@@ -369,6 +400,8 @@ mod tests {
             (columns::FIST_L_IMPULSE, "fist_l_impulse_x"),
             (columns::ANGLES, "angle_waist_flexion"),
             (columns::SPEEDS, "speed_waist_flexion"),
+            (columns::ROOT_VEL, "root_vel_x"),
+            (columns::ROOT_SPIN, "root_spin_x"),
         ] {
             assert_eq!(feature_index(name), Some(column), "{name}");
         }
@@ -448,6 +481,7 @@ mod tests {
             geometry.rest_rotations = geometry.rest_rotations.map(|rest| turn * rest);
             geometry.root_rotation = turn;
             geometry.root_position = offset;
+            geometry.pelvis_rest_position = offset + turn * geometry.pelvis_rest_position;
             let mut turned = reading;
             for body in turned.bodies.iter_mut().chain([&mut turned.bag]) {
                 *body = BodyState {
@@ -462,6 +496,48 @@ mod tests {
                 assert!((a - b).abs() < 1e-4, "{name}: {a} at the origin, {b} turned by {turn:?}");
             }
         }
+    }
+
+    #[test]
+    fn a_carried_character_senses_in_the_frame_of_its_root_now_and_its_own_motion() {
+        // A pose at rest where the punch started...
+        let mut reading = reading_at_rest();
+        for (i, body) in reading.bodies.iter_mut().enumerate() {
+            body.position = Vec3::new(0.02 * i as f32, 1.0 + 0.05 * i as f32, 0.03 * i as f32);
+        }
+        let mut sensor =
+            Sensor::new(CharacterGeometry { pelvis_rest_position: reading.bodies[0].position, ..rest_geometry() });
+        let standing = sensor.features(&reading);
+        // ...and the same pose carried: the whole body turned 40 degrees left and 0.5 m on, walking ahead at
+        // 1.4 m/s while turning at 2 rad/s (every body moving rigidly with the root).
+        let (turn, offset) = (Quat::from_rotation_y(0.7), Vec3::new(0.3, 0.0, 0.4));
+        let (walk, spin) = (turn * Vec3::new(0.0, 0.0, 1.4), Vec3::new(0.0, 2.0, 0.0));
+        let mut carried = reading;
+        for body in carried.bodies.iter_mut().chain([&mut carried.bag]) {
+            let position = offset + turn * body.position;
+            *body = BodyState {
+                position,
+                rotation: turn * body.rotation,
+                linear_velocity: walk + spin.cross(position - offset),
+                angular_velocity: spin,
+            };
+        }
+        sensor.reset();
+        let features = sensor.features(&carried);
+        for (i, name) in FEATURE_NAMES.iter().enumerate() {
+            if name.contains("_pos_") || name.starts_with("angle") || name.starts_with("speed") {
+                assert!(
+                    (features[i] - standing[i]).abs() < 1e-4,
+                    "{name}: {} standing, {} carried",
+                    standing[i],
+                    features[i]
+                );
+            }
+        }
+        let root_velocity = feature_vector(&features, columns::ROOT_VEL);
+        assert!((root_velocity - Vec3::new(0.0, 0.0, 1.4)).length() < 1e-4, "{root_velocity}");
+        assert!((feature_vector(&features, columns::ROOT_SPIN) - spin).length() < 1e-5);
+        assert_eq!(feature_vector(&standing, columns::ROOT_VEL), Vec3::ZERO);
     }
 
     #[test]

@@ -4,8 +4,9 @@
 use glam::Vec3;
 use serde_json::{Value, json};
 
-use crate::character::DOF_COUNT;
+use crate::character::{DOF_COUNT, PHYSICS_HZ};
 use crate::controller::CharacterController;
+use crate::motion::{self, RootPose};
 use crate::observation::{OBS_DIM, observation};
 use crate::protocol::{Array, Message, PROTOCOL_VERSION, error_reply};
 use crate::sensing::{CharacterGeometry, FEATURE_COUNT, FrameReading, guard};
@@ -24,6 +25,15 @@ pub trait World {
     fn read(&self, slot: usize) -> FrameReading;
     /// Sets the joint motors of a slot for the next physics step.
     fn drive(&mut self, slot: usize, motor_velocities: &[Vec3; 5]);
+    /// Moves a slot's kinematic pelvis so that its root is at `root` (the slot's frame at the episode's
+    /// start) after the next physics step, moving at `root`'s velocities.
+    fn move_pelvis(&mut self, slot: usize, root: &RootPose);
+    /// Adds the motion of a root moving as `root` to every moving body of a slot's character (each as if
+    /// carried rigidly by it): an episode that starts while walking starts with the body already walking.
+    fn carry_bodies(&mut self, slot: usize, root: &RootPose);
+    /// Moves the top of a gliding bag's rope (`BagPlacement::glides`) by `moved` from where the placement put
+    /// it, reached after the next physics step; nothing for a bag on a fixed rope.
+    fn move_rope(&mut self, slot: usize, moved: Vec3);
 }
 
 /// What the engine layer does after handing a message to the session.
@@ -185,6 +195,11 @@ impl Session {
             .map(|slot| CharacterController::new(world.geometry(slot), spec.smoothing_window as usize))
             .collect();
         self.broken = vec![false; slot_count];
+        for (slot, placement) in self.placements.iter().enumerate() {
+            if !placement.body.is_still() {
+                world.carry_bodies(slot, &placement.body.pose_at(0.0));
+            }
+        }
         self.last_features = (0..slot_count).map(|slot| self.slots[slot].features(&world.read(slot))).collect();
         self.episode_started = true;
         let mut features = Vec::with_capacity(slot_count * FEATURE_COUNT);
@@ -284,6 +299,18 @@ impl Session {
         for (slot, (controller, reading)) in self.slots.iter().zip(readings).enumerate() {
             world.drive(slot, &controller.motor_commands(reading));
         }
+        if !matches!(run.command, Command::LeadIn(_)) {
+            // The pelvis and a carried rope reach their places of the frame after this step (still in lead-ins).
+            let time_s = (self.frame_index + 1) as f32 / PHYSICS_HZ as f32;
+            for (slot, placement) in self.placements.iter().enumerate() {
+                if !placement.body.is_still() {
+                    world.move_pelvis(slot, &placement.body.pose_at(time_s));
+                }
+                if placement.glides {
+                    world.move_rope(slot, placement.velocity() * time_s);
+                }
+            }
+        }
     }
 
     /// Call once per physics frame while running (after the engine stepped): records the frame and either
@@ -370,26 +397,33 @@ impl Session {
 }
 
 fn parse_placements(value: Option<&Value>, slot_count: usize) -> Result<Vec<BagPlacement>, String> {
+    const NAMES: &str = "distance_m, height_m, side_m, velocity_side_mps, velocity_forward_mps, bag_glides, \
+                         body_side_mps, body_forward_mps, body_turn_rad_s, body_lunge_m, body_bob_m";
     let parse_one = |value: &Value| -> Result<BagPlacement, String> {
         let object = value.as_object().ok_or("a bag placement is an object")?;
         let mut placement = BagPlacement::default();
         for (key, field) in object {
+            if key == "bag_glides" {
+                placement.glides = field.as_bool().ok_or("bag 'bag_glides' must be true or false")?;
+                continue;
+            }
             let number =
                 field.as_f64().filter(|v| v.is_finite()).ok_or(format!("bag '{key}' must be a finite number"))? as f32;
+            let motion_limit = motion::FIELDS.iter().find(|(name, _)| name == key).map(|(_, limit)| *limit);
             match key.as_str() {
                 "distance_m" if (0.3..=3.0).contains(&number) => placement.distance_m = number,
                 "height_m" if (0.6..=2.2).contains(&number) => placement.height_m = number,
                 "side_m" if (-1.5..=1.5).contains(&number) => placement.side_m = number,
                 "velocity_side_mps" if number.abs() <= 3.0 => placement.velocity_side_mps = number,
                 "velocity_forward_mps" if number.abs() <= 3.0 => placement.velocity_forward_mps = number,
+                _ if motion_limit.is_some_and(|limit| number.abs() <= limit) => {
+                    placement.body.set(key, number);
+                }
                 "distance_m" | "height_m" | "side_m" | "velocity_side_mps" | "velocity_forward_mps" => {
                     return Err(format!("bag '{key}' = {number} is out of range"));
                 }
-                _ => {
-                    return Err(format!(
-                        "unknown bag field '{key}' (distance_m, height_m, side_m, velocity_side_mps, velocity_forward_mps)"
-                    ));
-                }
+                _ if motion_limit.is_some() => return Err(format!("bag '{key}' = {number} is out of range")),
+                _ => return Err(format!("unknown bag field '{key}' ({NAMES})")),
             }
         }
         Ok(placement)
@@ -406,6 +440,8 @@ fn parse_placements(value: Option<&Value>, slot_count: usize) -> Result<Vec<BagP
 mod tests {
     use super::*;
     use crate::fake_world::FakeWorld;
+    use crate::observation::observation_names;
+    use crate::sensing::feature_index;
     use crate::spec::keys;
 
     fn message(text: serde_json::Value, actions: Option<Array>) -> Message {
@@ -504,8 +540,10 @@ mod tests {
         let (done, frames) = run(&mut session, &mut world);
         assert_eq!((done.message_type(), frames, world.resets), ("rollout_done", 20, 1));
         let features = done.array("features", &[2, 20, FEATURE_COUNT]).expect("features");
-        let fist_z = |slot: usize, frame: usize| features.data[(slot * 20 + frame) * FEATURE_COUNT + 2];
-        assert!(fist_z(0, 19) > fist_z(0, 0) + 0.1 && fist_z(1, 19) == fist_z(1, 0));
+        // The fake character slides whole (its root too): the bag comes nearer in its frame.
+        let bag_z = feature_index("bag_pos_z").expect("feature");
+        let bag_z = |slot: usize, frame: usize| features.data[(slot * 20 + frame) * FEATURE_COUNT + bag_z];
+        assert!(bag_z(0, 19) < bag_z(0, 0) - 0.1 && bag_z(1, 19) == bag_z(1, 0));
         let executed = done.array("executed_actions", &[2, 4, DOF_COUNT]).expect("executed");
         assert_eq!(executed.data[0], 0.8, "smoothing starts from the first action itself");
         assert_eq!(world.driven.len(), 2 * 20, "every slot driven once per frame");
@@ -524,7 +562,8 @@ mod tests {
         let (done, frames) = run(&mut session, &mut world);
         assert_eq!((done.message_type(), frames), ("reset_done", 15));
         let observations = done.array("observations", &[2, OBS_DIM]).expect("observations").data.clone();
-        assert!(observations[2] > observations[OBS_DIM + 2] + 0.05, "slot 0's fist starts further forward");
+        let bag_z = observation_names().iter().position(|name| *name == "bag_pos_z").expect("observed");
+        assert!(observations[bag_z] < observations[OBS_DIM + bag_z] - 0.05, "slot 0 starts nearer its bag");
         assert_eq!((observations[OBS_DIM - 1], observations[2 * OBS_DIM - 1]), (0.0, 0.0), "phase 0");
         // The episode then runs its full length.
         let step = message(json!({"type": "step"}), Some(Array::new("actions", vec![2, DOF_COUNT], vec![0.0; 20])));
@@ -534,6 +573,36 @@ mod tests {
             let count = shape.iter().product();
             let reset = message(json!({"type": "reset"}), Some(Array::new("lead_in", shape, vec![bad; count])));
             assert_eq!(reply(session.handle(&reset, &mut world)).message_type(), "error");
+        }
+    }
+
+    #[test]
+    fn a_walking_slot_has_its_pelvis_carried_every_frame_and_a_standing_one_never() {
+        let (mut session, mut world) = (Session::new(5), FakeWorld::new(2));
+        let bags = json!([{"body_forward_mps": 1.4, "body_turn_rad_s": 1.5, "bag_glides": true,
+                           "velocity_forward_mps": 1.0}, {}]);
+        reply(session.handle(&message(json!({"type": "reset", "frames": 10, "bags": bags}), None), &mut world));
+        let walking = BagPlacement { velocity_forward_mps: 1.0, glides: true, ..BagPlacement::DEFAULT };
+        assert_eq!(session.placements[0].body.forward_mps, 1.4);
+        assert_eq!(
+            (session.placements[0].glides, session.placements[0].velocity()),
+            (walking.glides, walking.velocity())
+        );
+        assert_eq!(world.carried.len(), 1, "the walking slot starts walking");
+        assert_eq!(world.carried[0].1.linear_velocity, Vec3::new(0.0, 0.0, 1.4));
+        let step = message(json!({"type": "step"}), Some(Array::new("actions", vec![2, DOF_COUNT], vec![0.0; 20])));
+        assert!(matches!(session.handle(&step, &mut world), Outcome::Running));
+        run(&mut session, &mut world);
+        assert_eq!(world.pelvis_moves.len(), 5, "once per frame, only the walking slot");
+        assert_eq!(world.ropes.len(), 5, "and its gliding bag's rope");
+        assert_eq!(world.ropes[4], (0, Vec3::new(0.0, 0.0, 5.0 / PHYSICS_HZ as f32)));
+        for (frame, (slot, pose)) in world.pelvis_moves.iter().enumerate() {
+            let expected = session.placements[0].body.pose_at((frame + 1) as f32 / PHYSICS_HZ as f32);
+            assert_eq!((*slot, *pose), (0, expected));
+        }
+        for bad in [json!({"body_forward_mps": 9.0}), json!({"bag_glides": 1}), json!({"body_fly": 1.0})] {
+            let reset = message(json!({"type": "reset", "bags": bad}), None);
+            assert_eq!(reply(session.handle(&reset, &mut world)).message_type(), "error", "{bad}");
         }
     }
 

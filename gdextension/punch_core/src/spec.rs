@@ -14,6 +14,8 @@
 use glam::Vec3;
 use serde_json::{Map, Value, json};
 
+use crate::motion::BodyMotion;
+
 pub use crate::character::{DEFAULT_DECISION_PERIOD, DOF_COUNT, DOFS, PHYSICS_HZ};
 pub use crate::observation::{OBS_DIM, OBS_SPEC_VERSION, observation_names, spec_hash};
 pub use crate::sensing::{FEATURE_COUNT, FEATURE_NAMES};
@@ -33,8 +35,10 @@ pub const MAX_DECISION_PERIOD: u32 = 60;
 pub const MAX_SMOOTHING_WINDOW: u32 = 50;
 
 /// Where a target (the bag) hangs, in the character's frame: `distance_m` ahead (+Z), `height_m` of its
-/// centre of mass above the ground, `side_m` to the character's left (+X); and how fast it moves when the
-/// episode starts (`velocity_side_mps` along +X, `velocity_forward_mps` along +Z: a bag still swinging).
+/// centre of mass above the ground, `side_m` to the character's left (+X); how fast it moves when the
+/// episode starts (`velocity_side_mps` along +X, `velocity_forward_mps` along +Z: a bag still swinging, or,
+/// with `glides`, a bag whose rope is carried at that velocity, as a target that walks); and how the
+/// character's own root moves through the episode (`body`, in training: walking, turning, a lunge).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BagPlacement {
     pub distance_m: f32,
@@ -42,16 +46,26 @@ pub struct BagPlacement {
     pub side_m: f32,
     pub velocity_side_mps: f32,
     pub velocity_forward_mps: f32,
+    /// The bag's rope is carried at the bag's velocity (it translates, not swings).
+    pub glides: bool,
+    pub body: BodyMotion,
 }
 
 impl BagPlacement {
     /// The placement every policy is trained at unless told otherwise.
-    pub const DEFAULT: Self =
-        Self { distance_m: 0.72, height_m: 1.35, side_m: 0.0, velocity_side_mps: 0.0, velocity_forward_mps: 0.0 };
+    pub const DEFAULT: Self = Self::at(0.72, 1.35, 0.0);
 
-    /// A bag at rest at a place.
+    /// A bag at rest at a place, the character standing still.
     pub const fn at(distance_m: f32, height_m: f32, side_m: f32) -> Self {
-        Self { distance_m, height_m, side_m, velocity_side_mps: 0.0, velocity_forward_mps: 0.0 }
+        Self {
+            distance_m,
+            height_m,
+            side_m,
+            velocity_side_mps: 0.0,
+            velocity_forward_mps: 0.0,
+            glides: false,
+            body: BodyMotion { side_mps: 0.0, forward_mps: 0.0, turn_rad_s: 0.0, lunge_m: 0.0, bob_m: 0.0 },
+        }
     }
 
     /// Centre of mass of the bag in the character's frame.
@@ -66,8 +80,13 @@ impl BagPlacement {
 
     /// As the protocol writes it (docs/protocol.md, `reset`).
     pub fn to_json(&self) -> Value {
-        json!({"distance_m": self.distance_m, "height_m": self.height_m, "side_m": self.side_m,
-               "velocity_side_mps": self.velocity_side_mps, "velocity_forward_mps": self.velocity_forward_mps})
+        let mut value = json!({"distance_m": self.distance_m, "height_m": self.height_m, "side_m": self.side_m,
+               "velocity_side_mps": self.velocity_side_mps, "velocity_forward_mps": self.velocity_forward_mps,
+               "bag_glides": self.glides});
+        if let Some(object) = value.as_object_mut() {
+            object.extend(self.body.to_json_fields().map(|(name, v)| (name.to_string(), v)));
+        }
+        value
     }
 }
 

@@ -16,6 +16,10 @@ pub fn quat(q: Quaternion) -> Quat {
     Quat::from_xyzw(q.x, q.y, q.z, q.w).normalize()
 }
 
+pub fn quaternion(q: Quat) -> Quaternion {
+    Quaternion::new(q.x, q.y, q.z, q.w)
+}
+
 /// The rotation of a basis that may be scaled, however little: a rig imported in centimetres sits under a node
 /// scaled by 0.01, whose basis Godot's own `get_quaternion` refuses (its determinant counts as zero).
 pub fn rotation(basis: Basis) -> Quat {

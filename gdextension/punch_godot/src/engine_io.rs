@@ -10,7 +10,7 @@ use godot::classes::{
     PhysicsShapeQueryParameters3D,
 };
 use godot::obj::{Gd, Singleton};
-use punch_core::character::{Axis, JOINTS, engine_axis, joint_dofs};
+use punch_core::character::{Axis, Body, JOINTS, engine_axis, joint_dofs};
 use punch_core::punch::Touch;
 use punch_core::sensing::{BagContact, CharacterGeometry, FrameReading, MAX_BAG_CONTACTS};
 
@@ -114,6 +114,7 @@ pub fn character_geometry(
         bag_mass_kg: 0.0,
         root_rotation: quat(root_transform.basis.get_quaternion()),
         root_position: vec3(root_transform.origin),
+        pelvis_rest_position: vec3(bodies[Body::Pelvis.index()].origin),
     })
 }
 

@@ -13,7 +13,7 @@
 //! starts from the same engine state (no warm-start history, the same body order).
 
 use glam::Vec3;
-use godot::builtin::{Rid, Transform3D, Vector3};
+use godot::builtin::{Basis, Rid, Transform3D, Vector3};
 use godot::classes::physics_server_3d::{BodyMode, BodyParameter, BodyState as ServerBodyState};
 use godot::classes::{
     CollisionShape3D, CylinderShape3D, Generic6DofJoint3D, Node, Node3D, PackedScene, PhysicsDirectBodyState3D,
@@ -22,10 +22,11 @@ use godot::classes::{
 use godot::meta::ToGodot;
 use godot::obj::{Gd, NewGd, Singleton};
 use punch_core::character::{Axis, Body, JOINTS};
+use punch_core::motion::RootPose;
 use punch_core::sensing::{BodyState, CharacterGeometry, FrameReading, MAX_BAG_CONTACTS};
 use punch_core::session::{BagPlacement, World};
 
-use crate::convert::{godot_axis, quat, vec3, vector3};
+use crate::convert::{godot_axis, quat, quaternion, vec3, vector3};
 use crate::engine_io::{add_bag_contacts, character_geometry, drive_joints, joint_axis_settings};
 
 /// Most slots per arena: a slot uses two of the 32 collision layers, one for its character and one for its bag.
@@ -68,10 +69,11 @@ impl BodyTemplate {
         })
     }
 
-    /// Creates the body in `space`, placed by `offset` (applied after the template transform).
+    /// Creates the body in `space`, placed by `offset` (applied after the template transform). A body that is
+    /// not dynamic is kinematic: the pelvis, moved from code with the character's root, and a carried rope.
     fn create(&self, server: &mut Gd<PhysicsServer3D>, space: Rid, offset: Vector3, layer: u32, mask: u32) -> Rid {
         let body = server.body_create();
-        server.body_set_mode(body, if self.dynamic { BodyMode::RIGID } else { BodyMode::STATIC });
+        server.body_set_mode(body, if self.dynamic { BodyMode::RIGID } else { BodyMode::KINEMATIC });
         for (shape, transform) in &self.shapes {
             server.body_add_shape_ex(body, shape.get_rid()).transform(*transform).done();
         }
@@ -191,13 +193,20 @@ impl BagTemplate {
 
 /// One slot's engine objects.
 struct Slot {
-    /// `Body::ALL` order (the pelvis is static).
+    /// `Body::ALL` order (the pelvis is kinematic).
     bodies: [Rid; 6],
     states: Vec<Gd<PhysicsDirectBodyState3D>>,
     joints: [Rid; 5],
     bag: Rid,
     bag_state: Gd<PhysicsDirectBodyState3D>,
     pin: Rid,
+    /// The kinematic body a gliding bag's rope hangs from (`BagPlacement::glides`); none for a fixed rope.
+    rope_anchor: Option<Rid>,
+    /// Where the placement put the bag (its offset from the template's place).
+    bag_offset: Vector3,
+    /// The kinematic pelvis's linear and angular velocity as last moved (the engine reports a kinematic body's
+    /// velocity only once it has stepped).
+    pelvis_velocity: (Vec3, Vec3),
     geometry: CharacterGeometry,
 }
 
@@ -234,7 +243,8 @@ impl TrainingWorld {
     fn free_all(&mut self) {
         let mut server = PhysicsServer3D::singleton();
         for slot in self.slots.drain(..) {
-            for rid in slot.joints.into_iter().chain([slot.pin]).chain(slot.bodies).chain([slot.bag]) {
+            let joints = slot.joints.into_iter().chain([slot.pin]);
+            for rid in joints.chain(slot.bodies).chain([slot.bag]).chain(slot.rope_anchor) {
                 server.free_rid(rid);
             }
         }
@@ -269,7 +279,26 @@ impl TrainingWorld {
         let bag = self.bag.body.create(server, space, offset, bag_layer, character_layer);
         server.body_set_max_contacts_reported(bag, BAG_MAX_CONTACTS);
         let pin = server.joint_create();
-        server.joint_make_pin(pin, bag, self.bag.pin_local, Rid::Invalid, self.bag.pin_from_root + offset);
+        let rope_anchor = placement.glides.then(|| {
+            // A shapeless kinematic body at the rope's top, moved every frame (`move_rope`).
+            let anchor = server.body_create();
+            server.body_set_mode(anchor, BodyMode::KINEMATIC);
+            server.body_set_collision_layer(anchor, 0);
+            server.body_set_collision_mask(anchor, 0);
+            let at = Transform3D::IDENTITY.translated(self.bag.pin_from_root + offset);
+            server.body_set_state(anchor, ServerBodyState::TRANSFORM, &at.to_variant());
+            server.body_set_space(anchor, space);
+            server.body_set_state(
+                anchor,
+                ServerBodyState::LINEAR_VELOCITY,
+                &vector3(placement.velocity()).to_variant(),
+            );
+            anchor
+        });
+        match rope_anchor {
+            Some(anchor) => server.joint_make_pin(pin, bag, self.bag.pin_local, anchor, Vector3::ZERO),
+            None => server.joint_make_pin(pin, bag, self.bag.pin_local, Rid::Invalid, self.bag.pin_from_root + offset),
+        }
         self.set_bag_motion(server, bag, placement);
 
         let state = |server: &mut Gd<PhysicsServer3D>, rid: Rid| server.body_get_direct_state(rid);
@@ -279,22 +308,20 @@ impl TrainingWorld {
         geometry.bag_radius_m = self.bag.radius_m;
         geometry.bag_height_m = self.bag.height_m;
         geometry.bag_mass_kg = self.bag.body.mass_kg;
-        Slot { bodies, states, joints, bag, bag_state, pin, geometry }
+        Slot { bodies, states, joints, bag, bag_state, pin, rope_anchor, bag_offset: offset, pelvis_velocity: (Vec3::ZERO, Vec3::ZERO), geometry }
     }
 }
 
 impl TrainingWorld {
     /// Sets a bag's velocity from its placement: a bag swinging on its rope turns about the pin as it moves,
     /// ω = r × v / |r|² (r from the pin to the centre of mass).
+    /// A gliding bag (its rope carried) moves along without turning.
     fn set_bag_motion(&self, server: &mut Gd<PhysicsServer3D>, bag: Rid, placement: &BagPlacement) {
         let velocity = vector3(placement.velocity());
         let arm = self.bag.body.transform.origin - self.bag.pin_from_root;
+        let spin = if placement.glides { Vector3::ZERO } else { arm.cross(velocity) / arm.length_squared() };
         server.body_set_state(bag, ServerBodyState::LINEAR_VELOCITY, &velocity.to_variant());
-        server.body_set_state(
-            bag,
-            ServerBodyState::ANGULAR_VELOCITY,
-            &(arm.cross(velocity) / arm.length_squared()).to_variant(),
-        );
+        server.body_set_state(bag, ServerBodyState::ANGULAR_VELOCITY, &spin.to_variant());
     }
 }
 
@@ -343,10 +370,16 @@ impl World for TrainingWorld {
 
     fn place_bag(&mut self, slot: usize, placement: &BagPlacement) {
         let mut server = PhysicsServer3D::singleton();
-        let Some(bag) = self.slots.get(slot).map(|s| s.bag) else { return };
+        let Some((bag, rope_anchor)) = self.slots.get(slot).map(|s| (s.bag, s.rope_anchor)) else { return };
+        let offset = Vector3::new(placement.side_m, placement.height_m, placement.distance_m);
         let mut transform = self.bag.body.transform;
-        transform.origin += Vector3::new(placement.side_m, placement.height_m, placement.distance_m);
+        transform.origin += offset;
         server.body_set_state(bag, ServerBodyState::TRANSFORM, &transform.to_variant());
+        if let Some(anchor) = rope_anchor {
+            let at = Transform3D::IDENTITY.translated(self.bag.pin_from_root + offset);
+            server.body_set_state(anchor, ServerBodyState::TRANSFORM, &at.to_variant());
+        }
+        self.slots[slot].bag_offset = offset;
         self.set_bag_motion(&mut server, bag, placement);
     }
 
@@ -360,6 +393,8 @@ impl World for TrainingWorld {
         for (body, state) in bodies.iter_mut().zip(&slot.states) {
             *body = read_state(state);
         }
+        let pelvis = &mut bodies[Body::Pelvis.index()];
+        (pelvis.linear_velocity, pelvis.angular_velocity) = slot.pelvis_velocity;
         let mut reading = FrameReading { bodies, bag: read_state(&slot.bag_state), ..FrameReading::default() };
         add_bag_contacts(&slot.bag_state, &slot.bodies, &mut reading);
         reading
@@ -367,6 +402,41 @@ impl World for TrainingWorld {
 
     fn drive(&mut self, slot: usize, motor_velocities: &[Vec3; 5]) {
         drive_joints(&self.slots[slot].joints, motor_velocities);
+    }
+
+    fn move_pelvis(&mut self, slot: usize, root: &RootPose) {
+        let pelvis = self.slots[slot].bodies[Body::Pelvis.index()];
+        let rest = self.character.bodies[Body::Pelvis.index()].transform;
+        let carried =
+            Transform3D::new(Basis::from_quaternion(quaternion(root.rotation)), vector3(root.position)) * rest;
+        let mut server = PhysicsServer3D::singleton();
+        server.body_set_state(pelvis, ServerBodyState::TRANSFORM, &carried.to_variant());
+        let velocity = root.velocity_at(vec3(carried.origin));
+        server.body_set_state(pelvis, ServerBodyState::LINEAR_VELOCITY, &vector3(velocity).to_variant());
+        server.body_set_state(pelvis, ServerBodyState::ANGULAR_VELOCITY, &vector3(root.angular_velocity).to_variant());
+        self.slots[slot].pelvis_velocity = (velocity, root.angular_velocity);
+    }
+
+    fn carry_bodies(&mut self, slot_index: usize, root: &RootPose) {
+        let mut server = PhysicsServer3D::singleton();
+        let slot = &self.slots[slot_index];
+        let pelvis = vec3(slot.states[Body::Pelvis.index()].get_transform().origin);
+        let pelvis_velocity = (root.velocity_at(pelvis), root.angular_velocity);
+        for (body, state) in slot.bodies.iter().zip(&slot.states).skip(1) {
+            let carried = root.velocity_at(vec3(state.get_transform().origin));
+            let velocity = state.get_linear_velocity() + vector3(carried);
+            let spin = state.get_angular_velocity() + vector3(root.angular_velocity);
+            server.body_set_state(*body, ServerBodyState::LINEAR_VELOCITY, &velocity.to_variant());
+            server.body_set_state(*body, ServerBodyState::ANGULAR_VELOCITY, &spin.to_variant());
+        }
+        self.slots[slot_index].pelvis_velocity = pelvis_velocity;
+    }
+
+    fn move_rope(&mut self, slot: usize, moved: Vec3) {
+        let Some(anchor) = self.slots[slot].rope_anchor else { return };
+        let placement_offset = self.slots[slot].bag_offset;
+        let at = Transform3D::IDENTITY.translated(self.bag.pin_from_root + placement_offset + vector3(moved));
+        PhysicsServer3D::singleton().body_set_state(anchor, ServerBodyState::TRANSFORM, &at.to_variant());
     }
 }
 

@@ -55,6 +55,63 @@ class VolumeArgs:
     """every k-th A2C update starts its episodes after lead-ins (0: never, the default since guard_first; they
     cost frames and, at 2, left the policies missing a swinging bag more often)"""
     validation_placements: int = 64
+    motions: MotionRange | None = None
+    """the body and target motions of A2C's episodes (None: every character stands, every target hangs)"""
+
+
+@dataclass(frozen=True)
+class MotionRange:
+    """What A2C's episodes draw when characters punch on the move (docs/moving.md): the character's own walk,
+    turn, lunge and bob (`BagPlacement.body_*`, carried by the kinematic pelvis) and a target carried past it.
+    Each range reaches a little beyond the figures the policies promise (1.4 m/s, 120 degrees/s, 1 m/s), so
+    those are inside what they trained on, not at its edge."""
+
+    moving_share: float = 0.6
+    """share of episodes whose character moves"""
+    walk_mps: float = 1.6
+    """largest walking speed, in any horizontal direction (half the draws along the four axes)"""
+    turn_share: float = 0.5
+    """share of moving characters that also turn"""
+    turn_rad_s: float = float(np.radians(135.0))
+    """largest turning rate, either way"""
+    lunge_share: float = 0.2
+    lunge_m: tuple[float, float] = (0.1, 0.35)
+    bob_share: float = 0.5
+    bob_m: float = 0.035
+    """largest bob amplitude (walking bobs about 3 cm)"""
+    glide_share: float = 0.3
+    """share of episodes whose target is carried past (its rope moving at a constant velocity)"""
+    glide_mps: float = 1.2
+    """largest speed of a carried target, in any horizontal direction"""
+    ride_share: float = 0.15
+    """share of moving characters whose target is carried along with them (a game moving both together)"""
+
+    def draw(self, rng: np.random.Generator, bags: list[BagPlacement]) -> list[BagPlacement]:
+        """`bags` with motions drawn for some of them (a swinging bag keeps its swing and gets no glide)."""
+        out = []
+        for bag in bags:
+            changes: dict[str, float | bool] = {}
+            if rng.uniform() < self.moving_share:
+                speed = rng.uniform(0.0, self.walk_mps)
+                angle = (rng.integers(4) * np.pi / 2) if rng.uniform() < 0.5 else rng.uniform(0.0, 2 * np.pi)
+                changes["body_side_mps"], changes["body_forward_mps"] = speed * np.sin(angle), speed * np.cos(angle)
+                if rng.uniform() < self.turn_share:
+                    changes["body_turn_rad_s"] = rng.uniform(-self.turn_rad_s, self.turn_rad_s)
+                if rng.uniform() < self.lunge_share:
+                    changes["body_lunge_m"] = rng.uniform(*self.lunge_m)
+                if rng.uniform() < self.bob_share:
+                    changes["body_bob_m"] = rng.uniform(0.0, self.bob_m)
+            swinging = bag.velocity_side_mps != 0.0 or bag.velocity_forward_mps != 0.0
+            if not swinging and "body_side_mps" in changes and rng.uniform() < self.ride_share:
+                changes.update(bag_glides=True, velocity_side_mps=changes["body_side_mps"],
+                               velocity_forward_mps=changes["body_forward_mps"])
+            elif not swinging and rng.uniform() < self.glide_share:
+                speed, angle = rng.uniform(0.0, self.glide_mps), rng.uniform(0.0, 2 * np.pi)
+                changes.update(bag_glides=True, velocity_side_mps=speed * np.sin(angle),
+                               velocity_forward_mps=speed * np.cos(angle))
+            out.append(bag.over({name: value if isinstance(value, bool) else float(value)
+                                 for name, value in changes.items()}))
+        return out
 
 
 class EpisodeConditions:
@@ -75,6 +132,8 @@ class EpisodeConditions:
         if self.args.default_share > 0:
             at_default = rng.uniform(size=count) < self.args.default_share
             bags = [self.default_bag if spot else bag for bag, spot in zip(bags, at_default, strict=True)]
+        if self.args.motions is not None and not lead_ins:
+            bags = self.args.motions.draw(rng, bags)
         if not lead_ins:
             return EpisodeStart(bags)
         return EpisodeStart(bags, self.lead_ins(rng, count))

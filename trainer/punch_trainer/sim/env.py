@@ -6,11 +6,12 @@ Env card (full tables in docs/env.md)
   guard pose; +1 / -1 set the joint target to the upper / lower limit. Held for `decision_period` physics
   frames (default 5 at 120 Hz). With `smoothing_window` n > 1 the executed action is the linearly weighted
   average of the last n actions (the paper's Eq. 1); `info["executed_action"]` shows it.
-- Observation: 45 floats in the character's frame (+Z toward the bag, +X the character's left, +Y up):
+- Observation: 51 floats in the character's frame (+Z toward the bag, +X the character's left, +Y up):
   both fists' position and velocity, each fist's contact impulse on the bag, bag position and velocity,
-  the 10 joint angles and speeds, and the episode phase (decision / decisions per episode).
-- Features: every physics frame's 54 features (`feature_names`) come in `info["features"]`, shape
-  [decision_period, 54]; rewards are computed from them in Python.
+  the 10 joint angles and speeds, the root's own velocity and turning (the character carried by its game, or
+  in training by a `BagPlacement`'s body motion), and the episode phase (decision / decisions per episode).
+- Features: every physics frame's 60 features (`feature_names`) come in `info["features"]`, shape
+  [decision_period, 60]; rewards are computed from them in Python.
 - Episode: `frames` physics frames (50 or 100: 10 or 20 decisions), always from the same initial state.
   At the last decision `terminated` is True, or `truncated` if the physics guard saw a joint come apart.
 - Reward: a `Reward` (punch_trainer.sim.rewards: a preset, or a function of the features loaded with
@@ -23,6 +24,7 @@ Env card (full tables in docs/env.md)
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import gymnasium as gym
@@ -63,7 +65,7 @@ def _episode_start(options: Options, default: BagPlacement, rng: np.random.Gener
         jittered = []
         for bag in options.bags:
             distance_m, height_m, side_m = (float(value + rng.uniform(-jitter_m, jitter_m)) for value in bag.position_m())
-            jittered.append(BagPlacement(distance_m, height_m, side_m, bag.velocity_side_mps, bag.velocity_forward_mps))
+            jittered.append(dataclasses.replace(bag, distance_m=distance_m, height_m=height_m, side_m=side_m))
         options = EpisodeStart(jittered, options.lead_in)
     return options
 

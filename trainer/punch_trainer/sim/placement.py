@@ -1,4 +1,5 @@
-"""Typed records of how an episode starts: where the bag hangs and how it moves (`BagPlacement`), and a reset's
+"""Typed records of how an episode starts: where the bag hangs, how it moves and how the character itself moves
+(`BagPlacement`), and a reset's
 options for every character (`EpisodeStart`). The wire writes a placement as a JSON object
 (docs/protocol.md, `reset`); these are the trainer's side of it."""
 
@@ -6,6 +7,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields
+from typing import Any
 
 import numpy as np
 
@@ -24,23 +26,45 @@ class BagPlacement:
     """toward the character's left (a velocity sets the bag swinging on its rope)"""
     velocity_forward_mps: float = 0.0
     """away from the character"""
+    bag_glides: bool = False
+    """the bag's rope is carried at the bag's velocity (a target walking), instead of the bag swinging"""
+    body_side_mps: float = 0.0
+    """the character's own walking velocity toward its left, as it turns (punch_core::motion)"""
+    body_forward_mps: float = 0.0
+    """the character's own walking velocity ahead"""
+    body_turn_rad_s: float = 0.0
+    """the character's turning rate, positive to its left"""
+    body_lunge_m: float = 0.0
+    """a step-in of this length over the punch's first 0.25 s"""
+    body_bob_m: float = 0.0
+    """the vertical bob of walking, amplitude at 2 Hz"""
 
     @classmethod
-    def from_wire(cls, value: Mapping[str, float]) -> BagPlacement:
+    def from_wire(cls, value: Mapping[str, float | bool]) -> BagPlacement:
         """From the protocol's JSON object (the handshake's `default_bag`, a dataset's `bag`)."""
-        return cls(**{field.name: float(value[field.name]) for field in fields(cls) if field.name in value})
+        converted: dict[str, Any] = {field.name: (bool if field.type == "bool" else float)(value[field.name])
+                                     for field in fields(cls) if field.name in value}
+        return cls(**converted)
 
-    def to_wire(self) -> dict[str, float]:
+    def to_wire(self) -> dict[str, float | bool]:
         """The protocol's JSON object."""
         return asdict(self)
+
+    def body_moves(self) -> bool:
+        """Whether the character's root moves through the episode."""
+        return any(getattr(self, name) != 0.0 for name in BODY_MOTION_FIELDS)
 
     def position_m(self) -> np.ndarray:
         """(distance, height, side)."""
         return np.array([self.distance_m, self.height_m, self.side_m])
 
-    def over(self, changes: Mapping[str, float]) -> BagPlacement:
+    def over(self, changes: Mapping[str, float | bool]) -> BagPlacement:
         """This placement with some of its values replaced (a user's partial placement over the default)."""
         return BagPlacement.from_wire({**self.to_wire(), **changes})
+
+
+BODY_MOTION_FIELDS = ("body_side_mps", "body_forward_mps", "body_turn_rad_s", "body_lunge_m", "body_bob_m")
+"""the placement's fields that move the character's root"""
 
 
 @dataclass(frozen=True)

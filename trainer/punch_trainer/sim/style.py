@@ -3,8 +3,8 @@
 
 A style has two parts, chosen by measurement (docs/experiments.md, "A motion style"):
 
-1. **A discount on what a punch earns.** Every frame has a style cost: the off (left) fist's distance from
-   its guard and its speed, the waist's forward flexion, the punching fist's speed and, until it lands, its
+1. **A discount on what a punch earns.** Every frame has a style cost (fist speeds measured on the body, less
+   the root's own walking and turning): the off (left) fist's distance from its guard and its speed, the waist's forward flexion, the punching fist's speed and, until it lands, its
    speed away from the target (a wind-up: captured punches go straight at it), each counted only
    beyond a free range that captured punches stay within (../shared/data, CMU 143/23: the other hand moves
    12-20 cm at 1.2-1.8 m/s, the trunk leans 7-17 degrees, the fist peaks at 6.3-8.4 m/s), and growing with the
@@ -70,16 +70,23 @@ class Style:
         def vector(stem: str) -> np.ndarray:
             return np.stack([frames(f"{stem}_x"), frames(f"{stem}_y"), frames(f"{stem}_z")], axis=-1)
 
+        def on_body(side: str) -> np.ndarray:
+            """A fist's velocity relative to its body (less the root's walk and turn carrying it there): the
+            body's own motion is the game's, not the punch's."""
+            carried = vector("root_vel") + np.cross(vector("root_spin"), vector(f"fist_{side}_pos"))
+            return np.asarray(vector(f"fist_{side}_vel") - carried)
+
         off_fist = vector("fist_l_pos")
         off_from_guard_m = np.linalg.norm(off_fist - off_fist[..., :1, :], axis=-1)
-        off_speed_mps = np.linalg.norm(vector("fist_l_vel"), axis=-1)
-        fist_speed_mps = np.linalg.norm(vector("fist_r_vel"), axis=-1)
+        off_speed_mps = np.linalg.norm(on_body("l"), axis=-1)
+        fist_velocity = on_body("r")
+        fist_speed_mps = np.linalg.norm(fist_velocity, axis=-1)
         waist_flexion_rad = frames("angle_waist_flexion")
         to_bag = vector("bag_pos") - vector("fist_r_pos")
         to_bag_unit = to_bag / np.maximum(np.linalg.norm(to_bag, axis=-1, keepdims=True), 1e-6)
         touching = np.linalg.norm(vector("fist_r_impulse"), axis=-1) > 1e-3
         before_contact = np.cumsum(touching, axis=-1) == 0
-        fist_back_mps = np.where(before_contact, -np.sum(vector("fist_r_vel") * to_bag_unit, axis=-1), 0.0)
+        fist_back_mps = np.where(before_contact, -np.sum(fist_velocity * to_bag_unit, axis=-1), 0.0)
 
         def beyond(value: np.ndarray, free: float) -> np.ndarray:
             return np.asarray(np.maximum(0.0, value - free) ** 2)

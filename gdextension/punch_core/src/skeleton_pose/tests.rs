@@ -73,6 +73,7 @@ fn geometry() -> CharacterGeometry {
         bag_mass_kg: 0.0,
         root_rotation: Quat::IDENTITY,
         root_position: Vec3::ZERO,
+        pelvis_rest_position: Vec3::ZERO,
     }
 }
 
