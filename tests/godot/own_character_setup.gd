@@ -14,6 +14,7 @@ const Setup := preload("res://addons/punch_controller/own_character_setup.gd")
 var _report := {}
 
 
+## Reads --glb=PATH and runs the steps once the tree is up.
 func _initialize() -> void:
 	var glb := ""
 	for argument in OS.get_cmdline_user_args():
@@ -133,6 +134,7 @@ func _describe(level: Node3D, skeleton: Skeleton3D, controller: Node, character:
 	}
 
 
+## `v` as a JSON array.
 func _array(v: Vector3) -> Array:
 	return [v.x, v.y, v.z]
 
@@ -198,6 +200,7 @@ func _unnamed_rig() -> Node3D:
 	return rig
 
 
+## Frees the UndoRedo, prints the report and quits.
 func _finish(undo: UndoRedo) -> void:
 	undo.free()
 	print("OWN_CHARACTER_SETUP ", JSON.stringify(_report))
