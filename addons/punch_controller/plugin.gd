@@ -3,14 +3,18 @@ extends EditorPlugin
 ## The addon's editor side (the node classes themselves come from the GDExtension and are always there):
 ## Project > Tools > "Add Punching Character" adds a character, a sandbag in front of it and a
 ## PunchController wired to both (with the addon's default straight-punch policy) to the open
-## 3D scene, as one undoable action.
+## 3D scene, as one undoable action; Project > Tools > "Make Selected Skeleton Punch" does the same for a game's own
+## rigged character (`own_character_setup.gd`: the selected Skeleton3D gets a PunchSkeletonModifier showing a
+## simulated character that a PunchController drives at a sandbag).
 
 const MENU_ITEM := "Add Punching Character"
 const CHARACTER_SCENE := "res://addons/punch_controller/scenes/punch_character.tscn"
 const SANDBAG_SCENE := "res://addons/punch_controller/scenes/punch_sandbag.tscn"
 const DEFAULT_POLICY := "res://addons/punch_controller/policies/straight.onnx"
 const SETTINGS_ITEM := "Apply Punch Physics Settings"
+const SKELETON_ITEM := "Make Selected Skeleton Punch"
 const PhysicsSettings := preload("res://addons/punch_controller/physics_settings.gd")
+const OwnCharacterSetup := preload("res://addons/punch_controller/own_character_setup.gd")
 
 
 func _enter_tree() -> void:
@@ -23,6 +27,7 @@ func _enter_tree() -> void:
 			push_error("Punch Controller: the GDExtension is not loaded. Build it (scons, see the project's "
 				+ "README) so that addons/punch_controller/bin/ has the library, then restart the editor.")
 	add_tool_menu_item(MENU_ITEM, add_punching_character)
+	add_tool_menu_item(SKELETON_ITEM, make_selected_skeleton_punch)
 	add_tool_menu_item(SETTINGS_ITEM, offer_physics_settings)
 	# `godot --editor SCENE -- --punch-select=NODE_PATH` opens with that node in the inspector (for docs).
 	for argument in OS.get_cmdline_user_args():
@@ -32,6 +37,7 @@ func _enter_tree() -> void:
 
 func _exit_tree() -> void:
 	remove_tool_menu_item(MENU_ITEM)
+	remove_tool_menu_item(SKELETON_ITEM)
 	remove_tool_menu_item(SETTINGS_ITEM)
 
 
@@ -87,6 +93,28 @@ func add_punching_character() -> void:
 	undo.commit_action()
 	EditorInterface.get_selection().clear()
 	EditorInterface.get_selection().add_node(controller)
+
+
+## Makes the selected Skeleton3D (or the scene's only one) punch: a PunchSkeletonModifier under it, the simulated
+## character on the rig, a sandbag in front and a wired PunchController, as one undoable action. Says why in a
+## dialog (and the Output) when there is no such skeleton or it lacks bones the modifier needs.
+func make_selected_skeleton_punch() -> void:
+	var root := EditorInterface.get_edited_scene_root()
+	var skeleton := OwnCharacterSetup.find_skeleton(root, EditorInterface.get_selection().get_selected_nodes())
+	var made := OwnCharacterSetup.make_skeleton_punch(root, skeleton, get_undo_redo())
+	if not made.ok:
+		push_warning("Punch Controller: " + made.message)
+		var dialog := AcceptDialog.new()
+		dialog.title = "Punch Controller: " + SKELETON_ITEM
+		dialog.dialog_text = made.message
+		dialog.dialog_autowrap = true
+		dialog.min_size = Vector2i(520, 0)
+		dialog.visibility_changed.connect(func(): if not dialog.visible: dialog.queue_free())
+		EditorInterface.get_base_control().add_child(dialog)
+		dialog.popup_centered()
+		return
+	EditorInterface.get_selection().clear()
+	EditorInterface.get_selection().add_node(made.controller)
 
 
 func _select_later(path: NodePath, tries := 100) -> void:

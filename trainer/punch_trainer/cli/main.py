@@ -22,6 +22,7 @@ from punch_trainer.learn.search import SearchArgs
 from punch_trainer.pipelines.bench import BenchEnvArgs, BenchInferenceArgs, BenchSearchArgs
 from punch_trainer.pipelines.evaluate import EvalArgs
 from punch_trainer.pipelines.experiments import AfterPunchArgs, Fig6Args
+from punch_trainer.pipelines.moving_eval import MovingEvalArgs
 from punch_trainer.pipelines.render import RenderArgs, parse_bags
 from punch_trainer.pipelines.replay import ReplayArgs, parse_sigmas
 from punch_trainer.pipelines.selfcheck import SelfCheckArgs
@@ -205,6 +206,15 @@ def _eval(args: argparse.Namespace) -> int:
     return 0
 
 
+def _eval_moving(args: argparse.Namespace) -> int:
+    from punch_trainer.pipelines.moving_eval import run_moving_eval
+
+    out, _ = run_moving_eval(dataclass_from_arguments(MovingEvalArgs, args))
+    print((out / "report.md").read_text())
+    print(f"report: {out / 'report.md'}")
+    return 0
+
+
 def _fig6(args: argparse.Namespace) -> int:
     import shutil
 
@@ -325,6 +335,11 @@ def build_parser() -> argparse.ArgumentParser:
     add_dataclass_arguments(evaluation, EvalArgs, value_parsers={"sigmas": parse_sigmas})
     add_ray_option(evaluation)
     evaluation.set_defaults(run=_eval)
+
+    moving = commands.add_parser("eval-moving", help="hit rates of a policy while its character walks, turns and steps in, "
+                                                     "and against a moving target, through PunchController in Godot")
+    add_dataclass_arguments(moving, MovingEvalArgs, exclude=["timeout_s"], value_parsers={"sigmas": parse_sigmas})
+    moving.set_defaults(run=_eval_moving)
 
     replay = commands.add_parser("replay", help="replay a policy through PunchController in Godot at several noise sigmas (paper Fig. 10-11)")
     # bags and start are punch eval's conditions, not options of a replay

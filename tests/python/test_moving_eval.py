@@ -1,0 +1,45 @@
+"""`punch eval-moving` (issue 31) on a tiny set: 2 held-out placements, a standing and a walking case, sigma 0,
+through PunchController in headless Godot; the report's structure, and the standing punches hit."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from punch_trainer.pipelines.moving_eval import MOVING_CASES, MovingEvalError, select_cases
+from punch_trainer.sim.godot import ADDON_POLICIES
+
+pytestmark = pytest.mark.godot
+
+CASES = ["standing", "forward 0.7 m/s"]
+
+
+def test_the_cases_are_named_once_and_an_unknown_one_is_refused():
+    names = [case.name for case in MOVING_CASES]
+    assert len(set(names)) == len(names)
+    assert [case.name for case in select_cases(CASES)] == CASES
+    with pytest.raises(MovingEvalError, match="unknown motion case"):
+        select_cases(["moonwalk"])
+
+
+def test_eval_moving_reports_every_case_and_the_standing_punches_hit(tmp_path):
+    policy = ADDON_POLICIES / "straight.onnx"
+    run = subprocess.run([sys.executable, "-m", "punch_trainer.cli.main", "eval-moving", "--policy", str(policy),
+                          "--placements", "2", "--sigmas", "0", "--cases", *CASES, "--out", str(tmp_path)],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr[-3000:]
+    report = json.loads((tmp_path / "moving.json").read_text())
+    assert len(report["placements"]) == 2 and report["sigmas"] == [0.0]
+    (evaluation,) = report["evaluations"]
+    assert [case["case"] for case in evaluation["cases"]] == CASES
+    for case in evaluation["cases"]:
+        (sigma0,) = case["per_sigma"]
+        assert sigma0["punches"] == 2 and 0 <= sigma0["hits"] <= 2, case
+    standing, walking = evaluation["cases"]
+    assert standing["per_sigma"][0]["hits"] == 2, standing
+    assert standing["moved_m"] == 0.0
+    assert walking["moved_m"] == pytest.approx(0.7 * 50 / 120, abs=0.02)  # 50 frames of a punch at 120 Hz
+    table = (tmp_path / "report.md").read_text()
+    assert "| standing | 2/2 |" in table
+    assert "| case | straight σ 0 |" in run.stdout
