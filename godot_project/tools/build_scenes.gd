@@ -167,7 +167,11 @@ func _build_character() -> Node3D:
 	var root: Node3D = ClassDB.instantiate("PunchCharacter")
 	root.name = "PunchCharacter"
 
-	var pelvis := StaticBody3D.new()
+	# Kinematic: PunchCharacter carries it, from code in the physics step, to wherever the character's root moves
+	# (not an AnimationPlayer, which makes Jolt's joints on it oscillate: godotengine/godot#115051); the trunk and
+	# arms follow it through their joints. sync_to_physics off: the node holds the code's target.
+	var pelvis := AnimatableBody3D.new()
+	pelvis.sync_to_physics = false
 	pelvis.name = "Pelvis"
 	pelvis.position = Vector3(0, 0.98, 0)
 	pelvis.collision_layer = 2

@@ -1,14 +1,33 @@
 //! `PunchCharacter`: the root node of the character scene. In a game it makes the scene physically what
 //! training used (joints configured from the core's DOF table, no collisions between its own bodies), and it
 //! reads and drives its bodies for `PunchController` with the same core code the training server uses.
+//!
+//! **A moving character.** A game moves the character (or a parent of it, as it moves a `CharacterBody3D`)
+//! every physics frame. The bodies are `top_level`, so Godot's transform propagation never teleports them;
+//! instead, every physics frame (`physics_process`, run after the game's own nodes by its priority) the
+//! kinematic `Pelvis` (an `AnimatableBody3D`, `sync_to_physics` off) is moved from code to the character's
+//! global transform times its rest offset, and the trunk and arms feel that motion through the joints. A move
+//! of more than `TELEPORT_DISTANCE_M` or `TELEPORT_TURN_RAD` in one frame (a spawn, a respawn) is a teleport:
+//! every body moves with the root at once, keeping its pose, with no velocity.
+//!
+//! How Jolt moves such a pelvis (Godot 4.6, measured by `tests/godot/moving_character.gd`): setting a kinematic
+//! body's transform only sets its target; at the next step Jolt moves it there with `MoveKinematic`, so
+//! during that step (and when read after it) the body has the velocity that motion implies (its linear velocity
+//! equals the root's displacement times the physics rate, its angular velocity the turn's), and the joints
+//! pull the dynamic bodies along within the step, with no jump. Its physics state lags its node by one step, so
+//! the pelvis is read from the physics server (`Rig::read_bodies`). Setting the transform of a kinematic body
+//! never moves it at once: a teleport switches it to static for the move (placed at once), then back.
 
 use glam::Vec3;
 use godot::builtin::{Rid, Transform3D, Vector2, Vector3};
 use godot::classes::generic6_dof_joint_3d::{Flag, Param};
+use godot::classes::physics_server_3d::{BodyMode, BodyState as ServerBodyState};
 use godot::classes::{
-    Generic6DofJoint3D, INode3D, Node3D, PhysicsBody3D, PhysicsDirectBodyState3D, PhysicsServer3D, RigidBody3D,
+    AnimatableBody3D, Generic6DofJoint3D, INode3D, Node3D, PhysicsBody3D, PhysicsDirectBodyState3D, PhysicsServer3D,
+    RigidBody3D,
 };
 use godot::global::godot_error;
+use godot::meta::ToGodot;
 use godot::obj::{Base, EngineEnum, Gd, Singleton, WithBaseField};
 use godot::prelude::{GodotClass, godot_api};
 use punch_core::arm_size::{ARM_SCALE_RANGE, ArmLengths, ArmScale};
@@ -16,19 +35,35 @@ use punch_core::character::{Axis, Body, JOINTS};
 use punch_core::sensing::{BodyState, CharacterGeometry, MAX_BAG_CONTACTS};
 
 use crate::arm_sizing::{SceneArms, rebuild_joints};
-use crate::convert::{quat, vec3, vector3};
+use crate::convert::{quat, rotation, vec3, vector3};
 use crate::engine_io::{character_geometry, drive_joints, joint_axis_settings};
 
-/// A physics-based upper-body character: pelvis fixed in place, a welded head-neck-chest torso, and two
-/// arms with 10 actuated degrees of freedom (waist 2, shoulders 3 each, elbows 1 each), driven by joint
-/// motors. Use the addon's `punch_character.tscn` rather than building one by hand; a `PunchController`
-/// makes it punch.
+/// A move of the character's root larger than this in one physics frame (m) is a teleport (see `PunchCharacter`):
+/// 0.5 m is 60 m/s at 120 Hz, far above any walk or lunge.
+pub const TELEPORT_DISTANCE_M: f32 = 0.5;
+/// A turn of the root larger than this in one physics frame (rad) is a teleport: 45 degrees is 5400 degrees/s.
+pub const TELEPORT_TURN_RAD: f32 = std::f32::consts::FRAC_PI_4;
+/// `PunchCharacter`'s physics priority: it moves its pelvis after the nodes of default priority (0) have moved it.
+const FOLLOW_PRIORITY: i32 = 1000;
+
+/// A physics-based upper-body character: a kinematic pelvis that follows the node's own transform, a welded
+/// head-neck-chest torso, and two arms with 10 actuated degrees of freedom (waist 2, shoulders 3 each, elbows
+/// 1 each), driven by joint motors. Use the addon's `punch_character.tscn` rather than building one by hand; a
+/// `PunchController` makes it punch.
+///
+/// Move it (or any parent of it) in `_physics_process`, as a `CharacterBody3D` is moved: every physics frame
+/// the pelvis is carried, from code, to where the node now is, and the trunk and arms follow it through their
+/// joints, under physics, also while a punch runs. A move of more than 0.5 m or 45 degrees in one physics frame
+/// (a spawn, a respawn) is a teleport: the whole body moves at once, keeping its pose, with no velocity.
+/// `reset_pose()` puts it back in its guard where it stands.
 #[derive(GodotClass)]
 #[class(base = Node3D, init)]
 pub struct PunchCharacter {
     rig: Option<Rig>,
     /// The arms as the scene had them, captured at the first `size_arms`.
     scene_arms: Option<SceneArms>,
+    /// The root transform the pelvis was last carried to (none before `ready`).
+    carried_root: Option<Transform3D>,
     base: Base<Node3D>,
 }
 
@@ -44,6 +79,8 @@ pub struct Rig {
     rigid: [Option<Gd<RigidBody3D>>; 6],
     /// The physics states of the forearms (`Body::ALL` index, state), to read the fists' contacts.
     pub forearm_states: Vec<(usize, Gd<PhysicsDirectBodyState3D>)>,
+    /// The kinematic pelvis's physics state: where the last step put it, with the velocity it moved at.
+    pelvis_state: Gd<PhysicsDirectBodyState3D>,
     /// Rest-pose geometry (without target data, which the controller adds).
     pub geometry: CharacterGeometry,
     /// Each body's rest transform relative to the character's root (`Body::ALL` order).
@@ -60,18 +97,28 @@ impl Rig {
         geometry.rest_rotations = std::array::from_fn(|i| quat((root * self.rest_from_root[i]).basis.get_quaternion()));
         geometry.root_rotation = quat(root.basis.get_quaternion());
         geometry.root_position = vec3(root.origin);
+        geometry.pelvis_rest_position = vec3((root * self.rest_from_root[Body::Pelvis.index()]).origin);
         geometry
     }
 
-    /// World state of every body, `Body::ALL` order. The nodes are read rather than the physics-server
-    /// states: a node moved by the game (`reset_pose`, a character placed elsewhere) reads its new place at
-    /// once, its physics state only after the next physics step.
+    /// World state of every body, `Body::ALL` order. The dynamic bodies' nodes are read rather than their
+    /// physics-server states: a node moved by the game (`reset_pose`) reads its new place at once. The
+    /// kinematic pelvis is read from the physics server: its node holds the target of the coming step, its
+    /// physics state where the last step put it and the velocity of that move (the root's motion, which the
+    /// core's sensing turns into the root's frame and its `root_vel`/`root_spin` features).
     pub fn read_bodies(&self) -> [BodyState; 6] {
         std::array::from_fn(|i| {
-            let transform = self.bodies[i].get_global_transform();
-            let (linear, angular) = match &self.rigid[i] {
-                Some(rigid) => (vec3(rigid.get_linear_velocity()), vec3(rigid.get_angular_velocity())),
-                None => (Vec3::ZERO, Vec3::ZERO),
+            let (transform, linear, angular) = match &self.rigid[i] {
+                Some(rigid) => (
+                    self.bodies[i].get_global_transform(),
+                    vec3(rigid.get_linear_velocity()),
+                    vec3(rigid.get_angular_velocity()),
+                ),
+                None => (
+                    self.pelvis_state.get_transform(),
+                    vec3(self.pelvis_state.get_linear_velocity()),
+                    vec3(self.pelvis_state.get_angular_velocity()),
+                ),
             };
             BodyState {
                 position: vec3(transform.origin),
@@ -80,6 +127,29 @@ impl Rig {
                 angular_velocity: angular,
             }
         })
+    }
+
+    /// Puts body `index` (`Body::ALL` order) at `transform` at once, with no velocity. The kinematic pelvis is
+    /// switched to static for the move: a kinematic body's new transform is only a target for the next step,
+    /// which Jolt would reach by sweeping it (and the arms hanging on it) across the distance.
+    pub fn place(&self, index: usize, transform: Transform3D) {
+        let mut body = self.bodies[index].clone();
+        match &self.rigid[index] {
+            Some(rigid) => {
+                let mut rigid = rigid.clone();
+                rigid.set_global_transform(transform);
+                rigid.set_linear_velocity(Vector3::ZERO);
+                rigid.set_angular_velocity(Vector3::ZERO);
+            }
+            None => {
+                let mut server = PhysicsServer3D::singleton();
+                let rid = body.get_rid();
+                server.body_set_mode(rid, BodyMode::STATIC);
+                body.set_global_transform(transform);
+                server.body_set_state(rid, ServerBodyState::TRANSFORM, &transform.to_variant());
+                server.body_set_mode(rid, BodyMode::KINEMATIC);
+            }
+        }
     }
 
     /// Sets the joint motors (Godot's 6DOF convention) on actuated axes.
@@ -92,9 +162,17 @@ impl Rig {
 impl INode3D for PunchCharacter {
     fn ready(&mut self) {
         match self.set_up() {
-            Ok(rig) => self.rig = Some(rig),
+            Ok(rig) => {
+                self.rig = Some(rig);
+                self.carried_root = Some(self.base().get_global_transform());
+                self.base_mut().set_physics_process_priority(FOLLOW_PRIORITY);
+            }
             Err(error) => godot_error!("PunchCharacter '{}': {error}", self.base().get_name()),
         }
+    }
+
+    fn physics_process(&mut self, _delta: f64) {
+        self.carry_pelvis();
     }
 }
 
@@ -115,15 +193,11 @@ impl PunchCharacter {
             return;
         };
         let root = self.base().get_global_transform();
-        for (body, rest) in rig.bodies.iter().zip(&rig.rest_from_root) {
-            let mut body = body.clone();
-            body.set_global_transform(root * *rest);
-            if let Ok(mut rigid) = body.try_cast::<RigidBody3D>() {
-                rigid.set_linear_velocity(Vector3::ZERO);
-                rigid.set_angular_velocity(Vector3::ZERO);
-            }
+        for (i, rest) in rig.rest_from_root.iter().enumerate() {
+            rig.place(i, root * *rest);
         }
         rig.drive(&[Vec3::ZERO; 5]);
+        self.carried_root = Some(root);
     }
 
     /// Writes the limits and motors of the core's DOF table into this character's joint nodes, before it is
@@ -192,13 +266,9 @@ impl PunchCharacter {
         let root = self.base().get_global_transform();
         // The torso and pelvis back at rest too: the joints are rebuilt from the bodies' places.
         for i in [Body::Pelvis.index(), Body::Torso.index()] {
-            let mut body = rig.bodies[i].clone();
-            body.set_global_transform(root * rig.rest_from_root[i]);
-            if let Ok(mut rigid) = body.try_cast::<RigidBody3D>() {
-                rigid.set_linear_velocity(Vector3::ZERO);
-                rigid.set_angular_velocity(Vector3::ZERO);
-            }
+            rig.place(i, root * rig.rest_from_root[i]);
         }
+        self.carried_root = Some(root);
         scene.apply(root, scale);
         rebuild_joints(&self.base().clone().upcast::<Node3D>())?;
         self.rig = Some(self.set_up()?);
@@ -210,6 +280,32 @@ impl PunchCharacter {
 
     pub fn rig(&self) -> Option<&Rig> {
         self.rig.as_ref()
+    }
+
+    /// Carries the kinematic pelvis to where the root now is (it moves there in the coming physics step, and the
+    /// joints pull the other bodies along), or teleports the whole body when the root jumped.
+    fn carry_pelvis(&mut self) {
+        let (Some(rig), Some(carried)) = (self.rig.as_ref(), self.carried_root) else { return };
+        let root = self.base().get_global_transform();
+        if root == carried {
+            return;
+        }
+        let pelvis = Body::Pelvis.index();
+        if is_teleport(carried, root) {
+            // Every body keeps its place relative to the root: the pose, moved with it, at rest.
+            let moved = root * carried.affine_inverse();
+            for i in 0..rig.bodies.len() {
+                let place = if i == pelvis {
+                    root * rig.rest_from_root[i]
+                } else {
+                    moved * rig.bodies[i].get_global_transform()
+                };
+                rig.place(i, place);
+            }
+        } else {
+            rig.bodies[pelvis].clone().set_global_transform(root * rig.rest_from_root[pelvis]);
+        }
+        self.carried_root = Some(root);
     }
 
     fn set_up(&mut self) -> Result<Rig, String> {
@@ -231,7 +327,19 @@ impl PunchCharacter {
             configure_joint(&mut node, joint_index);
             joints.push(node);
         }
+        let mut pelvis = bodies[Body::Pelvis.index()].clone().try_cast::<AnimatableBody3D>().map_err(|_| {
+            "the 'Pelvis' is not an AnimatableBody3D (the addon's scene has one since the character follows a moving \
+             root: use it, or build the scene again)"
+                .to_string()
+        })?;
+        pelvis.set_sync_to_physics(false);
         let mut server = PhysicsServer3D::singleton();
+        let pelvis_state =
+            server.body_get_direct_state(pelvis.get_rid()).ok_or("the 'Pelvis' has no physics state".to_string())?;
+        // The bodies do not follow the root's transform: the pelvis is carried from code, the others by the joints.
+        for body in &bodies {
+            body.clone().set_as_top_level(true);
+        }
         let mut forearm_states = Vec::new();
         for (i, body) in bodies.iter().enumerate() {
             for other in &bodies[i + 1..] {
@@ -266,11 +374,19 @@ impl PunchCharacter {
             joint_rids: std::array::from_fn(|j| joints[j].get_rid()),
             body_rids: std::array::from_fn(|i| bodies[i].get_rid()),
             forearm_states,
+            pelvis_state,
             geometry,
             rest_from_root: std::array::from_fn(|i| root_inverse * body_transforms[i]),
             bodies,
         })
     }
+}
+
+/// True when the root moved from `from` to `to` by more than a frame's walk or turn can (`TELEPORT_DISTANCE_M`,
+/// `TELEPORT_TURN_RAD`).
+pub fn is_teleport(from: Transform3D, to: Transform3D) -> bool {
+    let turn = rotation(from.basis).angle_between(rotation(to.basis));
+    (to.origin - from.origin).length() > TELEPORT_DISTANCE_M || turn > TELEPORT_TURN_RAD
 }
 
 /// Limits and motors of one joint node (`joint_axis_settings`, the same as the training world's joints). Only

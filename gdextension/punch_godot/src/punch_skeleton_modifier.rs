@@ -23,9 +23,12 @@
 //!   Controller, `w` stays 1 and the guard between punches is the simulated one.
 //! - The spine bends about other points than the simulated waist joint, so the spine's first bone is shifted
 //!   (by the blend weight's share) until the rig's shoulders sit on the simulated ones.
-//! - Placing: with `follow_rig`, the simulated character is moved, while it is neither punching nor recovering,
-//!   so that it faces the rig's front and its shoulder joints' midpoint sits on the rig's (rest upper-arm heads
-//!   under the skeleton's transform), then reset to its guard there.
+//! - Placing: with `follow_rig`, the simulated character's root is kept, every frame and also while it punches,
+//!   where it faces the rig's front with its shoulder joints' midpoint on the rig's (rest upper-arm heads under
+//!   the skeleton's transform). Its kinematic pelvis follows the root under physics (`PunchCharacter`), so a rig
+//!   that walks or turns carries the simulated body along, and the pose written back stays on the rig: the pose
+//!   math reads the bodies' rotations in the skeleton's space and needs no root of its own. A placement that
+//!   jumps (a teleport: more than 0.5 m or 45 degrees in a frame) while it is idle resets it to its guard there.
 //!
 //! The skeleton's modifier callback is set to physics: the simulated bodies move in physics frames.
 
@@ -46,7 +49,7 @@ use punch_core::fist::FistPose;
 use punch_core::skeleton_pose::{Blend, BodyFrames, BodyRotations, SkeletonPoser, rig_arm_lengths};
 
 use crate::convert::{quat, rotation, vec3, vector3};
-use crate::punch_character::PunchCharacter;
+use crate::punch_character::{PunchCharacter, is_teleport};
 use crate::punch_controller::PunchController;
 
 thread_local! {
@@ -102,8 +105,10 @@ pub struct PunchSkeletonModifier {
     #[export]
     #[init(val = true)]
     fist_curl: bool,
-    /// Move the simulated character onto the rig (facing its front, shoulders on its shoulders) whenever it is
-    /// neither punching nor recovering, so the skeleton's fists go where the simulated ones go.
+    /// Keep the simulated character on the rig (facing its front, shoulders on its shoulders) every physics frame,
+    /// also while it punches, so the skeleton's fists go where the simulated ones go and a rig that walks or turns
+    /// carries the simulated body along (its pelvis follows under physics). It is reset to its guard there when
+    /// first placed, and when the rig jumps (more than 0.5 m or 45 degrees in a frame) between punches.
     #[export_group(name = "Simulated body")]
     #[export]
     #[init(val = true)]
@@ -133,6 +138,8 @@ pub struct PunchSkeletonModifier {
     blend: Blend,
     /// Names the pass calls every frame, made once (making one takes a lock).
     names: Names,
+    /// The character this modifier placed on the rig (and reset to its guard there) first.
+    placed: Option<InstanceId>,
     /// The character read from the controller when its punch (or recovery) began: a punch keeps its character,
     /// so frames within one need not ask again (asking is a tenth of the pass).
     punching_character: Option<Gd<PunchCharacter>>,
@@ -480,8 +487,8 @@ impl PunchSkeletonModifier {
         let active = busy || self.guard_source == GUARD_FROM_CONTROLLER;
         let weight = self.blend.advance(active, delta_s, self.blend_in_s, self.blend_out_s);
         let skeleton_global = skeleton.get_global_transform();
-        if self.follow_rig && !busy {
-            self.place_character(character, skeleton_global);
+        if self.follow_rig {
+            self.place_character(character, skeleton_global, busy);
         }
         if weight <= 0.0 {
             return false;
@@ -542,18 +549,23 @@ impl PunchSkeletonModifier {
         true
     }
 
-    /// Moves the simulated character onto the rig (see `follow_rig`) if it is more than 1 cm or 1 degree away,
-    /// and resets it to its guard there.
-    fn place_character(&mut self, mut character: Gd<PunchCharacter>, skeleton: Transform3D) {
+    /// Keeps the simulated character's root on the rig (see `follow_rig`); a teleport-sized jump while it is
+    /// neither punching nor recovering (`busy`) also resets it to its guard there.
+    fn place_character(&mut self, mut character: Gd<PunchCharacter>, skeleton: Transform3D, busy: bool) {
         let Some((_, poser, _)) = &self.poser else { return };
         let scale = skeleton.basis.get_scale();
         let (rotation, origin) = poser.character_placement(rotation(skeleton.basis), vec3(skeleton.origin), scale.y);
         let now = character.get_global_transform();
-        let moved = (vec3(now.origin) - origin).length() > 0.01
-            || quat(now.basis.get_quaternion()).angle_between(rotation) > 1f32.to_radians();
+        let moved = (vec3(now.origin) - origin).length() > 1e-4
+            || quat(now.basis.get_quaternion()).angle_between(rotation) > 1e-3;
+        let basis = Basis::from_quaternion(Quaternion::new(rotation.x, rotation.y, rotation.z, rotation.w));
+        let placement = Transform3D::new(basis, vector3(origin));
         if moved {
-            let basis = Basis::from_quaternion(Quaternion::new(rotation.x, rotation.y, rotation.z, rotation.w));
-            character.set_global_transform(Transform3D::new(basis, vector3(origin)));
+            character.set_global_transform(placement);
+        }
+        let first = self.placed != Some(character.instance_id());
+        if !busy && (first || is_teleport(now, placement)) {
+            self.placed = Some(character.instance_id());
             character.call("reset_pose", &[]);
         }
     }
