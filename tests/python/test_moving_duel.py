@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from punch_trainer.sim.godot import GODOT_PROJECT, run_godot
+from punch_trainer.sim.godot import GODOT_PROJECT, PROJECT_ROOT, run_godot
 
 pytestmark = pytest.mark.godot
 
@@ -26,3 +26,21 @@ def test_the_moving_duel_circles_turns_and_lands_punches_on_both_sides():
         assert side["turned_rad"] > 1.0 and side["pelvis_turned_rad"] > 0.9 * side["turned_rad"], (name, side)
         assert side["punches"] >= 2 and side["out_of_reach"] == 0, (name, side)
         assert side["hits"] >= 1, (name, side)
+
+
+def test_the_moving_duel_is_played_from_the_keyboard():
+    """Key events as the OS sends them: the first takes your side from the autopilot; W walks you in, Space
+    punches (the straight), 2 picks the hook, D circles the opponent while you punch again, S backs off; you
+    keep facing the opponent."""
+    script = PROJECT_ROOT / "tests" / "godot" / "moving_duel_keys.gd"
+    run = run_godot(["--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), "--script", str(script)],
+                    check=False, timeout_s=120)
+    assert "ERROR" not in run.log and run.fatal_lines() == [], run.log[-3000:]
+    line = next((line for line in run.log.splitlines() if line.startswith("MOVING_DUEL_KEYS ")), None)
+    assert line is not None, run.log[-3000:]
+    report = json.loads(line.removeprefix("MOVING_DUEL_KEYS "))
+    print(report)
+    assert report["driver_before"] == "auto" and report["driver_after"] == "keys", report
+    assert report["closed_m"] > 0.0 and report["backed_m"] > 0.2, report
+    assert report["punches"] == [True, True] and report["styles"] == ["straight", "hook"], report
+    assert abs(report["circled_rad"]) > 0.5 and report["facing_error_rad"] < 0.1, report
