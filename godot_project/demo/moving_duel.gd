@@ -6,13 +6,13 @@
 ## You are the blue character (the AI is red): W/S or Up/Down step toward and away from the opponent, A/D or
 ## Left/Right circle it (both characters always turn to face each other), Space or J punches, 1/2/3 pick the
 ## straight, hook or swing. Until the first key press an autopilot plays your side, so the scene plays by itself
-## (`punch render --scene moving_duel`). The other character circles you at 0.7-1.2 m/s, steps in when it is
+## (`punch render --scene moving_duel`). The other character circles you at 0.7-1.1 m/s, steps in when it is
 ## ready, and punches when your torso is within its policy's reach.
 ##
 ## Arguments after `--`: `--autoplay` (the autopilot keeps your side; keys are ignored), `--seconds=N` (after N
-## seconds of physics time, print `MOVING_DUEL <json>`: per side how far its mover and its simulated pelvis went,
-## how far they turned, the punches, those that hit the opponent and those that hit its trunk; then quit), and `--straight=PATH`, `--hook=PATH`,
-## `--swing=PATH` (other policy files than the addon's).
+## seconds of physics time, print `MOVING_DUEL <json>`: per side how far its mover and its simulated pelvis
+## went and turned, its punches, those that struck the opponent and those that struck its trunk; then quit),
+## and `--straight=PATH`, `--hook=PATH`, `--swing=PATH` (other policy files than the addon's).
 extends Node3D
 
 const CHARACTER_SCENE := preload("res://addons/punch_controller/scenes/punch_character.tscn")
@@ -299,8 +299,11 @@ func _in_reach(fighter: Fighter) -> bool:
 	if reach.is_empty():
 		return false
 	var offset := fighter.target_offset()
-	var inside := func(value: float, range_m: Vector2) -> bool: return value > range_m.x + 0.02 and value < range_m.y - 0.02
-	return inside.call(offset.z, reach.distance_m) and inside.call(offset.y, reach.height_m) and inside.call(offset.x, reach.side_m)
+	return _inside(offset.z, reach.distance_m) and _inside(offset.y, reach.height_m) and _inside(offset.x, reach.side_m)
+
+
+func _inside(value: float, range_m: Vector2) -> bool:
+	return value > range_m.x + 0.02 and value < range_m.y - 0.02
 
 
 ## The reach volume of the fighter's style (asked of its controller once per style; empty when the policy
