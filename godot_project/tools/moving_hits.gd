@@ -4,13 +4,15 @@
 ##
 ## tools/godot --headless --fixed-fps 120 --path godot_project --script res://tools/moving_hits.gd -- \
 ##     --policy=PATH --bags=FILE.json --cases=FILE.json --out=FILE.json [--sigmas=0,0.3] [--seed=0]
-##     [--characters=64] [--characters-per-world=16]
+##     [--characters=64] [--characters-per-world=16] [--lead-s=0.5]
 ##
 ## Every punch (one per sigma, case and placement) is built fresh, side by side like replay.gd's: a SubViewport
 ## with its own World3D per 16 characters, two collision layers per character (tools/punch_pair.gd). Each
 ## character and its PunchController are children of a holder Node3D, the node a game would move (its
-## CharacterBody3D). A case moves, from the frame the punch starts until the frame it finishes, in a
-## `_physics_process` of its own every physics frame, as a game moves a CharacterBody3D:
+## CharacterBody3D). A case moves, in a `_physics_process` of its own every physics frame, as a game moves a
+## CharacterBody3D, until the punch finishes; a character that moves starts `--lead-s` before its punch (it is
+## walking or turning when it punches, and its bag rides along at its velocity), except for its lunge, which
+## starts with the punch; a moving target starts with the punch:
 ##
 ## - `target: "ride"`: the holder, with the character's sandbag riding along (the sandbag's scene root is a
 ##   child of the same holder, so the bag stays where it was relative to the character). A joint does not
@@ -44,6 +46,8 @@ class Motion:
 	var spec: Dictionary
 	var time_s := 0.0
 	var base_y := 0.0
+	## When the lunge starts (the punch's start), s after the motion's.
+	var lunge_start_s := 0.0
 
 	func _init(motion: Dictionary) -> void:
 		spec = motion
@@ -59,7 +63,8 @@ class Motion:
 		var lunge_m := float(spec.get("lunge_m", 0.0))
 		if lunge_m > 0.0:
 			var lunge_s := float(spec.get("lunge_s", 0.25))
-			var step := lunge_m * (_minimum_jerk(time_s / lunge_s) - _minimum_jerk(before / lunge_s))
+			var step := lunge_m * (_minimum_jerk((time_s - lunge_start_s) / lunge_s)
+				- _minimum_jerk((before - lunge_start_s) / lunge_s))
 			node.position += node.basis * Vector3(0.0, 0.0, step)
 		var bob_m := float(spec.get("bob_m", 0.0))
 		if bob_m > 0.0:
@@ -95,7 +100,7 @@ class MovingHook extends AnimatableBody3D:
 
 var _options := {
 	"policy": "", "bags": "", "cases": "", "out": "", "sigmas": "0", "seed": "0", "characters": "64",
-	"characters-per-world": "16",
+	"characters-per-world": "16", "lead-s": "0",
 }
 var _bags: Array = []
 var _cases: Array = []
@@ -106,6 +111,9 @@ var _rows: Array = []
 var _arenas: Array[SubViewport] = []
 var _pending := 0
 var _failed := false
+## The batch's punches wait this many physics frames (their characters' lead), then start.
+var _lead_frames_left := 0
+var _starts: Array = []  # per slot: [controller, the node that moves, its Motion, bag or null, starts with punch]
 
 
 func _initialize() -> void:
@@ -141,6 +149,11 @@ func _initialize() -> void:
 func _physics_process(_delta: float) -> bool:
 	if _failed:
 		return true
+	if _lead_frames_left > 0:
+		_lead_frames_left -= 1
+		if _lead_frames_left == 0:
+			_start_punches()
+		return false
 	if _pending > 0:
 		return false
 	if not _arenas.is_empty():
@@ -193,7 +206,7 @@ func _start_batch() -> void:
 			anchor.sync_to_physics = false  # follows its parent, the holder
 			anchor.position = hook.global_position
 			holder.add_child(anchor)
-			motions.append([holder, motion, null])
+			motions.append([holder, motion, bag])
 		else:
 			var moving_hook := MovingHook.new()
 			moving_hook.position = hook.global_position
@@ -221,15 +234,36 @@ func _start_batch() -> void:
 		controllers.append(controller)
 	_next += count
 	_pending = count
+	var lead_s := maxf(float(_options["lead-s"]), 0.0)
+	_starts.clear()
 	for slot in count:
-		if not controllers[slot].call("punch"):
+		var moved: Array = motions[slot]
+		var with_punch: bool = _cases[_episodes[_next - count + slot][1]].target == "moving" or lead_s == 0.0
+		_starts.append([controllers[slot]] + moved + [with_punch])
+		if not with_punch:
+			(moved[1] as Motion).lunge_start_s = lead_s
+			_start_motion(moved)
+	_lead_frames_left = roundi(lead_s * Engine.physics_ticks_per_second)
+	if _lead_frames_left == 0:
+		_start_punches()
+
+
+## Starts a motion: its node moves from this physics frame on, and the bag that hangs from it (or rides along
+## with it) starts at its velocity.
+func _start_motion(moved: Array) -> void:
+	(moved[0] as Node3D).set("motion", moved[1])
+	if moved[2] != null:
+		(moved[2] as RigidBody3D).linear_velocity = (moved[1] as Motion).start_velocity(moved[0])
+
+
+## Starts the batch's punches, and the motions that start with them.
+func _start_punches() -> void:
+	for start in _starts:
+		if not start[0].call("punch"):
 			_fail("PunchController refused to punch (see the error above)")
 			return
-		# The motion starts with the punch: the holder or hook moves from this physics frame on.
-		var moved: Array = motions[slot]
-		(moved[0] as Node3D).set("motion", moved[1])
-		if moved[2] != null:
-			(moved[2] as RigidBody3D).linear_velocity = (moved[1] as Motion).start_velocity(moved[0])
+		if start[4]:
+			_start_motion(start.slice(1, 4))
 
 
 func _json_list(path: String) -> Array:

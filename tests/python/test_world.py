@@ -166,3 +166,34 @@ def test_smoothing_is_the_papers_weighted_moving_average(server):
         expected[:, t] = np.tensordot(history, weights, axes=([1], [0])) / weights.sum()
     np.testing.assert_allclose(executed, expected, atol=1e-6)
     assert np.array_equal(server.rollout_reply(raw).arrays["executed_actions"], clipped)
+
+
+def test_a_carried_character_walks_turns_and_lunges_with_its_arms_in_guard(server):
+    """The session moves each slot's kinematic pelvis along its body motion; the trunk and arms follow through
+    the joints, and the features are in the frame of the root as it is at each frame."""
+    turn = np.radians(120.0)
+    bags = [{}, {"body_forward_mps": -1.4}, {"body_side_mps": -0.7, "body_turn_rad_s": turn, "body_bob_m": 0.03},
+            {"body_lunge_m": 0.15}, {"bag_glides": True, "velocity_side_mps": 1.0},
+            {"body_forward_mps": 0.7, "body_side_mps": 0.5, "body_bob_m": 0.03, "bag_rides": True}]
+    features = server.rollout(np.zeros((6, 10, 10)), bags=bags)  # 50 frames, the guard held
+    frame_s = 1 / 120
+    at = lambda name: features[:, :, column(server, name)]  # noqa: E731
+    root_velocity = np.stack([at(f"root_vel_{axis}") for axis in "xyz"], axis=-1)
+    np.testing.assert_allclose(root_velocity[1], np.tile([0.0, 0.0, -1.4], (50, 1)), atol=1e-4)
+    np.testing.assert_allclose(root_velocity[2][:, [0, 2]], np.tile([-0.7, 0.0], (50, 1)), atol=1e-3)
+    np.testing.assert_allclose(at("root_spin_y")[2], turn, atol=1e-4)
+    assert np.abs(root_velocity[0]).max() == 0.0 and np.abs(root_velocity[4]).max() == 0.0, "standing stays still"
+    # The bag, still in the world, falls behind the character walking backward at its speed...
+    times = np.arange(1, 51) * frame_s
+    np.testing.assert_allclose(at("bag_pos_z")[1], 0.72 + 1.4 * times, atol=2e-3)
+    np.testing.assert_allclose(at("bag_pos_z")[3, -1], 0.72 - 0.15, atol=2e-3)  # the lunge stepped 0.15 m in
+    # ...a carried bag keeps its velocity (to the character's left), and one that rides along stays in place.
+    np.testing.assert_allclose(at("bag_pos_x")[4, -1], 1.0 * 50 * frame_s, atol=0.01)
+    bag_in_root = np.stack([at(f"bag_pos_{axis}")[5] for axis in "xyz"], axis=-1)
+    np.testing.assert_allclose(bag_in_root, np.tile([0.0, 1.35, 0.72], (50, 1)), atol=0.01)  # rides as carried
+    # The arms hold their guard in the moving frame, and no joint comes apart.
+    fists = [column(server, f"fist_{side}_pos_{axis}") for side in "rl" for axis in "xyz"]
+    guard = features[0, 0, fists]
+    assert np.abs(features[:, :, fists] - guard).max() < 0.03, "a fist left its guard"
+    assert at("joint_gap_max_m").max() < 5e-3
+    assert at("exploit_flags").max() == 0

@@ -49,7 +49,7 @@ pub struct FakeWorld {
     pub pelvis_moves: Vec<(usize, RootPose)>,
     /// Every `carry_bodies` call: (slot, root pose).
     pub carried: Vec<(usize, RootPose)>,
-    /// Every `move_rope` call: (slot, how far the rope's top moved).
+    /// Every `move_rope` call: (slot, how far the carry moved the rope's top (its translation)).
     pub ropes: Vec<(usize, Vec3)>,
 }
 
@@ -158,11 +158,11 @@ impl World for FakeWorld {
         self.pelvis_moves.push((slot, *root));
     }
 
-    fn carry_bodies(&mut self, slot: usize, root: &RootPose) {
+    fn carry_bodies(&mut self, slot: usize, root: &RootPose, _with_bag: bool) {
         self.carried.push((slot, *root));
     }
 
-    fn move_rope(&mut self, slot: usize, moved: Vec3) {
-        self.ropes.push((slot, moved));
+    fn move_rope(&mut self, slot: usize, carry: &RootPose) {
+        self.ropes.push((slot, carry.position));
     }
 }

@@ -29,11 +29,13 @@ pub trait World {
     /// start) after the next physics step, moving at `root`'s velocities.
     fn move_pelvis(&mut self, slot: usize, root: &RootPose);
     /// Adds the motion of a root moving as `root` to every moving body of a slot's character (each as if
-    /// carried rigidly by it): an episode that starts while walking starts with the body already walking.
-    fn carry_bodies(&mut self, slot: usize, root: &RootPose);
-    /// Moves the top of a gliding bag's rope (`BagPlacement::glides`) by `moved` from where the placement put
-    /// it, reached after the next physics step; nothing for a bag on a fixed rope.
-    fn move_rope(&mut self, slot: usize, moved: Vec3);
+    /// carried rigidly by it), and to its bag when `with_bag` (a bag that rides along): an episode that starts
+    /// while walking starts with the body already walking.
+    fn carry_bodies(&mut self, slot: usize, root: &RootPose, with_bag: bool);
+    /// Moves the top of a carried bag's rope (`BagPlacement::glides` or `rides`) to where `carry` (a rigid
+    /// motion in the slot's frame at the episode's start) takes it from where the placement put it, reached
+    /// after the next physics step; nothing for a bag on a fixed rope.
+    fn move_rope(&mut self, slot: usize, carry: &RootPose);
 }
 
 /// What the engine layer does after handing a message to the session.
@@ -197,7 +199,7 @@ impl Session {
         self.broken = vec![false; slot_count];
         for (slot, placement) in self.placements.iter().enumerate() {
             if !placement.body.is_still() {
-                world.carry_bodies(slot, &placement.body.pose_at(0.0));
+                world.carry_bodies(slot, &placement.body.pose_at(0.0), placement.rides);
             }
         }
         self.last_features = (0..slot_count).map(|slot| self.slots[slot].features(&world.read(slot))).collect();
@@ -307,7 +309,10 @@ impl Session {
                     world.move_pelvis(slot, &placement.body.pose_at(time_s));
                 }
                 if placement.glides {
-                    world.move_rope(slot, placement.velocity() * time_s);
+                    let glide = RootPose { position: placement.velocity() * time_s, ..RootPose::START };
+                    world.move_rope(slot, &glide);
+                } else if placement.rides {
+                    world.move_rope(slot, &placement.body.pose_at(time_s));
                 }
             }
         }
@@ -397,14 +402,15 @@ impl Session {
 }
 
 fn parse_placements(value: Option<&Value>, slot_count: usize) -> Result<Vec<BagPlacement>, String> {
-    const NAMES: &str = "distance_m, height_m, side_m, velocity_side_mps, velocity_forward_mps, bag_glides, \
+    const NAMES: &str = "distance_m, height_m, side_m, velocity_side_mps, velocity_forward_mps, bag_glides, bag_rides, \
                          body_side_mps, body_forward_mps, body_turn_rad_s, body_lunge_m, body_bob_m";
     let parse_one = |value: &Value| -> Result<BagPlacement, String> {
         let object = value.as_object().ok_or("a bag placement is an object")?;
         let mut placement = BagPlacement::default();
         for (key, field) in object {
-            if key == "bag_glides" {
-                placement.glides = field.as_bool().ok_or("bag 'bag_glides' must be true or false")?;
+            if key == "bag_glides" || key == "bag_rides" {
+                let value = field.as_bool().ok_or(format!("bag '{key}' must be true or false"))?;
+                *(if key == "bag_glides" { &mut placement.glides } else { &mut placement.rides }) = value;
                 continue;
             }
             let number =
@@ -425,6 +431,11 @@ fn parse_placements(value: Option<&Value>, slot_count: usize) -> Result<Vec<BagP
                 _ if motion_limit.is_some() => return Err(format!("bag '{key}' = {number} is out of range")),
                 _ => return Err(format!("unknown bag field '{key}' ({NAMES})")),
             }
+        }
+        if placement.glides && placement.rides {
+            return Err("a bag either glides (its rope carried at its velocity) or rides along with the character, \
+                        not both"
+                .into());
         }
         Ok(placement)
     };
@@ -600,7 +611,16 @@ mod tests {
             let expected = session.placements[0].body.pose_at((frame + 1) as f32 / PHYSICS_HZ as f32);
             assert_eq!((*slot, *pose), (0, expected));
         }
-        for bad in [json!({"body_forward_mps": 9.0}), json!({"bag_glides": 1}), json!({"body_fly": 1.0})] {
+        let riding = json!([{"body_side_mps": 0.7, "body_turn_rad_s": 1.0, "bag_rides": true}, {}]);
+        reply(session.handle(&message(json!({"type": "reset", "frames": 10, "bags": riding}), None), &mut world));
+        assert!(world.carried.last().is_some_and(|(slot, _)| *slot == 0));
+        assert!(matches!(session.handle(&step, &mut world), Outcome::Running));
+        run(&mut session, &mut world);
+        let expected = session.placements[0].body.pose_at(5.0 / PHYSICS_HZ as f32);
+        assert_eq!(world.ropes.last().map(|(slot, _)| *slot), Some(0));
+        assert_eq!(world.ropes.last().map(|(_, moved)| *moved), Some(expected.position), "carried with the body");
+        let both = json!({"bag_glides": true, "bag_rides": true});
+        for bad in [json!({"body_forward_mps": 9.0}), json!({"bag_glides": 1}), json!({"body_fly": 1.0}), both] {
             let reset = message(json!({"type": "reset", "bags": bad}), None);
             assert_eq!(reply(session.handle(&reset, &mut world)).message_type(), "error", "{bad}");
         }

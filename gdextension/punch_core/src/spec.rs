@@ -37,8 +37,9 @@ pub const MAX_SMOOTHING_WINDOW: u32 = 50;
 /// Where a target (the bag) hangs, in the character's frame: `distance_m` ahead (+Z), `height_m` of its
 /// centre of mass above the ground, `side_m` to the character's left (+X); how fast it moves when the
 /// episode starts (`velocity_side_mps` along +X, `velocity_forward_mps` along +Z: a bag still swinging, or,
-/// with `glides`, a bag whose rope is carried at that velocity, as a target that walks); and how the
-/// character's own root moves through the episode (`body`, in training: walking, turning, a lunge).
+/// with `glides`, a bag whose rope is carried at that velocity, as a target that walks); how the character's
+/// own root moves through the episode (`body`, in training: walking, turning, a lunge); and, with `rides`, a
+/// bag carried along with it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BagPlacement {
     pub distance_m: f32,
@@ -48,6 +49,9 @@ pub struct BagPlacement {
     pub velocity_forward_mps: f32,
     /// The bag's rope is carried at the bag's velocity (it translates, not swings).
     pub glides: bool,
+    /// The bag's rope is carried with the character's root, as if both were moved by one node: the bag stays
+    /// where it is relative to the character however the body walks, turns, lunges or bobs.
+    pub rides: bool,
     pub body: BodyMotion,
 }
 
@@ -64,6 +68,7 @@ impl BagPlacement {
             velocity_side_mps: 0.0,
             velocity_forward_mps: 0.0,
             glides: false,
+            rides: false,
             body: BodyMotion { side_mps: 0.0, forward_mps: 0.0, turn_rad_s: 0.0, lunge_m: 0.0, bob_m: 0.0 },
         }
     }
@@ -82,7 +87,7 @@ impl BagPlacement {
     pub fn to_json(&self) -> Value {
         let mut value = json!({"distance_m": self.distance_m, "height_m": self.height_m, "side_m": self.side_m,
                "velocity_side_mps": self.velocity_side_mps, "velocity_forward_mps": self.velocity_forward_mps,
-               "bag_glides": self.glides});
+               "bag_glides": self.glides, "bag_rides": self.rides});
         if let Some(object) = value.as_object_mut() {
             object.extend(self.body.to_json_fields().map(|(name, v)| (name.to_string(), v)));
         }

@@ -200,7 +200,7 @@ struct Slot {
     bag: Rid,
     bag_state: Gd<PhysicsDirectBodyState3D>,
     pin: Rid,
-    /// The kinematic body a gliding bag's rope hangs from (`BagPlacement::glides`); none for a fixed rope.
+    /// The kinematic body a carried bag's rope hangs from (`BagPlacement::glides`, `rides`); none for a fixed rope.
     rope_anchor: Option<Rid>,
     /// Where the placement put the bag (its offset from the template's place).
     bag_offset: Vector3,
@@ -279,7 +279,7 @@ impl TrainingWorld {
         let bag = self.bag.body.create(server, space, offset, bag_layer, character_layer);
         server.body_set_max_contacts_reported(bag, BAG_MAX_CONTACTS);
         let pin = server.joint_create();
-        let rope_anchor = placement.glides.then(|| {
+        let rope_anchor = (placement.glides || placement.rides).then(|| {
             // A shapeless kinematic body at the rope's top, moved every frame (`move_rope`).
             let anchor = server.body_create();
             server.body_set_mode(anchor, BodyMode::KINEMATIC);
@@ -308,7 +308,18 @@ impl TrainingWorld {
         geometry.bag_radius_m = self.bag.radius_m;
         geometry.bag_height_m = self.bag.height_m;
         geometry.bag_mass_kg = self.bag.body.mass_kg;
-        Slot { bodies, states, joints, bag, bag_state, pin, rope_anchor, bag_offset: offset, pelvis_velocity: (Vec3::ZERO, Vec3::ZERO), geometry }
+        Slot {
+            bodies,
+            states,
+            joints,
+            bag,
+            bag_state,
+            pin,
+            rope_anchor,
+            bag_offset: offset,
+            pelvis_velocity: (Vec3::ZERO, Vec3::ZERO),
+            geometry,
+        }
     }
 }
 
@@ -409,15 +420,13 @@ impl World for TrainingWorld {
         let rest = self.character.bodies[Body::Pelvis.index()].transform;
         let carried =
             Transform3D::new(Basis::from_quaternion(quaternion(root.rotation)), vector3(root.position)) * rest;
-        let mut server = PhysicsServer3D::singleton();
-        server.body_set_state(pelvis, ServerBodyState::TRANSFORM, &carried.to_variant());
-        let velocity = root.velocity_at(vec3(carried.origin));
-        server.body_set_state(pelvis, ServerBodyState::LINEAR_VELOCITY, &vector3(velocity).to_variant());
-        server.body_set_state(pelvis, ServerBodyState::ANGULAR_VELOCITY, &vector3(root.angular_velocity).to_variant());
-        self.slots[slot].pelvis_velocity = (velocity, root.angular_velocity);
+        // Jolt moves a kinematic body to its set transform over the next step (`MoveKinematic`), with the velocity
+        // that takes; setting its velocity instead would set a surface velocity, a conveyor belt for contacts.
+        PhysicsServer3D::singleton().body_set_state(pelvis, ServerBodyState::TRANSFORM, &carried.to_variant());
+        self.slots[slot].pelvis_velocity = (root.velocity_at(vec3(carried.origin)), root.angular_velocity);
     }
 
-    fn carry_bodies(&mut self, slot_index: usize, root: &RootPose) {
+    fn carry_bodies(&mut self, slot_index: usize, root: &RootPose, with_bag: bool) {
         let mut server = PhysicsServer3D::singleton();
         let slot = &self.slots[slot_index];
         let pelvis = vec3(slot.states[Body::Pelvis.index()].get_transform().origin);
@@ -429,13 +438,20 @@ impl World for TrainingWorld {
             server.body_set_state(*body, ServerBodyState::LINEAR_VELOCITY, &velocity.to_variant());
             server.body_set_state(*body, ServerBodyState::ANGULAR_VELOCITY, &spin.to_variant());
         }
+        if with_bag {
+            let carried = root.velocity_at(vec3(slot.bag_state.get_transform().origin));
+            let velocity = slot.bag_state.get_linear_velocity() + vector3(carried);
+            let spin = slot.bag_state.get_angular_velocity() + vector3(root.angular_velocity);
+            server.body_set_state(slot.bag, ServerBodyState::LINEAR_VELOCITY, &velocity.to_variant());
+            server.body_set_state(slot.bag, ServerBodyState::ANGULAR_VELOCITY, &spin.to_variant());
+        }
         self.slots[slot_index].pelvis_velocity = pelvis_velocity;
     }
 
-    fn move_rope(&mut self, slot: usize, moved: Vec3) {
+    fn move_rope(&mut self, slot: usize, carry: &RootPose) {
         let Some(anchor) = self.slots[slot].rope_anchor else { return };
-        let placement_offset = self.slots[slot].bag_offset;
-        let at = Transform3D::IDENTITY.translated(self.bag.pin_from_root + placement_offset + vector3(moved));
+        let start = vec3(self.bag.pin_from_root + self.slots[slot].bag_offset);
+        let at = Transform3D::IDENTITY.translated(vector3(carry.position + carry.rotation * start));
         PhysicsServer3D::singleton().body_set_state(anchor, ServerBodyState::TRANSFORM, &at.to_variant());
     }
 }

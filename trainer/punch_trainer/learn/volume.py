@@ -79,12 +79,14 @@ class MotionRange:
     bob_share: float = 0.5
     bob_m: float = 0.035
     """largest bob amplitude (walking bobs about 3 cm)"""
-    glide_share: float = 0.3
-    """share of episodes whose target is carried past (its rope moving at a constant velocity)"""
+    glide_share: float = 0.25
+    """share of the other episodes whose target is carried past (its rope moving at a constant velocity)"""
     glide_mps: float = 1.2
     """largest speed of a carried target, in any horizontal direction"""
-    ride_share: float = 0.15
-    """share of moving characters whose target is carried along with them (a game moving both together)"""
+    ride_share: float = 0.4
+    """share of moving characters whose target rides along with them (both moved as one, as a game moving a
+    character and its opponent together, or two fighters circling: the target's place relative to the
+    character hardly changes while both move)"""
 
     def draw(self, rng: np.random.Generator, bags: list[BagPlacement]) -> list[BagPlacement]:
         """`bags` with motions drawn for some of them (a swinging bag keeps its swing and gets no glide)."""
@@ -103,8 +105,7 @@ class MotionRange:
                     changes["body_bob_m"] = rng.uniform(0.0, self.bob_m)
             swinging = bag.velocity_side_mps != 0.0 or bag.velocity_forward_mps != 0.0
             if not swinging and "body_side_mps" in changes and rng.uniform() < self.ride_share:
-                changes.update(bag_glides=True, velocity_side_mps=changes["body_side_mps"],
-                               velocity_forward_mps=changes["body_forward_mps"])
+                changes["bag_rides"] = True
             elif not swinging and rng.uniform() < self.glide_share:
                 speed, angle = rng.uniform(0.0, self.glide_mps), rng.uniform(0.0, 2 * np.pi)
                 changes.update(bag_glides=True, velocity_side_mps=speed * np.sin(angle),

@@ -120,6 +120,9 @@ class MovingEvalArgs:
     """motion cases to run, by name (default: all; docs/moving.md lists them)"""
     out: Path | None = None
     """output directory (default: next to the policy, eval_moving_<time>)"""
+    lead_s: float = 0.5
+    """how long a moving character has been moving when it punches, s (its bag riding along at its velocity;
+    a lunge starts with the punch); 0: it starts moving with the punch, from standing"""
     timeout_s: float = 3600.0
     """how long Godot may take for one policy's punches"""
 
@@ -146,7 +149,8 @@ def moving_placements(policy: Path, count: int, seed: int) -> list[BagPlacement]
 
 
 def run_moving_hits(policy: Path, bags: list[BagPlacement], cases: list[MotionCase], sigmas: list[float], seed: int,
-                    timeout_s: float, on_progress: Callable[[int], None] | None = None) -> list[list[Any]]:
+                    timeout_s: float, on_progress: Callable[[int], None] | None = None,
+                    lead_s: float = 0.0) -> list[list[Any]]:
     """Runs tools/moving_hits.gd for one policy; its rows: [sigma index, case index, placement index, hits on
     the target, out-of-reach signals, how the punch ended, metres the moved node went]."""
     with tempfile.TemporaryDirectory(prefix="punch_moving_") as directory:
@@ -157,7 +161,7 @@ def run_moving_hits(policy: Path, bags: list[BagPlacement], cases: list[MotionCa
         command = ["--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), "--script", "res://tools/moving_hits.gd",
                    "--", f"--policy={Path(policy).resolve()}", f"--bags={folder / 'bags.json'}",
                    f"--cases={folder / 'cases.json'}", f"--out={out}", f"--sigmas={','.join(map(str, sigmas))}",
-                   f"--seed={seed}"]
+                   f"--seed={seed}", f"--lead-s={lead_s}"]
         log: list[str] = []
         deadline = time.monotonic() + timeout_s
         process = start_godot(command)
@@ -230,15 +234,16 @@ def run_moving_eval(args: MovingEvalArgs, progress: bool = True) -> tuple[Path, 
             def advance(done: int, offset: int = index * per_policy) -> None:
                 bar.update(offset + done - bar.n)
 
-            rows = run_moving_hits(policy, bags, cases, args.sigmas, args.seed, args.timeout_s, advance)
+            rows = run_moving_hits(policy, bags, cases, args.sigmas, args.seed, args.timeout_s, advance, args.lead_s)
             evaluations.append({"policy": str(policy), "cases": tally(rows, cases, args.sigmas)})
-    report = {"seed": args.seed, "sigmas": args.sigmas, "placements": [bag.to_wire() for bag in bags],
+    report = {"seed": args.seed, "sigmas": args.sigmas, "lead_s": args.lead_s, "placements": [bag.to_wire() for bag in bags],
               "motion_cases": [asdict(case) for case in cases], "evaluations": evaluations,
               "wall_s": round(time.perf_counter() - started, 1)}
     (out / "moving.json").write_text(json.dumps(report, indent=2) + "\n")
     lines = [f"# punch eval-moving: {args.policy}", "",
              f"{len(bags)} held-out placements (seed {args.seed}), one punch per placement, case and sigma (noise on "
-             f"every decision), through PunchController in headless Godot ({report['wall_s']:.0f} s in all). A hit: "
+             f"every decision), through PunchController in headless Godot ({report['wall_s']:.0f} s in all); a moving "
+             f"character has moved for {args.lead_s:g} s when it punches. A hit: "
              "the controller's `hit` signal on the target during the punch. Cases: docs/moving.md.", "",
              *markdown_table(report)]
     (out / "report.md").write_text("\n".join(lines) + "\n")

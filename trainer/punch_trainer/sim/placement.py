@@ -28,6 +28,9 @@ class BagPlacement:
     """away from the character"""
     bag_glides: bool = False
     """the bag's rope is carried at the bag's velocity (a target walking), instead of the bag swinging"""
+    bag_rides: bool = False
+    """the bag's rope is carried with the character's root (both moved as one: it stays where it is relative
+    to the character however the body walks, turns, lunges or bobs)"""
     body_side_mps: float = 0.0
     """the character's own walking velocity toward its left, as it turns (punch_core::motion)"""
     body_forward_mps: float = 0.0
