@@ -18,7 +18,9 @@
 ##   child of the same holder, so the bag stays where it was relative to the character). A joint does not
 ##   follow its node (Godot's Joint3D is configured once, when it enters the tree), so the sandbag's hook is
 ##   pinned to a kinematic body (AnimatableBody3D) that is a child of the holder: without it the hook would stay
-##   where it was in the world and drag the bag back.
+##   where it was in the world and drag the bag back. The bag itself is `top_level` (not teleported with the
+##   holder): it hangs from the carried hook under physics, starting at the holder's velocity, as training's
+##   `bag_rides` carries it.
 ## - `target: "moving"`: the character stands; the sandbag's hook is pinned to a kinematic body that moves
 ##   itself every physics frame (`sync_to_physics`, so physics knows its velocity), and the bag starts with the
 ##   hook's velocity, so it hangs steadily below the moving hook (a hanging bag can only be moved by its hook:
@@ -206,6 +208,9 @@ func _start_batch() -> void:
 			anchor.sync_to_physics = false  # follows its parent, the holder
 			anchor.position = hook.global_position
 			holder.add_child(anchor)
+			# The bag hangs from the carried hook under physics: were it moved with its parent too, it would be
+			# teleported every frame and also fly on at the velocity it starts with.
+			bag.top_level = true
 			motions.append([holder, motion, bag])
 		else:
 			var moving_hook := MovingHook.new()

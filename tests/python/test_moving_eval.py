@@ -39,7 +39,9 @@ def test_eval_moving_reports_every_case_and_the_standing_punches_hit(tmp_path):
     standing, walking = evaluation["cases"]
     assert standing["per_sigma"][0]["hits"] == 2, standing
     assert standing["moved_m"] == 0.0
-    assert walking["moved_m"] == pytest.approx(0.7 * 50 / 120, abs=0.02)  # 50 frames of a punch at 120 Hz
+    # Walking for the 0.5 s lead (`--lead-s`), then the 50 frames of a punch at 120 Hz.
+    assert walking["moved_m"] == pytest.approx(0.7 * (0.5 + 50 / 120), abs=0.02)
+    assert report["lead_s"] == 0.5
     table = (tmp_path / "report.md").read_text()
     assert "| standing | 2/2 |" in table
     assert "| case | straight σ 0 |" in run.stdout
