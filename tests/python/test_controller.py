@@ -374,6 +374,13 @@ def hostile_policy_files(policy, directory):
                        ("punch_decision_period", "-5")]:
         name = f"{key}_{value}"
         files[name] = export_onnx(Swapped(), 51, directory / f"{name}.onnx", metadata={**contract, key: value})
+    # A policy of the spec before punching on the move (45 observations), as the addon shipped it.
+    class Spec1(torch.nn.Module):
+        def forward(self, obs):
+            mean = torch.tanh(obs[:, :10])
+            return mean, mean
+
+    files["spec_1"] = export_onnx(Spec1(), 45, directory / "spec_1.onnx", metadata={**contract, "punch_spec_version": "1"})
     # A noise scale that would multiply the designer's sigma by 5 on one joint.
     files["noise_scale"] = export_onnx(Swapped(), 51, directory / "noise_scale.onnx",
                                        metadata={**contract, "punch_noise_scale": "[1, 1, 1, 1, 1, 1, 1, 1, 1, 5]"})
@@ -419,7 +426,7 @@ def test_policy_files_that_lie_are_refused_once_per_file(policy, tmp_path):
         assert len(mine) == 1, (name, mine)  # one error per file, not one per controller
     expected = {"swapped": "outputs are [sigma, mean]", "foo": "outputs are [foo, sigma]", "loop": "operator 'Loop'",
                 "punch_physics_hz_60": "120 Hz", "punch_frames_7": "multiple of the decision period",
-                "noise_scale": "punch_noise_scale"}
+                "noise_scale": "punch_noise_scale", "spec_1": "retrain it with this version's `punch train`"}
     for name, text in expected.items():
         assert text in next(e for e in errors if files[name].name in e), name
 

@@ -11,7 +11,7 @@ use std::rc::Rc;
 
 use crate::character::DOF_COUNT;
 use crate::error::{CoreError, CoreResult};
-use crate::observation::{OBS_DIM, spec_hash};
+use crate::observation::{OBS_DIM, OBS_SPEC_VERSION, spec_hash};
 use crate::policy::{Policy, Tensor};
 use crate::spec::{NoiseScale, POLICY_INPUT, POLICY_OUTPUTS, PolicySpec, ReachVolume, keys, noise_scale_from_metadata};
 
@@ -35,6 +35,16 @@ impl PunchingPolicy {
     /// (and sigma), and its metadata holds the policy contract and the reach volume.
     pub fn new(policy: Policy) -> CoreResult<Self> {
         let incompatible = |reason: String| CoreError::IncompatiblePolicy(reason);
+        // A policy of an earlier spec is named as such first (its input size would say less about the fix).
+        if let Some(version) = policy.metadata(keys::SPEC_VERSION)
+            && version != OBS_SPEC_VERSION.to_string()
+        {
+            return Err(incompatible(format!(
+                "it was trained for policy spec version {version}; this extension reads version \
+                 {OBS_SPEC_VERSION} (version 2 added the character's own motion to the observation, for punching \
+                 on the move): retrain it with this version's `punch train` (the addon's own policies are)"
+            )));
+        }
         policy
             .check_interface(POLICY_INPUT, OBS_DIM, &[(POLICY_OUTPUTS[0], DOF_COUNT), (POLICY_OUTPUTS[1], DOF_COUNT)])
             .map_err(|e| incompatible(e.to_string()))?;
