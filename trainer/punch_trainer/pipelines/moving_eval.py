@@ -202,8 +202,10 @@ def tally(rows: list[list[Any]], cases: list[MotionCase], sigmas: list[float]) -
         per_sigma = []
         for sigma_index, sigma in enumerate(sigmas):
             mine = [row for row in rows if row[0] == sigma_index and row[1] == case_index]
+            in_reach = [row for row in mine if row[4] == 0]
             per_sigma.append({"sigma": sigma, "hits": sum(1 for row in mine if row[3] > 0), "punches": len(mine),
-                              "out_of_reach": sum(1 for row in mine if row[4] > 0),
+                              "out_of_reach": len(mine) - len(in_reach),
+                              "in_reach_hits": sum(1 for row in in_reach if row[3] > 0),
                               "hit_placements": sorted(int(row[2]) for row in mine if row[3] > 0)})
         moved = [float(row[6]) for row in rows if row[1] == case_index]
         result.append({"case": case.name, "target": case.target, "trained_on": case.trained_on,
@@ -212,12 +214,15 @@ def tally(rows: list[list[Any]], cases: list[MotionCase], sigmas: list[float]) -
 
 
 def markdown_table(report: dict[str, Any]) -> list[str]:
-    """Rows: cases; columns: policy x sigma, each hits/punches."""
+    """Rows: cases; columns: policy x sigma, each hits/punches, and, where some punches started with the target
+    outside the policy's reach volume (a bag swung out on its hook), the hits of those that started in reach."""
     evaluations = report["evaluations"]
     header = ["case"] + [f"{Path(e['policy']).stem} σ {s['sigma']:g}" for e in evaluations for s in e["cases"][0]["per_sigma"]]
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for index, case in enumerate(evaluations[0]["cases"]):
-        cells = [f"{s['hits']}/{s['punches']}" for e in evaluations for s in e["cases"][index]["per_sigma"]]
+        cells = [f"{s['hits']}/{s['punches']}" + (f" ({s['in_reach_hits']}/{s['punches'] - s['out_of_reach']} in reach)"
+                                                 if s["out_of_reach"] else "")
+                 for e in evaluations for s in e["cases"][index]["per_sigma"]]
         lines.append(f"| {case['case']} | " + " | ".join(cells) + " |")
     return lines
 
