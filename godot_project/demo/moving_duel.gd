@@ -28,8 +28,9 @@ const MAX_TURN_RADPS := deg_to_rad(120.0)
 ## How far a mover's velocity changes per second at most, m/s² (a walk, not a teleporting velocity).
 const ACCELERATION := 6.0
 ## Where the camera stands from what it looks at, m: above, beside the fighters' first line and a little behind
-## you (you on the left).
-const CAMERA_OFFSET := Vector3(-1.9, 3.1, -1.6)
+## the AI (you on the left; the pair turns away from the camera's line at first, so the first exchange is seen
+## from the side).
+const CAMERA_OFFSET := Vector3(-1.9, 3.1, 1.6)
 ## The mover's physics layer (layer 8): the two movers bump into each other, nothing else touches them.
 const MOVER_LAYER := 1 << 7
 
