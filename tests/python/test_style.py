@@ -8,7 +8,8 @@ import pytest
 from punch_trainer.sim.style import Style, StyleError, style_from_label, style_label, style_named
 
 FRAMES = 50
-NAMES = [f"{stem}_{axis}" for stem in ("fist_l_pos", "fist_l_vel", "fist_r_vel", "fist_r_pos", "fist_r_impulse", "bag_pos")
+NAMES = [f"{stem}_{axis}" for stem in ("fist_l_pos", "fist_l_vel", "fist_r_vel", "fist_r_pos", "fist_r_impulse", "bag_pos",
+                                        "root_vel", "root_spin")
          for axis in "xyz"] + ["angle_waist_flexion"]
 """every feature the style reads"""
 
@@ -50,6 +51,20 @@ def test_each_excess_costs_and_the_discount_grows_with_the_cost_so_far() -> None
         expected = np.exp(-every_cost - style.later_cost_share * (every_cost[-1] - every_cost)).sum()
         np.testing.assert_allclose(so_far[-1], expected, rtol=1e-9, atol=1e-12)
         np.testing.assert_array_equal(styled["back"], -np.ones(FRAMES))  # losses are not discounted
+
+
+def test_a_body_carried_by_its_game_is_not_charged_for_its_walk_or_its_turn() -> None:
+    """Fist speeds are measured on the body: walking at 2 m/s and turning at 3 rad/s carry the guard hand at
+    over 2 m/s in the world, and cost nothing; the same speed of the hand alone costs."""
+    style = Style("boxing")
+    walk, spin = np.full(FRAMES, 2.0), np.full(FRAMES, 3.0)
+    guard = {"fist_l_pos_x": np.full(FRAMES, 0.18), "fist_l_pos_z": np.full(FRAMES, 0.3)}
+    # The guard hand's world velocity: the walk plus (0, 3, 0) x (0.18, 0, 0.3) = (0.9, 0, -0.54).
+    carried = features(**guard, root_vel_z=walk, root_spin_y=spin, fist_l_vel_x=np.full(FRAMES, 0.9),
+                       fist_l_vel_z=np.full(FRAMES, 2.0 - 0.54), fist_r_vel_z=walk)
+    assert np.all(style.cost(frames_of(carried)) == 0.0)
+    flailing = features(**guard, fist_l_vel_x=np.full(FRAMES, 0.9), fist_l_vel_z=np.full(FRAMES, 2.0))
+    assert np.all(style.cost(frames_of(flailing)) > 0.0)
 
 
 def test_drawing_the_fist_back_before_it_lands_costs_and_its_rebound_after_does_not() -> None:

@@ -100,6 +100,7 @@ BOUNDS: dict[str, Bounds] = {
     "time_budget_s": SECONDS, "a2c_time_budget_s": SECONDS,
     "timeout_s": Bounds(0.0, 7 * 86400.0, low_exclusive=True),
     "seconds": Bounds(0.0, 600.0, low_exclusive=True),
+    "lead_s": Bounds(0.0, 10.0),
     "width": Bounds(16, 7680), "height": Bounds(16, 4320),
     "grid": Bounds(1, 50),
 }
