@@ -39,8 +39,9 @@ def test_eval_moving_reports_every_case_and_the_standing_punches_hit(tmp_path):
     standing, walking = evaluation["cases"]
     assert standing["per_sigma"][0]["hits"] == 2, standing
     assert standing["moved_m"] == 0.0
-    # Walking for the 0.5 s lead (`--lead-s`), then the 50 frames of a punch at 120 Hz.
-    assert walking["moved_m"] == pytest.approx(0.7 * (0.5 + 50 / 120), abs=0.02)
+    # Walking for the 0.5 s lead (`--lead-s`), then the 50 frames of a punch at 120 Hz (and the few frames a
+    # character walked out of its guard takes to return to it first: `guard_first`).
+    assert 0.7 * (0.5 + 50 / 120) - 0.02 <= walking["moved_m"] <= 0.7 * (0.5 + 0.2 + 50 / 120)
     assert report["lead_s"] == 0.5
     table = (tmp_path / "report.md").read_text()
     assert "| standing | 2/2 |" in table
