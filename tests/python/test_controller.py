@@ -452,7 +452,9 @@ def assert_carried_without_jumps(report: dict, arm_motion_m: float) -> None:
     walk_and_turn_m = (WALK_MPS + TURN_RADPS * 0.7) / PHYSICS_HZ
     for body, step in report["max_step_m"].items():
         assert step < walk_and_turn_m + arm_motion_m, (body, step)
-        assert report["max_unexplained_m"][body] < 1e-3, (body, report["max_unexplained_m"])
+        # A punching arm's own acceleration leaves up to about a millimetre unexplained by its velocity (the
+        # motors pull it round within the frame); a teleport leaves the whole 1.2 cm.
+        assert report["max_unexplained_m"][body] < 4e-3, (body, report["max_unexplained_m"])
     assert report["max_joint_gap_m"] < 1e-3, report
     # The teleport moved the whole body at once, in its pose, at rest.
     assert report["teleport_pelvis_error_m"] < 1e-4, report
