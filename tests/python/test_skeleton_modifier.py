@@ -213,4 +213,4 @@ def test_the_own_character_demo_punches_the_bag_and_spars():
     assert [f["name"] for f in fighters] == ["mixamo_190", "unreal_160"] and all(f["mapped"] for f in fighters)
     assert fighters[0]["hits_on_bag"] >= 1 and fighters[1]["hits_on_opponent"] >= 1, fighters
     rate = json.loads(next(line for line in run.log.splitlines() if line.startswith("HIT_RATE "))[len("HIT_RATE "):])
-    assert rate["punches"] == 6 and rate["rate"] >= 5 / 6, rate
+    assert rate["punches"] == 6 and rate["hits"] >= 5, rate  # counted, not a float at the bar
