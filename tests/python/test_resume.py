@@ -26,7 +26,9 @@ from punch_trainer.sim.rewards import load_reward
 
 pytestmark = [pytest.mark.godot, pytest.mark.expensive]
 
-SEARCH_OPTIONS = ["--reward", "straight", "--seed", "3", "--iterations", "40", "--rollouts", "16",
+# 150 iterations: long enough (about 5 s here) that the test sees its fifth checkpoint and interrupts it before it
+# ends; at 40 the search sometimes finished first.
+SEARCH_OPTIONS = ["--reward", "straight", "--seed", "3", "--iterations", "150", "--rollouts", "16",
                   "--characters-per-process", "16", "--plateau-iterations", "0"]
 
 
@@ -44,7 +46,7 @@ def checkpointed_iteration(run_dir) -> int:
 
 
 def test_a_search_stopped_by_ctrl_c_resumes_to_the_uninterrupted_result(tmp_path):
-    full = run_search(SearchArgs(seed=3, iterations=40, rollouts=16, characters_per_process=16, plateau_iterations=0,
+    full = run_search(SearchArgs(seed=3, iterations=150, rollouts=16, characters_per_process=16, plateau_iterations=0,
                                  out=tmp_path / "full"), progress=False)[1]
 
     cut = tmp_path / "cut"
@@ -59,7 +61,7 @@ def test_a_search_stopped_by_ctrl_c_resumes_to_the_uninterrupted_result(tmp_path
 
     # Consistent: the arguments, a whole checkpoint of a finished iteration, no stray temporary file.
     stopped_at = checkpointed_iteration(cut)
-    assert 5 <= stopped_at < 40
+    assert 5 <= stopped_at < 150
     assert json.loads((cut / "config.json").read_text())["seed"] == 3
     assert sorted(p.name for p in cut.iterdir()) == ["checkpoint.pt", "config.json"]
 
@@ -71,7 +73,7 @@ def test_a_search_stopped_by_ctrl_c_resumes_to_the_uninterrupted_result(tmp_path
     assert (cut / "report.md").exists()
 
     metrics = (cut / "metrics.csv").read_text().splitlines()
-    assert len(metrics) == 1 + 40
+    assert len(metrics) == 1 + 150
     data = np.load(cut / "dataset.npz")
     reference = np.load(tmp_path / "full" / "dataset.npz")
     np.testing.assert_array_equal(data["actions"], reference["actions"])
