@@ -27,7 +27,7 @@ pub const POSITION_GAIN_PER_S: f32 = 20.0;
 /// peak fist speeds near the human maximum (about 12 m/s) under any action sequence.
 pub const MAX_JOINT_SPEED_RAD_S: f32 = 18.0;
 
-/// Rigid bodies of the character, in the order every per-body array uses. The pelvis is fixed in place.
+/// Rigid bodies of the character, in the order every per-body array uses. The pelvis is kinematic: it carries the root.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Body {
     Pelvis,
