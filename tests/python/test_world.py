@@ -4,6 +4,7 @@ contact sensing against the bag's momentum, and bitwise determinism across slots
 import numpy as np
 import pytest
 
+from punch_trainer.sim.protocol import ServerError
 from punch_trainer.sim.server import TrainingServer
 
 pytestmark = pytest.mark.godot
@@ -197,3 +198,29 @@ def test_a_carried_character_walks_turns_and_lunges_with_its_arms_in_guard(serve
     assert np.abs(features[:, :, fists] - guard).max() < 0.03, "a fist left its guard"
     assert at("joint_gap_max_m").max() < 5e-3
     assert at("exploit_flags").max() == 0
+
+
+def test_a_placement_sizes_the_arms_as_a_rig_would_and_the_policy_sees_their_lengths():
+    """Training draws arm sizes (`ArmRange`): the server sizes each slot's arms as `PunchCharacter.size_arms`
+    sizes a game's character, and the `body_*` features report the lengths; a size no rig may have is refused
+    with the range, and the server goes on."""
+    scene = np.array([0.282, 0.337, 0.36])  # the character scene's upper arm, forearm, shoulder distance (m)
+    sizes = [(1.0, 1.0, 0.0), (0.8, 0.75, -0.02), (1.3, 1.2, 0.04)]
+    bags = [{"arms_upper_arm_scale": u, "arms_forearm_scale": f, "arms_shoulder_shift_m": s} for u, f, s in sizes]
+    with TrainingServer(3) as server:
+        guard = server.rollout(np.zeros((3, 10, 10)), bags=bags)
+        names = ["body_upper_arm_m", "body_forearm_m", "body_shoulder_width_m"]
+        lengths = guard[:, 0, [column(server, name) for name in names]]
+        expected = np.array([[scene[0] * u, scene[1] * f, scene[2] + 2 * s] for u, f, s in sizes])
+        np.testing.assert_allclose(lengths, expected, atol=2e-3)
+        assert guard[:, :, column(server, "joint_gap_max_m")].max() < 2e-3, "a sized joint starts apart"
+        assert guard[:, :, column(server, "exploit_flags")].max() == 0
+        # The arm swung straight to the shoulder's limit, elbow extended: the longer arm's fist ends further out.
+        reach = np.zeros((3, 20, 10))
+        reach[:, :, [column(server, "angle_shoulder_r_flexion") - column(server, "angle_waist_flexion"),
+                     column(server, "angle_elbow_r_extension") - column(server, "angle_waist_flexion")]] = 1.0
+        out_m = np.abs(server.rollout(reach, bags=bags)[:, -1, column(server, "fist_r_pos_z")])
+        assert out_m[1] < out_m[0] < out_m[2], out_m
+        with pytest.raises(ServerError, match="0.75"):
+            server.reset(bags={"arms_upper_arm_scale": 0.65, "arms_forearm_scale": 0.65})
+        assert server.reset().arrays["features"].shape[0] == 3, "the server serves on after a refused size"

@@ -56,8 +56,49 @@ pub struct ArmScale {
     pub shoulder_shift_m: f32,
 }
 
+/// Names of the fields as the protocol writes them (a reset's placement sizes a training character's arms),
+/// with the range each accepts.
+pub const FIELDS: [(&str, (f32, f32)); 3] = [
+    ("arms_upper_arm_scale", SEGMENT_SCALE_RANGE),
+    ("arms_forearm_scale", SEGMENT_SCALE_RANGE),
+    ("arms_shoulder_shift_m", (-0.07, 0.07)),
+];
+
 impl ArmScale {
     pub const IDENTITY: ArmScale = ArmScale { upper_arm: 1.0, forearm: 1.0, shoulder_shift_m: 0.0 };
+
+    /// Sets a field by its protocol name if the value is in its range; `None` for a name that is not one,
+    /// `Some(false)` for a value out of range.
+    pub fn set(&mut self, name: &str, value: f32) -> Option<bool> {
+        let (_, (lo, hi)) = FIELDS.iter().find(|(field, _)| *field == name)?;
+        if !(*lo..=*hi).contains(&value) {
+            return Some(false);
+        }
+        match name {
+            "arms_upper_arm_scale" => self.upper_arm = value,
+            "arms_forearm_scale" => self.forearm = value,
+            _ => self.shoulder_shift_m = value,
+        }
+        Some(true)
+    }
+
+    /// As the protocol writes it, in `FIELDS` order.
+    pub fn to_json_fields(&self) -> [(&'static str, serde_json::Value); 3] {
+        [
+            (FIELDS[0].0, serde_json::json!(self.upper_arm)),
+            (FIELDS[1].0, serde_json::json!(self.forearm)),
+            (FIELDS[2].0, serde_json::json!(self.shoulder_shift_m)),
+        ]
+    }
+
+    /// The lengths `default`'s arms get under this scale.
+    pub fn lengths(&self, default: ArmLengths) -> ArmLengths {
+        ArmLengths {
+            upper_arm_m: default.upper_arm_m * self.upper_arm,
+            forearm_m: default.forearm_m * self.forearm,
+            shoulder_width_m: default.shoulder_width_m + 2.0 * self.shoulder_shift_m,
+        }
+    }
 
     /// The scale that turns `default` into `wanted`, if `wanted` is within the documented range.
     pub fn between(default: ArmLengths, wanted: ArmLengths) -> Result<ArmScale, SizeError> {
@@ -118,6 +159,19 @@ impl Stretch {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_scale_is_set_by_its_protocol_names_within_their_ranges() {
+        let mut scale = ArmScale::IDENTITY;
+        assert_eq!(scale.set("arms_upper_arm_scale", 0.7), Some(true));
+        assert_eq!(scale.set("arms_forearm_scale", 1.4), Some(false));
+        assert_eq!(scale.set("body_bob_m", 0.01), None);
+        assert_eq!(scale.upper_arm, 0.7);
+        assert_eq!(scale.forearm, 1.0);
+        let default = ArmLengths { upper_arm_m: 0.282, forearm_m: 0.337, shoulder_width_m: 0.36 };
+        let sized = ArmScale { shoulder_shift_m: 0.01, ..scale }.lengths(default);
+        assert!((sized.upper_arm_m - 0.1974).abs() < 1e-6 && (sized.shoulder_width_m - 0.38).abs() < 1e-6);
+    }
 
     const DEFAULT: ArmLengths = ArmLengths { upper_arm_m: 0.282, forearm_m: 0.337, shoulder_width_m: 0.36 };
 

@@ -6,8 +6,9 @@ use crate::sensing::{FEATURE_COUNT, FEATURE_NAMES};
 
 /// Bumped whenever the observation, action or feature layout or meaning changes. 2: the root's own velocity
 /// and turning are features and observed, and every feature is in the frame of the root as it is at that
-/// frame (a character carried by its game while it punches), not as it was when the punch started.
-pub const OBS_SPEC_VERSION: u32 = 2;
+/// frame (a character carried by its game while it punches), not as it was when the punch started. 3: the
+/// character's arm lengths are features and observed (one policy punches with arms sized to any rig).
+pub const OBS_SPEC_VERSION: u32 = 3;
 
 /// Whether the policy sees a feature: all of them except the diagnostics and the reward-only quantities
 /// (the whole character's contact impulse, the bag's momentum change, fist-bag distances, the joint gap and
@@ -22,7 +23,7 @@ fn observed(name: &str) -> bool {
 
 /// Size of the observation: the observed features (in feature order, all in the character's frame) plus
 /// the episode phase. A test checks it against `observed`.
-pub const OBS_DIM: usize = 51;
+pub const OBS_DIM: usize = 54;
 
 /// Names of the observation entries, in order. "bag" is the target: a sandbag, or any node in a game.
 pub fn observation_names() -> Vec<&'static str> {
@@ -91,7 +92,7 @@ mod tests {
         let features: [f32; FEATURE_COUNT] = std::array::from_fn(|i| i as f32);
         let obs = observation(&features, 3, 10);
         assert_eq!(obs[0], feature_index("fist_r_pos_x").expect("feature") as f32);
-        assert_eq!(obs[OBS_DIM - 2], feature_index("root_spin_z").expect("feature") as f32);
+        assert_eq!(obs[OBS_DIM - 2], feature_index("body_shoulder_width_m").expect("feature") as f32);
         assert!((obs[OBS_DIM - 1] - 0.3).abs() < 1e-7);
         assert!(obs.iter().all(|v| v.is_finite()));
     }
@@ -100,7 +101,7 @@ mod tests {
     fn hash_is_pinned_and_depends_on_the_decision_period() {
         // The shipped policies' `punch_spec_hash` (tests/policy_gate.rs checks their files): a change to the
         // observation changes it, and every policy must then be retrained.
-        assert_eq!(spec_hash(5), "ebf0242d6815ecc2");
+        assert_eq!(spec_hash(5), "b3b18e1568362141");
         assert_ne!(spec_hash(5), spec_hash(4));
         assert_eq!(spec_hash(5).len(), 16);
     }

@@ -4,6 +4,7 @@
 
 use glam::{Quat, Vec3};
 
+use crate::arm_size::ArmLengths;
 use crate::character::{Body, DOF_COUNT, DOFS, JOINTS, PHYSICS_HZ, dof_angles, joint_rotation};
 
 /// State of one rigid body in world coordinates.
@@ -61,6 +62,21 @@ pub struct CharacterGeometry {
     pub root_position: Vec3,
     /// World position of the pelvis in the rest pose (with `rest_rotations[Pelvis]`, the pelvis's rest place).
     pub pelvis_rest_position: Vec3,
+}
+
+impl CharacterGeometry {
+    /// The right arm's lengths and the shoulders' distance, from the joint anchors and the fist: the body's
+    /// size as the policy observes it (`body_*` features), so one policy can punch with arms sized to any rig.
+    pub fn arm_lengths(&self) -> ArmLengths {
+        let [_, shoulder_r, elbow_r, shoulder_l, _] = self.joint_anchors;
+        ArmLengths {
+            // Both anchors of a pair in the upper arm's frame (the shoulder's child, the elbow's parent).
+            upper_arm_m: elbow_r.0.distance(shoulder_r.1),
+            forearm_m: self.fist_offsets[0].distance(elbow_r.1),
+            // Both shoulders' anchors in the torso's frame.
+            shoulder_width_m: shoulder_r.0.distance(shoulder_l.0),
+        }
+    }
 }
 
 /// Guard flags (bits of the `exploit_flags` feature).
@@ -148,10 +164,13 @@ pub const FEATURE_NAMES: [&str; FEATURE_COUNT] = [
     "root_spin_x",
     "root_spin_y",
     "root_spin_z",
+    "body_upper_arm_m",
+    "body_forearm_m",
+    "body_shoulder_width_m",
     "joint_gap_max_m",
     "exploit_flags",
 ];
-pub const FEATURE_COUNT: usize = 60;
+pub const FEATURE_COUNT: usize = 63;
 
 /// First column of some three-component features (x, y, z follow), for code that reads them every frame.
 pub mod columns {
@@ -165,6 +184,8 @@ pub mod columns {
     /// The root's velocity (m/s), then its angular velocity (rad/s), in its own frame.
     pub const ROOT_VEL: usize = 52;
     pub const ROOT_SPIN: usize = 55;
+    /// The character's arm lengths (m): upper arm, elbow to fist centre, shoulder to shoulder.
+    pub const BODY_SIZE: usize = 58;
 }
 
 /// The three components starting at `column` as a vector.
@@ -287,6 +308,8 @@ impl Sensor {
         push(&speeds);
         push(&local_vector(root_velocity).to_array());
         push(&local_vector(pelvis.angular_velocity).to_array());
+        let arms = g.arm_lengths();
+        push(&[arms.upper_arm_m, arms.forearm_m, arms.shoulder_width_m]);
         push(&[joint_gap, flags as f32]);
         debug_assert_eq!(cursor, FEATURE_COUNT);
         self.previous = Some(*reading);
@@ -402,9 +425,23 @@ mod tests {
             (columns::SPEEDS, "speed_waist_flexion"),
             (columns::ROOT_VEL, "root_vel_x"),
             (columns::ROOT_SPIN, "root_spin_x"),
+            (columns::BODY_SIZE, "body_upper_arm_m"),
         ] {
             assert_eq!(feature_index(name), Some(column), "{name}");
         }
+    }
+
+    #[test]
+    fn the_body_size_features_are_the_arm_lengths_of_the_geometry() {
+        // Shoulders 0.36 m apart on the torso; the upper arm's anchors 0.28 m apart; elbow to fist 0.34 m.
+        let mut geometry = rest_geometry();
+        geometry.joint_anchors[1] = (Vec3::new(-0.18, 0.3, 0.0), Vec3::new(0.0, 0.14, 0.0));
+        geometry.joint_anchors[2] = (Vec3::new(0.0, -0.14, 0.0), Vec3::new(0.0, 0.1, 0.0));
+        geometry.joint_anchors[3] = (Vec3::new(0.18, 0.3, 0.0), Vec3::new(0.0, 0.14, 0.0));
+        geometry.fist_offsets[0] = Vec3::new(0.0, -0.24, 0.0);
+        let features = Sensor::new(geometry).features(&reading_at_rest());
+        let sizes = feature_vector(&features, columns::BODY_SIZE);
+        assert!((sizes - Vec3::new(0.28, 0.34, 0.36)).length() < 1e-6, "{sizes}");
     }
 
     #[test]

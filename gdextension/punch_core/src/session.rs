@@ -403,7 +403,8 @@ impl Session {
 
 fn parse_placements(value: Option<&Value>, slot_count: usize) -> Result<Vec<BagPlacement>, String> {
     const NAMES: &str = "distance_m, height_m, side_m, velocity_side_mps, velocity_forward_mps, bag_glides, bag_rides, \
-                         body_side_mps, body_forward_mps, body_turn_rad_s, body_lunge_m, body_bob_m";
+                         body_side_mps, body_forward_mps, body_turn_rad_s, body_lunge_m, body_bob_m, \
+                         arms_upper_arm_scale, arms_forearm_scale, arms_shoulder_shift_m";
     let parse_one = |value: &Value| -> Result<BagPlacement, String> {
         let object = value.as_object().ok_or("a bag placement is an object")?;
         let mut placement = BagPlacement::default();
@@ -415,6 +416,11 @@ fn parse_placements(value: Option<&Value>, slot_count: usize) -> Result<Vec<BagP
             }
             let number =
                 field.as_f64().filter(|v| v.is_finite()).ok_or(format!("bag '{key}' must be a finite number"))? as f32;
+            match placement.arms.set(key, number) {
+                Some(true) => continue,
+                Some(false) => return Err(format!("bag '{key}' = {number} is out of range")),
+                None => {}
+            }
             let motion_limit = motion::FIELDS.iter().find(|(name, _)| name == key).map(|(_, limit)| *limit);
             match key.as_str() {
                 "distance_m" if (0.3..=3.0).contains(&number) => placement.distance_m = number,
@@ -632,5 +638,19 @@ mod tests {
             parse_placements(Some(&json!({"velocity_side_mps": 0.5, "velocity_forward_mps": -1.0})), 2).expect("valid");
         assert_eq!(placements[1].velocity(), Vec3::new(0.5, 0.0, -1.0));
         assert!(parse_placements(Some(&json!({"velocity_side_mps": 4.0})), 1).is_err());
+    }
+
+    #[test]
+    fn a_placement_may_size_the_arms_within_the_range_a_rig_may_have() {
+        let placements =
+            parse_placements(Some(&json!({"arms_upper_arm_scale": 0.8, "arms_shoulder_shift_m": 0.02})), 1)
+                .expect("valid");
+        assert_eq!(placements[0].arms.upper_arm, 0.8);
+        assert_eq!(placements[0].arms.forearm, 1.0);
+        assert_eq!(placements[0].arms.shoulder_shift_m, 0.02);
+        let error = parse_placements(Some(&json!({"arms_forearm_scale": 2.0})), 1).expect_err("too long");
+        assert!(error.contains("arms_forearm_scale"), "{error}");
+        let written = placements[0].to_json();
+        assert_eq!(written["arms_upper_arm_scale"].as_f64().map(|v| v as f32), Some(0.8));
     }
 }

@@ -14,6 +14,7 @@
 use glam::Vec3;
 use serde_json::{Map, Value, json};
 
+use crate::arm_size::ArmScale;
 use crate::motion::BodyMotion;
 
 pub use crate::character::{DEFAULT_DECISION_PERIOD, DOF_COUNT, DOFS, PHYSICS_HZ};
@@ -38,8 +39,9 @@ pub const MAX_SMOOTHING_WINDOW: u32 = 50;
 /// centre of mass above the ground, `side_m` to the character's left (+X); how fast it moves when the
 /// episode starts (`velocity_side_mps` along +X, `velocity_forward_mps` along +Z: a bag still swinging, or,
 /// with `glides`, a bag whose rope is carried at that velocity, as a target that walks); how the character's
-/// own root moves through the episode (`body`, in training: walking, turning, a lunge); and, with `rides`, a
-/// bag carried along with it.
+/// own root moves through the episode (`body`, in training: walking, turning, a lunge); with `rides`, a
+/// bag carried along with it; and how the character's arms are sized (`arms`, in training: the range of rigs
+/// `PunchCharacter.size_arms` accepts).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BagPlacement {
     pub distance_m: f32,
@@ -53,6 +55,7 @@ pub struct BagPlacement {
     /// where it is relative to the character however the body walks, turns, lunges or bobs.
     pub rides: bool,
     pub body: BodyMotion,
+    pub arms: ArmScale,
 }
 
 impl BagPlacement {
@@ -70,6 +73,7 @@ impl BagPlacement {
             glides: false,
             rides: false,
             body: BodyMotion { side_mps: 0.0, forward_mps: 0.0, turn_rad_s: 0.0, lunge_m: 0.0, bob_m: 0.0 },
+            arms: ArmScale::IDENTITY,
         }
     }
 
@@ -90,6 +94,7 @@ impl BagPlacement {
                "bag_glides": self.glides, "bag_rides": self.rides});
         if let Some(object) = value.as_object_mut() {
             object.extend(self.body.to_json_fields().map(|(name, v)| (name.to_string(), v)));
+            object.extend(self.arms.to_json_fields().map(|(name, v)| (name.to_string(), v)));
         }
         value
     }

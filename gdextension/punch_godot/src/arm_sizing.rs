@@ -57,7 +57,6 @@ impl SceneArms {
         rest_from_root: &[Transform3D; 6],
         geometry: &CharacterGeometry,
     ) -> Result<SceneArms, String> {
-        let root_inverse = root.get_global_transform().affine_inverse();
         let mut arm_bodies = Vec::new();
         for body in ARM_BODIES {
             let rigid = bodies[body.index()]
@@ -101,7 +100,8 @@ impl SceneArms {
                 .get_node_or_null(name)
                 .and_then(|n| n.try_cast::<Generic6DofJoint3D>().ok())
                 .ok_or_else(|| format!("missing Generic6DOFJoint3D '{name}'"))?;
-            let transform = root_inverse * joint.get_global_transform();
+            // A joint is a child of the root: its transform is relative to the root, in a tree or not.
+            let transform = joint.get_transform();
             joints.push((joint, transform));
         }
         let fists = [0, 1].map(|side| {
@@ -118,9 +118,10 @@ impl SceneArms {
     }
 
     /// Sizes the arms to `scale` (from the scene's own) for the character whose root is at `root` (its global
-    /// transform now): bodies go to their new rest pose there, with no velocity. The caller rebuilds the joints
-    /// (`rebuild_joints`) and reads the geometry again.
-    pub fn apply(&self, root: Transform3D, scale: ArmScale) {
+    /// transform now; `None` for a scene outside any tree, whose bodies and joints are placed relative to its
+    /// root, as the training server reads it): bodies go to their new rest pose there, with no velocity. The
+    /// caller rebuilds the joints (`rebuild_joints`) and reads the geometry again.
+    pub fn apply(&self, root: Option<Transform3D>, scale: ArmScale) {
         let mut new_joints = [Transform3D::IDENTITY; 4];
         for side in 0..2 {
             let (shoulder, elbow) = (vec3(self.joints[2 * side].1.origin), vec3(self.joints[2 * side + 1].1.origin));
@@ -190,7 +191,10 @@ impl SceneArms {
                     across(arm.inertia.y, axis.y),
                     across(arm.inertia.z, axis.z),
                 ));
-                body.set_global_transform(root * rest);
+                match root {
+                    Some(root) => body.set_global_transform(root * rest),
+                    None => body.set_transform(rest),
+                }
                 body.set_linear_velocity(Vector3::ZERO);
                 body.set_angular_velocity(Vector3::ZERO);
             }
@@ -202,7 +206,10 @@ impl SceneArms {
             new_joints[2 * side + 1] = elbow_joint;
         }
         for ((joint, _), transform) in self.joints.iter().zip(new_joints) {
-            joint.clone().set_global_transform(root * transform);
+            match root {
+                Some(root) => joint.clone().set_global_transform(root * transform),
+                None => joint.clone().set_transform(transform),
+            }
         }
     }
 }

@@ -269,7 +269,7 @@ impl PunchCharacter {
             rig.place(i, root * rig.rest_from_root[i]);
         }
         self.carried_root = Some(root);
-        scene.apply(root, scale);
+        scene.apply(Some(root), scale);
         rebuild_joints(&self.base().clone().upcast::<Node3D>())?;
         self.rig = Some(self.set_up()?);
         if let Some(rig) = self.rig.as_ref() {

@@ -12,20 +12,24 @@
 //! computes with the same coordinates. A reset frees everything and builds new arenas, so every episode
 //! starts from the same engine state (no warm-start history, the same body order).
 
+use std::collections::HashMap;
+
 use glam::Vec3;
 use godot::builtin::{Basis, Rid, Transform3D, Vector3};
 use godot::classes::physics_server_3d::{BodyMode, BodyParameter, BodyState as ServerBodyState};
 use godot::classes::{
-    CollisionShape3D, CylinderShape3D, Generic6DofJoint3D, Node, Node3D, PackedScene, PhysicsDirectBodyState3D,
-    PhysicsServer3D, PinJoint3D, RigidBody3D, Shape3D, World3D,
+    CollisionShape3D, CylinderShape3D, Generic6DofJoint3D, Node, Node3D, PackedScene, PhysicsBody3D,
+    PhysicsDirectBodyState3D, PhysicsServer3D, PinJoint3D, RigidBody3D, Shape3D, World3D,
 };
 use godot::meta::ToGodot;
 use godot::obj::{Gd, NewGd, Singleton};
+use punch_core::arm_size::ArmScale;
 use punch_core::character::{Axis, Body, JOINTS};
 use punch_core::motion::RootPose;
 use punch_core::sensing::{BodyState, CharacterGeometry, FrameReading, MAX_BAG_CONTACTS};
 use punch_core::session::{BagPlacement, World};
 
+use crate::arm_sizing::SceneArms;
 use crate::convert::{godot_axis, quat, quaternion, vec3, vector3};
 use crate::engine_io::{add_bag_contacts, character_geometry, drive_joints, joint_axis_settings};
 
@@ -130,9 +134,25 @@ fn child_3d(root: &Gd<Node3D>, path: &str) -> Result<Gd<Node3D>, String> {
 }
 
 impl CharacterTemplate {
-    fn read(scene: &Gd<PackedScene>) -> Result<Self, String> {
+    /// The scene with its arms sized by `arms` (`ArmScale::IDENTITY`: as the scene has them), sized as
+    /// `PunchCharacter.size_arms` sizes a game's character, within the range it accepts.
+    fn read(scene: &Gd<PackedScene>, arms: ArmScale) -> Result<Self, String> {
         let root = instantiate_3d(scene, "character")?;
-        let result = Self::read_nodes(&root);
+        let result = (|| {
+            let own = Self::read_nodes(&root)?;
+            if arms == ArmScale::IDENTITY {
+                return Ok(own);
+            }
+            let bodies: Vec<Gd<PhysicsBody3D>> = Body::ALL
+                .iter()
+                .map(|b| child_3d(&root, b.node_name())?.try_cast::<PhysicsBody3D>().map_err(|_| "not a body".into()))
+                .collect::<Result<_, String>>()?;
+            let rest: [Transform3D; 6] = std::array::from_fn(|i| own.bodies[i].transform);
+            let scene_arms = SceneArms::capture(&root, &bodies, &rest, &own.geometry)?;
+            ArmScale::between(scene_arms.lengths, arms.lengths(scene_arms.lengths)).map_err(|e| e.to_string())?;
+            scene_arms.apply(None, arms);
+            Self::read_nodes(&root)
+        })();
         root.upcast::<Node>().free();
         result
     }
@@ -210,9 +230,21 @@ struct Slot {
     geometry: CharacterGeometry,
 }
 
+/// Most sized character templates kept (training draws arm sizes on a grid: `MotionRange` in the trainer).
+const MAX_SIZED_TEMPLATES: usize = 1024;
+
+/// The key of a sized template: the scale's exact values.
+fn size_key(arms: &ArmScale) -> [u32; 3] {
+    [arms.upper_arm.to_bits(), arms.forearm.to_bits(), arms.shoulder_shift_m.to_bits()]
+}
+
 /// The `World` the session drives.
 pub struct TrainingWorld {
+    character_scene: Gd<PackedScene>,
+    /// The character as its scene has it.
     character: CharacterTemplate,
+    /// The character with other arm sizes, built when a placement first asks for one.
+    sized: HashMap<[u32; 3], CharacterTemplate>,
     bag: BagTemplate,
     slot_count: usize,
     slots_per_world: usize,
@@ -231,7 +263,9 @@ impl TrainingWorld {
         slots_per_world: usize,
     ) -> Result<Self, String> {
         Ok(Self {
-            character: CharacterTemplate::read(character_scene)?,
+            character_scene: character_scene.clone(),
+            character: CharacterTemplate::read(character_scene, ArmScale::IDENTITY)?,
+            sized: HashMap::new(),
             bag: BagTemplate::read(sandbag_scene)?,
             slot_count,
             slots_per_world: slots_per_world.clamp(1, MAX_SLOTS_PER_WORLD),
@@ -252,18 +286,42 @@ impl TrainingWorld {
         self.arenas.clear();
     }
 
+    /// Builds the sized templates `placements` ask for and has not got. Call with no slot built: forgetting a
+    /// template frees its shapes.
+    fn prepare_sizes(&mut self, placements: &[BagPlacement]) -> Result<(), String> {
+        let wanted: Vec<ArmScale> = placements.iter().map(|p| p.arms).filter(|a| *a != ArmScale::IDENTITY).collect();
+        let missing = wanted.iter().filter(|a| !self.sized.contains_key(&size_key(a))).count();
+        if self.sized.len() + missing > MAX_SIZED_TEMPLATES {
+            let keep: Vec<[u32; 3]> = wanted.iter().map(size_key).collect();
+            self.sized.retain(|key, _| keep.contains(key));
+        }
+        for arms in wanted {
+            if !self.sized.contains_key(&size_key(&arms)) {
+                let template = CharacterTemplate::read(&self.character_scene, arms)
+                    .map_err(|e| format!("cannot size the arms: {e}"))?;
+                self.sized.insert(size_key(&arms), template);
+            }
+        }
+        Ok(())
+    }
+
+    fn template(&self, arms: &ArmScale) -> &CharacterTemplate {
+        self.sized.get(&size_key(arms)).unwrap_or(&self.character)
+    }
+
     fn build_slot(&self, server: &mut Gd<PhysicsServer3D>, space: Rid, slot: usize, placement: &BagPlacement) -> Slot {
+        let character = self.template(&placement.arms);
         // The character's bodies are on one layer and mask only its bag's layer, and the bag the other way
         // round: the character never collides with itself, the bag with all of it, and masks stay two-sided
         // (under Jolt a body that does not mask the other acts as immovable to it).
         let character_layer = 1u32 << (2 * (slot % self.slots_per_world));
         let bag_layer = character_layer << 1;
         let bodies: [Rid; 6] = std::array::from_fn(|i| {
-            self.character.bodies[i].create(server, space, Vector3::ZERO, character_layer, bag_layer)
+            character.bodies[i].create(server, space, Vector3::ZERO, character_layer, bag_layer)
         });
         let joints: [Rid; 5] = std::array::from_fn(|j| {
             let joint = server.joint_create();
-            let (frame_a, frame_b) = self.character.joint_frames[j];
+            let (frame_a, frame_b) = character.joint_frames[j];
             server.joint_make_generic_6dof(
                 joint,
                 bodies[JOINTS[j].parent.index()],
@@ -304,7 +362,7 @@ impl TrainingWorld {
         let state = |server: &mut Gd<PhysicsServer3D>, rid: Rid| server.body_get_direct_state(rid);
         let states = bodies.iter().filter_map(|&rid| state(server, rid)).collect();
         let bag_state = state(server, bag).expect("a rigid body has a direct state");
-        let mut geometry = self.character.geometry;
+        let mut geometry = character.geometry;
         geometry.bag_radius_m = self.bag.radius_m;
         geometry.bag_height_m = self.bag.height_m;
         geometry.bag_mass_kg = self.bag.body.mass_kg;
@@ -362,6 +420,7 @@ impl World for TrainingWorld {
 
     fn reset(&mut self, placements: &[BagPlacement]) -> Result<(), String> {
         self.free_all();
+        self.prepare_sizes(placements)?;
         let mut server = PhysicsServer3D::singleton();
         for first in (0..self.slot_count).step_by(self.slots_per_world) {
             let arena = World3D::new_gd();

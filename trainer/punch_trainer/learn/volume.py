@@ -57,6 +57,8 @@ class VolumeArgs:
     validation_placements: int = 64
     motions: MotionRange | None = None
     """the body and target motions of A2C's episodes (None: every character stands, every target hangs)"""
+    arms: ArmRange | None = None
+    """the arm sizes of A2C's characters (None: every character has the scene's arms)"""
 
 
 @dataclass(frozen=True)
@@ -115,6 +117,40 @@ class MotionRange:
         return out
 
 
+@dataclass(frozen=True)
+class ArmRange:
+    """The arm sizes A2C's characters get (`BagPlacement.arms_*`), so one policy punches with arms sized to any
+    rig `PunchCharacter.size_arms` accepts (docs/own_character.md): the arm (shoulder to fist centre) 0.75 to
+    1.25 times the scene's, each segment 0.65 to 1.35 times, the shoulders up to 4 cm wider or narrower each.
+    Scales fall on a grid of `step`, so the training server builds each sized body once."""
+
+    sized_share: float = 0.6
+    """share of episodes whose character's arms are not the scene's"""
+    arm_scale: tuple[float, float] = (0.75, 1.25)
+    segment_scale: tuple[float, float] = (0.65, 1.35)
+    shoulder_shift_m: float = 0.04
+    step: float = 0.05
+    upper_arm_share: float = 0.455
+    """the scene's upper arm's share of its arm (0.282 of 0.619 m): converts the arm's scale to the segments'"""
+
+    def draw(self, rng: np.random.Generator, bags: list[BagPlacement]) -> list[BagPlacement]:
+        """`bags` with arm sizes drawn for some of them."""
+        out = []
+        for bag in bags:
+            if rng.uniform() >= self.sized_share:
+                out.append(bag)
+                continue
+            while True:  # segments on the grid whose arm is in range (about 4 in 5 draws are)
+                upper, forearm = (self.step * np.round(rng.uniform(*self.segment_scale, size=2) / self.step)).tolist()
+                arm = self.upper_arm_share * upper + (1 - self.upper_arm_share) * forearm
+                if self.arm_scale[0] <= arm <= self.arm_scale[1]:
+                    break
+            shift = 0.01 * round(rng.uniform(-self.shoulder_shift_m, self.shoulder_shift_m) / 0.01)
+            out.append(bag.over({"arms_upper_arm_scale": upper, "arms_forearm_scale": forearm,
+                                 "arms_shoulder_shift_m": shift}))
+        return out
+
+
 class EpisodeConditions:
     """Draws the conditions of every A2C episode from the reach volume: `options` for `PunchVectorEnv.reset`."""
 
@@ -135,6 +171,8 @@ class EpisodeConditions:
             bags = [self.default_bag if spot else bag for bag, spot in zip(bags, at_default, strict=True)]
         if self.args.motions is not None and not lead_ins:
             bags = self.args.motions.draw(rng, bags)
+        if self.args.arms is not None:
+            bags = self.args.arms.draw(rng, bags)
         if not lead_ins:
             return EpisodeStart(bags)
         return EpisodeStart(bags, self.lead_ins(rng, count))

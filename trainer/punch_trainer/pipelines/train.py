@@ -27,7 +27,7 @@ from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.pretrain import PretrainArgs, pretrain
 from punch_trainer.learn.reach import ReachVolume
 from punch_trainer.learn.search import SearchArgs, SearchResult, placement_search
-from punch_trainer.learn.volume import EpisodeConditions, MotionRange, VolumeArgs, distribution_observations, validate
+from punch_trainer.learn.volume import ArmRange, EpisodeConditions, MotionRange, VolumeArgs, distribution_observations, validate
 from punch_trainer.options import bounds
 from punch_trainer.pipelines.search import run_search
 from punch_trainer.report.a2c_report import write_a2c_report
@@ -115,6 +115,9 @@ class TrainArgs:
     motions: Literal["move", "stand"] = "move"
     """volume: 'move': A2C's characters walk, turn, lunge and bob while they punch and targets are carried past
     them (docs/moving.md), and so do half the validation placements; 'stand': every character stands still"""
+    arms: Literal["sized", "scene"] = "sized"
+    """volume: 'sized': A2C's characters have arms of the sizes a rig may have (`PunchCharacter.size_arms`,
+    docs/own_character.md), and so do some validation placements; 'scene': every character has the scene's"""
     processes: int = SearchArgs.processes
     """Godot processes (with --ray: Ray workers, docs/cluster.md) of 64 characters for the searches"""
 
@@ -200,7 +203,8 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
     dataset_paths = [out / "search" / "dataset.npz"]
     volume = VolumeArgs(grid=parse_grid(args.grid), search_iterations=args.volume_search_iterations,
                         search_rollouts=args.volume_search_rollouts, default_share=args.default_share,
-                        motions=MotionRange() if args.motions == "move" else None)
+                        motions=MotionRange() if args.motions == "move" else None,
+                        arms=ArmRange() if args.arms == "sized" else None)
     reach, punches, grid_bests = None, search.best_actions[None], [search.best_return]
     if over_volume:
         dataset_paths, reach, grid_bests, punches = search_volume(args, volume, reward, search, progress, resume, backend)
@@ -219,6 +223,8 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
         validation = reach.sample(np.random.default_rng(args.seed + 2), env.num_envs) if reach is not None else None
         if validation is not None and volume.motions is not None:
             validation = volume.motions.draw(np.random.default_rng(args.seed + 2), validation)
+        if validation is not None and volume.arms is not None:
+            validation = volume.arms.draw(np.random.default_rng(args.seed + 3), validation)
         pretrained = load_checkpoint(out / "pretrain", "pretrain") if resume else None
         if pretrained is None:
             statistics = (restarts.run(functools.partial(distribution_observations, env, conditions, punches))

@@ -41,6 +41,12 @@ class BagPlacement:
     """a step-in of this length over the punch's first 0.25 s"""
     body_bob_m: float = 0.0
     """the vertical bob of walking, amplitude at 2 Hz"""
+    arms_upper_arm_scale: float = 1.0
+    """the character's upper arms, times the scene's (punch_core::arm_size, as `PunchCharacter.size_arms`)"""
+    arms_forearm_scale: float = 1.0
+    """its forearms (elbow to fist centre), times the scene's"""
+    arms_shoulder_shift_m: float = 0.0
+    """how far each shoulder sits further out than the scene's (negative: in)"""
 
     @classmethod
     def from_wire(cls, value: Mapping[str, float | bool]) -> BagPlacement:

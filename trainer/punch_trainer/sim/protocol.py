@@ -15,7 +15,7 @@ import numpy as np
 from punch_trainer.errors import PunchError
 from punch_trainer.sim.placement import BagPlacement
 
-PROTOCOL_VERSION = 5
+PROTOCOL_VERSION = 6
 MAX_HEADER_BYTES = 64 * 1024
 MAX_PAYLOAD_BYTES = 256 * 1024 * 1024
 
