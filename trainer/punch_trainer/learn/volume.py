@@ -120,7 +120,7 @@ class MotionRange:
 @dataclass(frozen=True)
 class ArmRange:
     """The arm sizes A2C's characters get (`BagPlacement.arms_*`), so one policy punches with arms sized to any
-    rig `PunchCharacter.size_arms` accepts (docs/own_character.md): the arm (shoulder to fist centre) 0.75 to
+    rig `PunchCharacter.size_arms` accepts (README, "Your own character"): the arm (shoulder to fist centre) 0.75 to
     1.25 times the scene's, each segment 0.65 to 1.35 times, the shoulders up to 4 cm wider or narrower each.
     Scales fall on a grid of `step`, so the training server builds each sized body once."""
 

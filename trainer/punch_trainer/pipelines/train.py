@@ -117,7 +117,7 @@ class TrainArgs:
     them (docs/moving.md), and so do half the validation placements; 'stand': every character stands still"""
     arms: Literal["sized", "scene"] = "sized"
     """volume: 'sized': A2C's characters have arms of the sizes a rig may have (`PunchCharacter.size_arms`,
-    docs/own_character.md), and so do some validation placements; 'scene': every character has the scene's"""
+    README, "Your own character"), and so do some validation placements; 'scene': every character has the scene's"""
     processes: int = SearchArgs.processes
     """Godot processes (with --ray: Ray workers, docs/cluster.md) of 64 characters for the searches"""
 
