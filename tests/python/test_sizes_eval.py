@@ -79,3 +79,11 @@ def test_godot_refuses_a_scale_outside_the_range_with_its_reason_and_does_not_cr
         run_sized_hits(POLICY, bags, [0.5], [0.0], 4242, timeout_s=60)
     assert "outside 0.75..1.25" in error.value.log, error.value.log
     assert "error: sized_hits: PunchCharacter.size_arms refused the arm scale 0.5" in error.value.log, error.value.log
+
+
+@pytest.mark.godot
+def test_a_godot_past_its_deadline_is_stopped_with_the_commands_error():
+    """The shared loop (`sim.godot.run_godot_tool`, eval-moving's too) keeps the deadline by the clock."""
+    bags = held_out_placements(POLICY, 1, 4242)
+    with pytest.raises(SizesEvalError, match="the sized punches did not finish within 0 s"):
+        run_sized_hits(POLICY, bags, [1.0], [0.0], 4242, timeout_s=0.01)
