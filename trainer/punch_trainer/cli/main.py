@@ -26,6 +26,7 @@ from punch_trainer.pipelines.moving_eval import MovingEvalArgs
 from punch_trainer.pipelines.render import RenderArgs, parse_bags
 from punch_trainer.pipelines.replay import ReplayArgs, parse_sigmas
 from punch_trainer.pipelines.selfcheck import SelfCheckArgs
+from punch_trainer.pipelines.sizes_eval import SizesEvalArgs, check_scales, parse_scales
 from punch_trainer.pipelines.style_experiment import StyleExperimentArgs
 from punch_trainer.pipelines.train import TrainArgs, reach_default_notes
 from punch_trainer.sim.cluster import backend_for
@@ -215,6 +216,16 @@ def _eval_moving(args: argparse.Namespace) -> int:
     return 0
 
 
+def _eval_sizes(args: argparse.Namespace) -> int:
+    from punch_trainer.pipelines.sizes_eval import run_sizes_eval
+
+    check_scales(args.scales)  # before the options' own bounds check: it names size_arms's range and why
+    out, _ = run_sizes_eval(dataclass_from_arguments(SizesEvalArgs, args))
+    print((out / "report.md").read_text())
+    print(f"report: {out / 'report.md'}")
+    return 0
+
+
 def _fig6(args: argparse.Namespace) -> int:
     import shutil
 
@@ -340,6 +351,12 @@ def build_parser() -> argparse.ArgumentParser:
                                                      "and against a moving target, through PunchController in Godot")
     add_dataclass_arguments(moving, MovingEvalArgs, exclude=["timeout_s"], value_parsers={"sigmas": parse_sigmas})
     moving.set_defaults(run=_eval_moving)
+
+    sizes = commands.add_parser("eval-sizes", help="hit rates of a policy when its character's arms are sized to other "
+                                                   "bodies (PunchCharacter.size_arms), through PunchController in Godot")
+    add_dataclass_arguments(sizes, SizesEvalArgs, exclude=["timeout_s"],
+                            value_parsers={"sigmas": parse_sigmas, "scales": parse_scales})
+    sizes.set_defaults(run=_eval_sizes)
 
     replay = commands.add_parser("replay", help="replay a policy through PunchController in Godot at several noise sigmas (paper Fig. 10-11)")
     # bags and start are punch eval's conditions, not options of a replay

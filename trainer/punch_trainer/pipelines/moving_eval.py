@@ -15,7 +15,6 @@ so neither training nor `punch eval` uses them. A hit: the controller's `hit` si
 from __future__ import annotations
 
 import json
-import selectors
 import tempfile
 import time
 from collections.abc import Callable
@@ -26,10 +25,9 @@ from typing import Any, Literal
 import numpy as np
 from tqdm import tqdm
 
-from punch_trainer.errors import GodotRunError
-from punch_trainer.learn.reach import HELD_OUT_SEED, METADATA_KEY, ReachVolume
-from punch_trainer.pipelines.replay import ReplayError, policy_metadata
-from punch_trainer.sim.godot import FATAL_LOG_PATTERNS, GODOT_PROJECT, start_godot, stop_godot, tail
+from punch_trainer.learn.reach import HELD_OUT_SEED
+from punch_trainer.pipelines.replay import ReplayError, held_out_placements
+from punch_trainer.sim.godot import run_godot_tool
 from punch_trainer.sim.placement import BagPlacement
 
 MOVING_HELD_OUT_SEED = HELD_OUT_SEED - 31
@@ -142,15 +140,6 @@ def select_cases(names: list[str] | None) -> list[MotionCase]:
     return [case for case in MOVING_CASES if case.name in names]
 
 
-def moving_placements(policy: Path, count: int, seed: int) -> list[BagPlacement]:
-    """`count` placements at rest from the policy's reach volume, drawn as `punch eval` draws its held-out ones."""
-    metadata = policy_metadata(policy)
-    if METADATA_KEY not in metadata:
-        raise MovingEvalError(f"{policy}: its metadata has no {METADATA_KEY}")
-    reach = ReachVolume.from_json(metadata[METADATA_KEY])
-    return reach.sample(np.random.default_rng(seed), count)
-
-
 def run_moving_hits(policy: Path, bags: list[BagPlacement], cases: list[MotionCase], sigmas: list[float], seed: int,
                     timeout_s: float, on_progress: Callable[[int], None] | None = None,
                     lead_s: float = 0.0) -> list[list[Any]]:
@@ -161,36 +150,10 @@ def run_moving_hits(policy: Path, bags: list[BagPlacement], cases: list[MotionCa
         (folder / "bags.json").write_text(json.dumps([bag.to_wire() for bag in bags]))
         (folder / "cases.json").write_text(json.dumps([asdict(case) for case in cases]))
         out = folder / "hits.json"
-        command = ["--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), "--script", "res://tools/moving_hits.gd",
-                   "--", f"--policy={Path(policy).resolve()}", f"--bags={folder / 'bags.json'}",
-                   f"--cases={folder / 'cases.json'}", f"--out={out}", f"--sigmas={','.join(map(str, sigmas))}",
-                   f"--seed={seed}", f"--lead-s={lead_s}"]
-        log: list[str] = []
-        deadline = time.monotonic() + timeout_s
-        process = start_godot(command)
-        assert process.stdout is not None
-        selector = selectors.DefaultSelector()
-        selector.register(process.stdout, selectors.EVENT_READ)
-        try:
-            while True:
-                left_s = deadline - time.monotonic()
-                if left_s <= 0 or not selector.select(timeout=left_s):
-                    raise MovingEvalError(f"the moving punches did not finish within {timeout_s:.0f} s (Godot was stopped):\n"
-                                          f"{tail(''.join(log))}")
-                line = process.stdout.readline()
-                if not line:
-                    break
-                log.append(line)
-                if line.startswith("MOVING_PROGRESS ") and on_progress is not None:
-                    on_progress(int(line.split()[1]))
-            process.wait(timeout=60)
-        finally:
-            selector.close()
-            stop_godot(process)
-        text = "".join(log)
-        fatal = [line for line in log if any(p in line for p in FATAL_LOG_PATTERNS) or line.startswith("error: moving_hits")]
-        if process.returncode != 0 or fatal or "MOVING_DONE" not in text:
-            raise GodotRunError(f"the Godot moving punches failed (exit code {process.returncode}):\n{tail(text)}", text)
+        run_godot_tool("moving_hits", {"policy": Path(policy).resolve(), "bags": folder / "bags.json",
+                                       "cases": folder / "cases.json", "out": out, "sigmas": ",".join(map(str, sigmas)),
+                                       "seed": seed, "lead-s": lead_s},
+                       what="the moving punches", timeout_s=timeout_s, on_progress=on_progress, timeout_error=MovingEvalError)
         rows: list[list[Any]] = json.loads(out.read_text())["rows"]
         return rows
 
@@ -232,7 +195,7 @@ def run_moving_eval(args: MovingEvalArgs, progress: bool = True) -> tuple[Path, 
     started = time.perf_counter()
     cases = select_cases(args.cases)
     policies = [Path(args.policy)] + ([Path(args.baseline)] if args.baseline else [])
-    bags = moving_placements(policies[0], args.placements, args.seed)
+    bags = held_out_placements(policies[0], args.placements, args.seed)
     out = Path(args.out or Path(args.policy).parent / f"eval_moving_{int(time.time())}")
     out.mkdir(parents=True, exist_ok=True)
     per_policy = len(bags) * len(cases) * len(args.sigmas)

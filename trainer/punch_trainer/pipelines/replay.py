@@ -27,8 +27,10 @@ import onnx
 from tqdm import tqdm
 
 from punch_trainer.errors import GodotRunError, PunchError
+from punch_trainer.learn.reach import METADATA_KEY, ReachVolume
 from punch_trainer.options import SIGMA
 from punch_trainer.sim.godot import FATAL_LOG_PATTERNS, GODOT_PROJECT, start_godot, stop_godot, tail
+from punch_trainer.sim.placement import BagPlacement
 from punch_trainer.sim.rewards import Reward, first_right_contact, metadata_reward, score
 
 KINDS = ("features", "observations", "mean_actions", "actions")
@@ -114,6 +116,16 @@ def policy_metadata(path: Path) -> dict[str, str]:
     except Exception as error:  # onnx raises several types for a corrupt file
         raise ReplayError(f"{path} is not an ONNX model: {error}") from error
     return {p.key: p.value for p in model.metadata_props}
+
+
+def held_out_placements(policy: Path, count: int, seed: int) -> list[BagPlacement]:
+    """`count` placements at rest from the policy's reach volume (its metadata's), drawn by `ReachVolume.sample`
+    as `punch eval` draws its held-out ones, from `seed`."""
+    metadata = policy_metadata(policy)
+    if METADATA_KEY not in metadata:
+        raise ReplayError(f"{policy}: its metadata has no {METADATA_KEY}")
+    reach = ReachVolume.from_json(metadata[METADATA_KEY])
+    return reach.sample(np.random.default_rng(seed), count)
 
 
 def run_godot_replay(args: ReplayArgs, frames_dir: Path, progress: bool = True, idle_frames: int = 0) -> dict[str, Any]:

@@ -7,13 +7,16 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import os
+import selectors
 import signal
 import subprocess
 import sys
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from punch_trainer.errors import GodotNotFoundError, GodotRunError
+from punch_trainer.errors import GodotNotFoundError, GodotRunError, PunchError
 
 PROJECT_ROOT = Path(__file__).resolve().parents[3]
 GODOT_WRAPPER = PROJECT_ROOT / "tools" / "godot"
@@ -116,6 +119,49 @@ def run_godot(
             reason = f"exit code {process.returncode}" if process.returncode != 0 else f"fatal log line: {fatal[0]}"
             raise GodotRunError(f"Godot run failed ({reason}): {' '.join(args)}\n{tail(run.log)}", run.log)
     return run
+
+
+def run_godot_tool(script: str, options: dict[str, object], *, what: str, timeout_s: float,
+                   on_progress: Callable[[int], None] | None = None,
+                   timeout_error: Callable[[str], PunchError] = GodotRunError) -> str:
+    """Runs one of godot_project/tools' measuring scripts headless at 120 Hz (`script`: its name, as
+    `moving_hits`), passing `options` as `--name=value`, and returns its log. The script reports progress with
+    lines `<NAME>_PROGRESS done total` (`on_progress` gets `done`), ends with a line `<NAME>_DONE`, where NAME is
+    the script's first word in capitals (`MOVING` for `moving_hits`), and says what went wrong in a line
+    `error: <script>: ...`. The deadline is kept by the clock, not by Godot's output: a Godot that hangs silently
+    is stopped too, with `timeout_error`; a non-zero exit, a fatal or error line, or no DONE line raise
+    GodotRunError, naming `what` ("the moving punches") and the log's tail."""
+    name = script.split("_")[0].upper()
+    command = ["--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), "--script", f"res://tools/{script}.gd",
+               "--", *(f"--{key}={value}" for key, value in options.items())]
+    log: list[str] = []
+    deadline = time.monotonic() + timeout_s
+    process = start_godot(command)
+    assert process.stdout is not None
+    selector = selectors.DefaultSelector()
+    selector.register(process.stdout, selectors.EVENT_READ)
+    try:
+        while True:
+            left_s = deadline - time.monotonic()
+            if left_s <= 0 or not selector.select(timeout=left_s):
+                raise timeout_error(f"{what} did not finish within {timeout_s:.0f} s (Godot was stopped):\n{tail(''.join(log))}")
+            line = process.stdout.readline()
+            if not line:
+                break
+            log.append(line)
+            if line.startswith(f"{name}_PROGRESS ") and on_progress is not None:
+                on_progress(int(line.split()[1]))
+        process.wait(timeout=60)
+    finally:
+        selector.close()
+        stop_godot(process)
+    text = "".join(log)
+    if process.returncode == 3 and text.startswith("error:"):  # tools/godot found no usable Godot
+        raise GodotNotFoundError(text.strip())
+    fatal = [line for line in log if any(p in line for p in FATAL_LOG_PATTERNS) or line.startswith(f"error: {script}")]
+    if process.returncode != 0 or fatal or f"{name}_DONE" not in text:
+        raise GodotRunError(f"{what} failed in Godot (exit code {process.returncode}):\n{tail(text)}", text)
+    return text
 
 
 def tail(text: str, lines: int = 30) -> str:

@@ -1,0 +1,145 @@
+## Punches of characters whose arms are sized to other bodies: counts, for each arm scale, sigma and placement,
+## whether a policy's punch through PunchController hits its target. For `punch eval-sizes`
+## (trainer/punch_trainer/pipelines/sizes_eval.py; README, "Your own character").
+##
+## tools/godot --headless --fixed-fps 120 --path godot_project --script res://tools/sized_hits.gd -- \
+##     --policy=PATH --bags=FILE.json --scales=0.75,1,1.25 --out=FILE.json [--sigmas=0,0.3] [--seed=0]
+##     [--characters=64] [--characters-per-world=16]
+##
+## Every punch (one per scale, sigma and placement) is built fresh, side by side like moving_hits.gd's: a
+## SubViewport with its own World3D per 16 characters, two collision layers per character (tools/punch_pair.gd).
+## Right after it enters the tree, each character's arms are sized through `PunchCharacter.size_arms`: its upper
+## arm and forearm (elbow to fist centre) times the scale, from the lengths the character reports for its own
+## scene (`arm_lengths()`), the shoulders as they are. A scale `size_arms` refuses (outside
+## `PunchCharacter.arm_scale_range()`) ends the run with its error and exit code 2. The bag stays where the
+## placement puts it, relative to the character's root, whatever the arms' size.
+##
+## A hit: the controller's `hit` signal with the target's Bag as the body, during the punch. The punch of scale
+## index a, sigma index s at placement p uses noise seed seed * 1000003 + s * 100003 + p, so every scale sees the
+## same noise at the same placement. The output JSON holds `arm_scale_range` ([low, high], the arm's accepted
+## scale) and one row per punch: [scale index, sigma index, placement index, hits on the target,
+## target_out_of_reach signals, how it ended, upper arm m, forearm m, shoulder width m (as `arm_lengths()`
+## reports them after the sizing)]. Progress lines: `SIZED_PROGRESS done total`.
+extends SceneTree
+
+const PunchPair := preload("res://tools/punch_pair.gd")
+
+var _options := {
+	"policy": "", "bags": "", "scales": "", "out": "", "sigmas": "0", "seed": "0", "characters": "64",
+	"characters-per-world": "16",
+}
+var _bags: Array = []
+var _scales := PackedFloat32Array()
+var _sigmas := PackedFloat32Array()
+var _episodes: Array = []  # [scale index, sigma index, placement index]
+var _next := 0
+var _rows: Array = []
+var _arenas: Array[SubViewport] = []
+var _pending := 0
+var _failed := false
+var _scale_range := Vector2.ZERO
+
+
+func _initialize() -> void:
+	for argument in OS.get_cmdline_user_args():
+		var parts := argument.trim_prefix("--").split("=", true, 1)
+		if parts.size() != 2 or not _options.has(parts[0]):
+			_fail("unknown argument '%s' (expected --%s=VALUE)" % [argument, "=VALUE, --".join(_options.keys())])
+			return
+		_options[parts[0]] = parts[1]
+	if _options.policy == "" or _options.out == "" or _options.bags == "" or _options.scales == "":
+		_fail("--policy, --bags, --scales and --out are needed")
+		return
+	if not FileAccess.file_exists(_options.policy):
+		_fail("policy file not found: %s" % _options.policy)
+		return
+	for value in _options.scales.split(","):
+		_scales.append(float(value))
+	for value in _options.sigmas.split(","):
+		_sigmas.append(float(value))
+	var parsed = JSON.parse_string(FileAccess.get_file_as_string(_options.bags))
+	_bags = parsed if parsed is Array else []
+	if _bags.is_empty():
+		_fail("--bags must name a JSON file holding a non-empty list")
+		return
+	for scale_index in _scales.size():
+		for sigma_index in _sigmas.size():
+			for placement_index in _bags.size():
+				_episodes.append([scale_index, sigma_index, placement_index])
+
+
+func _physics_process(_delta: float) -> bool:
+	if _failed:
+		return true
+	if _pending > 0:
+		return false
+	if not _arenas.is_empty():
+		for arena in _arenas:
+			root.remove_child(arena)
+			arena.free()
+		_arenas.clear()
+		print("SIZED_PROGRESS %d %d" % [_next, _episodes.size()])
+	if _next < _episodes.size():
+		_start_batch()
+		return false
+	var out := FileAccess.open(_options.out, FileAccess.WRITE)
+	out.store_string(JSON.stringify({"policy": _options.policy, "scales": Array(_scales), "sigmas": Array(_sigmas),
+		"seed": int(_options.seed), "arm_scale_range": [_scale_range.x, _scale_range.y], "rows": _rows}))
+	out.close()
+	print("SIZED_DONE")
+	return true
+
+
+func _start_batch() -> void:
+	var count := mini(int(_options.characters), _episodes.size() - _next)
+	var per_world := clampi(int(_options["characters-per-world"]), 1, PunchPair.MAX_PER_WORLD)
+	var arena: SubViewport
+	var controllers: Array[Node] = []
+	for slot in count:
+		if slot % per_world == 0:
+			arena = SubViewport.new()
+			arena.own_world_3d = true
+			arena.render_target_update_mode = SubViewport.UPDATE_DISABLED
+			root.add_child(arena)
+			_arenas.append(arena)
+		var episode: Array = _episodes[_next + slot]
+		var entry: Dictionary = _bags[episode[2]]
+		var scale: float = _scales[episode[0]]
+		var seed := int(_options.seed) * 1000003 + int(episode[1]) * 100003 + int(episode[2])
+		var controller := PunchPair.add(arena, slot % per_world, Vector3.ZERO,
+			Vector3(entry.side_m, entry.height_m, entry.distance_m), _options.policy, _sigmas[episode[1]], -1, seed)
+		controller.set("auto_recover", false)  # each batch's scene is freed after its punches
+		var character: Node = controller.get("character")
+		_scale_range = character.call("arm_scale_range")
+		var own: Vector3 = character.call("arm_lengths")
+		if not character.call("size_arms", own.x * scale, own.y * scale, own.z):
+			_fail("PunchCharacter.size_arms refused the arm scale %s (it accepts %s to %s times the scene's arm; "
+				% [scale, _scale_range.x, _scale_range.y] + "its error is above)")
+			return
+		var sized: Vector3 = character.call("arm_lengths")
+		var bag: RigidBody3D = controller.get("target")
+		var row := [episode[0], episode[1], episode[2], 0, 0, "", sized.x, sized.y, sized.z]
+		controller.connect("hit", func(_impulse, _speed, _position, body, _push):
+			if body == bag:
+				row[3] += 1)
+		controller.connect("target_out_of_reach", func(_offset, _nearest): row[4] += 1)
+		controller.connect("punch_finished", func(metrics: Dictionary):
+			row[5] = metrics.get("ended", "")
+			if row[5] == "error":
+				_fail("a punch stopped on an error: %s" % metrics.get("error", "see the error above"))
+				return
+			_rows.append(row)
+			_pending -= 1)
+		controllers.append(controller)
+	_next += count
+	_pending = count
+	for controller in controllers:
+		if not controller.call("punch"):
+			_fail("PunchController refused to punch (see the error above)")
+			return
+
+
+func _fail(message: String) -> void:
+	printerr("error: sized_hits: ", message)
+	_failed = true
+	quit(2)
