@@ -58,6 +58,13 @@ class Style:
     fist_back_free_mps: float = 0.5
     """the punching fist's speed away from the target before it lands (a wind-up, drawing the fist back)"""
     fist_back_cost_per_mps2: float = 0.5
+    chain_cost: float = 0.0
+    """cost of a joint turning faster, relative to a captured punch's peak, than the joint before it in the chain
+    (waist rotation, shoulder, elbow) has turned so far, until the fist lands: the proximal-to-distal order of
+    boxing (docs/style.md; 0 in `boxing`, tried as `boxing_chain`)"""
+    chain_peak_rad_s: tuple[float, float, float] = (4.5, 15.0, 28.0)
+    """waist rotation, shoulder and elbow peak speeds of the captured punches (../shared/data, CMU 143/23: trunk
+    yaw 3.5-5.4, upper arm 12.6-18.8, elbow 23.7-30.8 rad/s, in that order in 3 of 4 punches)"""
     later_cost_share: float = 0.1
     """how much of the cost after a frame still discounts what that frame earned (0: only the cost before it;
     1: all of it, the whole punch's)"""
@@ -91,7 +98,17 @@ class Style:
         def beyond(value: np.ndarray, free: float) -> np.ndarray:
             return np.asarray(np.maximum(0.0, value - free) ** 2)
 
-        cost = (self.off_fist_cost_per_m2 * beyond(off_from_guard_m, self.off_fist_free_m)
+        chain: np.ndarray | float = 0.0
+        if self.chain_cost > 0.0:
+            shoulder = np.sqrt(sum(frames(f"speed_shoulder_r_{axis}") ** 2
+                                   for axis in ("flexion", "rotation", "abduction")))
+            speeds = [np.abs(frames("speed_waist_rotation")), shoulder, np.abs(frames("speed_elbow_r_extension"))]
+            relative = [speed / peak for speed, peak in zip(speeds, self.chain_peak_rad_s, strict=True)]
+            so_far = [np.maximum.accumulate(r, axis=-1) for r in relative]
+            # Each joint may turn (relative to its captured peak) as fast as the one before it has so far.
+            ahead = np.maximum(0.0, relative[1] - so_far[0]) ** 2 + np.maximum(0.0, relative[2] - so_far[1]) ** 2
+            chain = self.chain_cost * np.where(before_contact, ahead, 0.0)
+        cost = (chain + self.off_fist_cost_per_m2 * beyond(off_from_guard_m, self.off_fist_free_m)
                 + self.off_fist_cost_per_mps2 * beyond(off_speed_mps, self.off_fist_free_mps)
                 + self.waist_flexion_cost_per_rad2 * beyond(waist_flexion_rad, self.waist_flexion_free_rad)
                 + self.fist_cost_per_mps2 * beyond(fist_speed_mps, self.fist_free_mps)
@@ -131,8 +148,10 @@ class Style:
         return asdict(self)
 
 
-STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing")}
-"""the styles by name; `none` is the paper's reward alone"""
+STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
+                                   "boxing_chain": Style("boxing_chain", chain_cost=4.0)}
+"""the styles by name; `none` is the paper's reward alone; `boxing_chain` is `boxing` asking for the proximal-to-
+distal order too (an experiment: docs/experiments.md)"""
 DEFAULT_STYLE = "boxing"
 MAX_WEIGHT = 100.0
 
