@@ -3,13 +3,13 @@
 ## (trainer/punch_trainer/pipelines/sizes_eval.py; README, "Your own character").
 ##
 ## tools/godot --headless --fixed-fps 120 --path godot_project --script res://tools/sized_hits.gd -- \
-##     --policy=PATH --bags=FILE.json --scales=0.75,1,1.25 --out=FILE.json [--sigmas=0,0.3] [--seed=0]
+##     --policy=PATH --bags=FILE.json --scales=0.75,1,1.25,0.7x0.85 --out=FILE.json [--sigmas=0,0.3] [--seed=0]
 ##     [--characters=64] [--characters-per-world=16]
 ##
 ## Every punch (one per scale, sigma and placement) is built fresh, side by side like moving_hits.gd's: a
 ## SubViewport with its own World3D per 16 characters, two collision layers per character (tools/punch_pair.gd).
 ## Right after it enters the tree, each character's arms are sized through `PunchCharacter.size_arms`: its upper
-## arm and forearm (elbow to fist centre) times the scale, from the lengths the character reports for its own
+## arm and forearm (elbow to fist centre) times the scale (UxF: the upper arm times U, the forearm times F), from the lengths the character reports for its own
 ## scene (`arm_lengths()`), the shoulders as they are. A scale `size_arms` refuses (outside
 ## `PunchCharacter.arm_scale_range()`) ends the run with its error and exit code 2. The bag stays where the
 ## placement puts it, relative to the character's root, whatever the arms' size.
@@ -29,7 +29,7 @@ var _options := {
 	"characters-per-world": "16",
 }
 var _bags: Array = []
-var _scales := PackedFloat32Array()
+var _scales: Array[Vector2] = []  # (upper arm, forearm) scale
 var _sigmas := PackedFloat32Array()
 var _episodes: Array = []  # [scale index, sigma index, placement index]
 var _next := 0
@@ -54,7 +54,8 @@ func _initialize() -> void:
 		_fail("policy file not found: %s" % _options.policy)
 		return
 	for value in _options.scales.split(","):
-		_scales.append(float(value))
+		var parts := value.split("x")
+		_scales.append(Vector2(float(parts[0]), float(parts[-1])))
 	for value in _options.sigmas.split(","):
 		_sigmas.append(float(value))
 	var parsed = JSON.parse_string(FileAccess.get_file_as_string(_options.bags))
@@ -104,7 +105,7 @@ func _start_batch() -> void:
 			_arenas.append(arena)
 		var episode: Array = _episodes[_next + slot]
 		var entry: Dictionary = _bags[episode[2]]
-		var scale: float = _scales[episode[0]]
+		var scale: Vector2 = _scales[episode[0]]
 		var seed := int(_options.seed) * 1000003 + int(episode[1]) * 100003 + int(episode[2])
 		var controller := PunchPair.add(arena, slot % per_world, Vector3.ZERO,
 			Vector3(entry.side_m, entry.height_m, entry.distance_m), _options.policy, _sigmas[episode[1]], -1, seed)
@@ -112,7 +113,7 @@ func _start_batch() -> void:
 		var character: Node = controller.get("character")
 		_scale_range = character.call("arm_scale_range")
 		var own: Vector3 = character.call("arm_lengths")
-		if not character.call("size_arms", own.x * scale, own.y * scale, own.z):
+		if not character.call("size_arms", own.x * scale.x, own.y * scale.y, own.z):
 			_fail("PunchCharacter.size_arms refused the arm scale %s (it accepts %s to %s times the scene's arm; "
 				% [scale, _scale_range.x, _scale_range.y] + "its error is above)")
 			return

@@ -26,7 +26,13 @@ from punch_trainer.pipelines.moving_eval import MovingEvalArgs
 from punch_trainer.pipelines.render import RenderArgs, parse_bags
 from punch_trainer.pipelines.replay import ReplayArgs, parse_sigmas
 from punch_trainer.pipelines.selfcheck import SelfCheckArgs
-from punch_trainer.pipelines.sizes_eval import SizesEvalArgs, check_scales, parse_scales
+from punch_trainer.pipelines.sizes_eval import (
+    SizesEvalArgs,
+    check_proportions,
+    check_scales,
+    parse_proportions,
+    parse_scales,
+)
 from punch_trainer.pipelines.style_experiment import StyleExperimentArgs
 from punch_trainer.pipelines.train import TrainArgs, reach_default_notes
 from punch_trainer.sim.cluster import backend_for
@@ -220,6 +226,7 @@ def _eval_sizes(args: argparse.Namespace) -> int:
     from punch_trainer.pipelines.sizes_eval import run_sizes_eval
 
     check_scales(args.scales)  # before the options' own bounds check: it names size_arms's range and why
+    check_proportions(args.proportions)
     out, _ = run_sizes_eval(dataclass_from_arguments(SizesEvalArgs, args))
     print((out / "report.md").read_text())
     print(f"report: {out / 'report.md'}")
@@ -355,7 +362,8 @@ def build_parser() -> argparse.ArgumentParser:
     sizes = commands.add_parser("eval-sizes", help="hit rates of a policy when its character's arms are sized to other "
                                                    "bodies (PunchCharacter.size_arms), through PunchController in Godot")
     add_dataclass_arguments(sizes, SizesEvalArgs, exclude=["timeout_s"],
-                            value_parsers={"sigmas": parse_sigmas, "scales": parse_scales})
+                            value_parsers={"sigmas": parse_sigmas, "scales": parse_scales,
+                                           "proportions": parse_proportions})
     sizes.set_defaults(run=_eval_sizes)
 
     replay = commands.add_parser("replay", help="replay a policy through PunchController in Godot at several noise sigmas (paper Fig. 10-11)")

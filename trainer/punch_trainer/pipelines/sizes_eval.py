@@ -8,8 +8,8 @@ as `punch eval` draws them) from the policy's reach volume, unchanged by the sca
 anywhere in the reach volume for arms 0.75 to 1.25 times the simulated body's, and no eval counts a target
 beyond what an arm can reach apart. A hit: the controller's `hit` signal on the target during the punch.
 
-    punch eval-sizes --policy P.onnx [--scales 0.75,0.85,1.0,1.15,1.25] [--sigmas 0,0.3] [--placements 32]
-        [--seed 4242] [--out DIR]
+    punch eval-sizes --policy P.onnx [--scales 0.75,0.85,1.0,1.15,1.25]
+        [--proportions 0.7x0.85,0.85x0.7,1.3x1.1,1.1x1.3] [--sigmas 0,0.3] [--placements 32] [--seed 4242] [--out DIR]
 """
 
 from __future__ import annotations
@@ -54,6 +54,40 @@ def check_scales(scales: list[float]) -> list[float]:
     return scales
 
 
+UPPER_ARM_SHARE = SCENE_ARM_LENGTHS_M[0] / (SCENE_ARM_LENGTHS_M[0] + SCENE_ARM_LENGTHS_M[1])
+"""the scene's upper arm's share of its arm: an arm's scale from its segments' scales"""
+SEGMENT_SCALE_RANGE = (0.65, 1.35)
+"""each of the two lengths `PunchCharacter.size_arms` accepts, as fractions of the scene's own"""
+
+
+def parse_proportions(text: str) -> list[tuple[float, float]]:
+    """`0.7x0.85,1.3x1.1`: upper arm and forearm scales of rigs with other proportions than the scene's (their
+    ranges are checked by `check_proportions`)."""
+    try:
+        return [(float(upper), float(forearm)) for upper, forearm in
+                (item.split("x") for item in text.split(",") if item.strip())]
+    except ValueError as error:
+        raise SizesEvalError(f"bad --proportions '{text}' (use UPPERxFOREARM,...: 0.7x0.85,1.3x1.1): {error}") from None
+
+
+def check_proportions(proportions: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    """The proportions as given; SizesEvalError names one whose segment or arm `size_arms` would refuse."""
+    for upper, forearm in proportions:
+        arm = UPPER_ARM_SHARE * upper + (1 - UPPER_ARM_SHARE) * forearm
+        segments_ok = all(SEGMENT_SCALE_RANGE[0] <= v <= SEGMENT_SCALE_RANGE[1] for v in (upper, forearm))
+        if not (segments_ok and ARM_SCALE_RANGE[0] <= arm <= ARM_SCALE_RANGE[1]):
+            raise SizesEvalError(f"proportions {upper:g}x{forearm:g} are outside what PunchCharacter.size_arms "
+                                 f"accepts: each length {SEGMENT_SCALE_RANGE[0]:g} to {SEGMENT_SCALE_RANGE[1]:g} times "
+                                 f"the scene's, the arm {ARM_SCALE_RANGE[0]:g} to {ARM_SCALE_RANGE[1]:g} times "
+                                 f"(these make it {arm:.3f})")
+    return proportions
+
+
+def size_label(upper: float, forearm: float) -> str:
+    """`0.75` for both lengths times 0.75, `0.7x0.85` for other proportions."""
+    return f"{upper:g}" if upper == forearm else f"{upper:g}x{forearm:g}"
+
+
 def parse_scales(text: str) -> list[float]:
     """`0.75,1,1.25`: arm scales (their range is checked with the other options, by `check_scales`)."""
     try:
@@ -70,6 +104,10 @@ class SizesEvalArgs:
                                 metadata=bounds(*ARM_SCALE_RANGE, max_items=20))
     """arm scales (a,b,c): upper arm and forearm both times the scale, the shoulders as they are; PunchCharacter.size_arms
     accepts arms 0.75 to 1.25 times the character scene's"""
+    proportions: list[tuple[float, float]] = field(
+        default_factory=lambda: [(0.7, 0.85), (0.85, 0.7), (1.3, 1.1), (1.1, 1.3)])
+    """rigs with other proportions than the scene's (UPPERxFOREARM,...: upper arm and forearm scales, as training
+    draws them), measured after the scales"""
     sigmas: list[float] = field(default_factory=lambda: [0.0, 0.3])
     """runtime noise sigmas, on every decision (a,b,c or start:stop:step)"""
     placements: int = 32
@@ -82,30 +120,30 @@ class SizesEvalArgs:
     """how long Godot may take for the punches"""
 
 
-def run_sized_hits(policy: Path, bags: list[BagPlacement], scales: list[float], sigmas: list[float], seed: int,
+def run_sized_hits(policy: Path, bags: list[BagPlacement], sizes: list[tuple[float, float]], sigmas: list[float], seed: int,
                    timeout_s: float, on_progress: Callable[[int], None] | None = None) -> dict[str, Any]:
     """Runs tools/sized_hits.gd; returns its output: `arm_scale_range` (Godot's) and `rows`, one per punch:
-    [scale index, sigma index, placement index, hits on the target, out-of-reach signals, how the punch ended,
-    upper arm, forearm, shoulder width (m, as `arm_lengths()` reports them sized)]. A scale Godot's `size_arms`
-    refuses ends in GodotRunError with its message."""
+    [size index, sigma index, placement index, hits on the target, out-of-reach signals, how the punch ended,
+    upper arm, forearm, shoulder width (m, as `arm_lengths()` reports them sized)]. `sizes`: (upper arm scale,
+    forearm scale) each. A size Godot's `size_arms` refuses ends in GodotRunError with its message."""
     with tempfile.TemporaryDirectory(prefix="punch_sizes_") as directory:
         folder = Path(directory)
         (folder / "bags.json").write_text(json.dumps([bag.to_wire() for bag in bags]))
         out = folder / "hits.json"
         run_godot_tool("sized_hits", {"policy": Path(policy).resolve(), "bags": folder / "bags.json", "out": out,
-                                      "scales": ",".join(map(str, scales)), "sigmas": ",".join(map(str, sigmas)),
+                                      "scales": ",".join(f"{u}x{f}" for u, f in sizes), "sigmas": ",".join(map(str, sigmas)),
                                       "seed": seed},
                        what="the sized punches", timeout_s=timeout_s, on_progress=on_progress, timeout_error=SizesEvalError)
         result: dict[str, Any] = json.loads(out.read_text())
         return result
 
 
-def tally(rows: list[list[Any]], scales: list[float], sigmas: list[float]) -> list[dict[str, Any]]:
-    """Per scale: the arm lengths Godot reported (median over its characters, m) and, at each sigma, hits and
+def tally(rows: list[list[Any]], sizes: list[tuple[float, float]], sigmas: list[float]) -> list[dict[str, Any]]:
+    """Per size: the arm lengths Godot reported (median over its characters, m) and, at each sigma, hits and
     punches."""
     result = []
-    for scale_index, scale in enumerate(scales):
-        mine = [row for row in rows if row[0] == scale_index]
+    for size_index, (upper, forearm) in enumerate(sizes):
+        mine = [row for row in rows if row[0] == size_index]
         lengths = np.median(np.array([row[6:9] for row in mine], dtype=float), axis=0) if mine else np.zeros(3)
         per_sigma = []
         for sigma_index, sigma in enumerate(sigmas):
@@ -113,20 +151,22 @@ def tally(rows: list[list[Any]], scales: list[float], sigmas: list[float]) -> li
             per_sigma.append({"sigma": sigma, "hits": sum(1 for row in punches if row[3] > 0), "punches": len(punches),
                               "out_of_reach": sum(1 for row in punches if row[4] > 0),
                               "missed_placements": sorted(int(row[2]) for row in punches if row[3] == 0)})
-        result.append({"scale": scale, "upper_arm_m": round(float(lengths[0]), 4), "forearm_m": round(float(lengths[1]), 4),
+        result.append({"scale": size_label(upper, forearm), "upper_arm_scale": upper, "forearm_scale": forearm,
+                       "upper_arm_m": round(float(lengths[0]), 4), "forearm_m": round(float(lengths[1]), 4),
                        "shoulder_width_m": round(float(lengths[2]), 4), "per_sigma": per_sigma})
     return result
 
 
 def markdown_table(report: dict[str, Any]) -> list[str]:
-    """Rows: arm scales, with the arm lengths Godot reported; columns: sigma, each hits/punches (%)."""
+    """Rows: arm scales (UPPERxFOREARM for other proportions), with the arm lengths Godot reported; columns: sigma,
+    each hits/punches (%)."""
     sigmas = report["sigmas"]
     header = ["arm scale", "upper arm (m)", "forearm (m)", "shoulders (m)"] + [f"σ {sigma:g}" for sigma in sigmas]
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for size in report["sizes"]:
         cells = [f"{s['hits']}/{s['punches']} ({100 * s['hits'] / max(s['punches'], 1):.0f}%)"
                  + (f", {s['out_of_reach']} out of reach" if s["out_of_reach"] else "") for s in size["per_sigma"]]
-        lines.append(f"| {size['scale']:g} | {size['upper_arm_m']:.3f} | {size['forearm_m']:.3f} | "
+        lines.append(f"| {size['scale']} | {size['upper_arm_m']:.3f} | {size['forearm_m']:.3f} | "
                      f"{size['shoulder_width_m']:.3f} | " + " | ".join(cells) + " |")
     return lines
 
@@ -135,26 +175,29 @@ def run_sizes_eval(args: SizesEvalArgs, progress: bool = True) -> tuple[Path, di
     """The whole `punch eval-sizes` command: writes sizes.json and report.md in the output directory."""
     started = time.perf_counter()
     check_scales(args.scales)
+    check_proportions(args.proportions)
     check_options(args)
+    sizes = [(scale, scale) for scale in args.scales] + list(args.proportions)
     bags = held_out_placements(Path(args.policy), args.placements, args.seed)
     out = Path(args.out or Path(args.policy).parent / f"eval_sizes_{int(time.time())}")
     out.mkdir(parents=True, exist_ok=True)
-    total = len(bags) * len(args.scales) * len(args.sigmas)
+    total = len(bags) * len(sizes) * len(args.sigmas)
     with tqdm(total=total, desc="sized punches (Godot)", unit="punch", disable=not progress) as bar:
         def advance(done: int) -> None:
             bar.update(done - bar.n)
 
-        result = run_sized_hits(Path(args.policy), bags, args.scales, args.sigmas, args.seed, args.timeout_s, advance)
-    report = {"policy": str(args.policy), "seed": args.seed, "scales": args.scales, "sigmas": args.sigmas,
+        result = run_sized_hits(Path(args.policy), bags, sizes, args.sigmas, args.seed, args.timeout_s, advance)
+    report = {"policy": str(args.policy), "seed": args.seed, "scales": args.scales,
+              "proportions": [size_label(*p) for p in args.proportions], "sigmas": args.sigmas,
               "arm_scale_range": result["arm_scale_range"], "scene_arm_lengths_m": list(SCENE_ARM_LENGTHS_M),
-              "placements": [bag.to_wire() for bag in bags], "sizes": tally(result["rows"], args.scales, args.sigmas),
+              "placements": [bag.to_wire() for bag in bags], "sizes": tally(result["rows"], sizes, args.sigmas),
               "wall_s": round(time.perf_counter() - started, 1)}
     (out / "sizes.json").write_text(json.dumps(report, indent=2) + "\n")
     lines = [f"# punch eval-sizes: {args.policy}", "",
              f"{len(bags)} held-out placements (seed {args.seed}) in the policy's reach volume, one punch per "
              f"placement, arm scale and sigma (noise on every decision), through PunchController in headless Godot "
              f"({report['wall_s']:.0f} s in all). Each character's upper arm and forearm are both times the scale "
-             "(`PunchCharacter.size_arms`), the shoulders as they are; the lengths are those `arm_lengths()` "
+             "(`PunchCharacter.size_arms`), or by the two scales of UPPERxFOREARM, the shoulders as they are; the lengths are those `arm_lengths()` "
              "reports. A hit: the controller's `hit` signal on the target during the punch.", "",
              *markdown_table(report)]
     (out / "report.md").write_text("\n".join(lines) + "\n")
