@@ -83,13 +83,13 @@ def test_the_chain_style_charges_a_joint_that_leads_the_one_before_it_and_boxing
     """`boxing_chain`: waist rotation, then shoulder, then elbow (each relative to a captured peak) costs nothing;
     the elbow snapping straight before the waist and shoulder turn costs, until the fist lands."""
     ramp = lambda start: np.clip((np.arange(FRAMES) - start) / 5.0, 0.0, 1.0)  # noqa: E731
-    speeds = {"speed_waist_rotation": 4.5 * ramp(0), "speed_shoulder_r_flexion": 15.0 * ramp(2),
+    speeds = {"speed_waist_rotation": 3.0 * ramp(0), "speed_shoulder_r_flexion": 10.0 * ramp(2),
               "speed_shoulder_r_rotation": np.zeros(FRAMES), "speed_shoulder_r_abduction": np.zeros(FRAMES),
-              "speed_elbow_r_extension": 28.0 * ramp(4)}
+              "speed_elbow_r_extension": 18.0 * ramp(4)}
     chain = style_named("boxing_chain")
     assert chain is not None and chain.chain_cost > 0
     assert np.all(chain.cost(frames_of(features(**speeds))) == 0.0)
-    elbow_first = {**speeds, "speed_elbow_r_extension": 28.0 * ramp(-5)}
+    elbow_first = {**speeds, "speed_elbow_r_extension": 18.0 * ramp(-5)}
     cost = chain.cost(frames_of(features(**elbow_first)))
     assert cost[0] > 0.0 and cost[FRAMES - 1] == 0.0  # once the shoulder has caught up, nothing
     landed = features(**elbow_first, fist_r_impulse_z=np.ones(FRAMES))

@@ -62,9 +62,10 @@ class Style:
     """cost of a joint turning faster, relative to a captured punch's peak, than the joint before it in the chain
     (waist rotation, shoulder, elbow) has turned so far, until the fist lands: the proximal-to-distal order of
     boxing (docs/style.md; 0 in `boxing`, tried as `boxing_chain`)"""
-    chain_peak_rad_s: tuple[float, float, float] = (4.5, 15.0, 28.0)
-    """waist rotation, shoulder and elbow peak speeds of the captured punches (../shared/data, CMU 143/23: trunk
-    yaw 3.5-5.4, upper arm 12.6-18.8, elbow 23.7-30.8 rad/s, in that order in 3 of 4 punches)"""
+    chain_peak_rad_s: tuple[float, float, float] = (3.0, 10.0, 18.0)
+    """waist rotation, shoulder and elbow speeds the chain measures against: the captured punches' peaks
+    (../shared/data, CMU 143/23: trunk yaw 3.5-5.4, upper arm 12.6-18.8, elbow 23.7-30.8 rad/s, peaking in
+    that order in 3 of 4 punches) scaled so that the elbow's is what the motors reach (18 rad/s)"""
     later_cost_share: float = 0.1
     """how much of the cost after a frame still discounts what that frame earned (0: only the cost before it;
     1: all of it, the whole punch's)"""
