@@ -20,21 +20,16 @@ var _last_usec := 0
 
 
 func _initialize() -> void:
-	for argument in OS.get_cmdline_user_args():
-		var parts := argument.trim_prefix("--").split("=", true, 1)
-		if parts.size() != 2 or not _options.has(parts[0]):
-			printerr("error: idle_cost: unknown argument '%s'" % argument)
-			quit(2)
-			return
-		_options[parts[0]] = parts[1]
+	var error := PunchPair.read_options(_options)
+	if error != "":
+		printerr("error: idle_cost: %s" % error)
+		quit(2)
+		return
 	var policy := "res://addons/punch_controller/policies/straight.onnx"
 	var arena: SubViewport
 	for slot in int(_options.characters):
 		if slot % PunchPair.MAX_PER_WORLD == 0:
-			arena = SubViewport.new()
-			arena.own_world_3d = true
-			arena.render_target_update_mode = SubViewport.UPDATE_DISABLED
-			root.add_child(arena)
+			arena = PunchPair.add_arena(root)
 		var holder := Node3D.new()
 		arena.add_child(holder)
 		PunchPair.add(holder, slot % PunchPair.MAX_PER_WORLD, Vector3.ZERO, Vector3(0, 1.35, 0.72), policy, 0.0, -1, 0)

@@ -1,6 +1,7 @@
 ## A character, its sandbag and a PunchController, kept apart from other pairs in the same physics world by
 ## two collision layers of their own (one for the character, one for the bag, masks two-sided as in the
-## training world). Shared by replay.gd and render.gd.
+## training world). Shared by the measuring tools (replay.gd, moving_hits.gd, sized_hits.gd, idle_cost.gd) and
+## render.gd, with the command-line reading and the physics worlds they all use.
 extends RefCounted
 
 const CHARACTER_SCENE := preload("res://addons/punch_controller/scenes/punch_character.tscn")
@@ -38,6 +39,26 @@ static func add(parent: Node, slot: int, origin: Vector3, bag_offset: Vector3, p
 	controller.set("seed", seed)
 	parent.add_child(controller)
 	return controller
+
+
+## Fills `options` (name -> default text) from the command line's user arguments (`--name=value`); returns
+## the error for an argument it does not know, or "".
+static func read_options(options: Dictionary) -> String:
+	for argument in OS.get_cmdline_user_args():
+		var parts := argument.trim_prefix("--").split("=", true, 1)
+		if parts.size() != 2 or not options.has(parts[0]):
+			return "unknown argument '%s' (expected --%s=VALUE)" % [argument, "=VALUE, --".join(options.keys())]
+		options[parts[0]] = parts[1]
+	return ""
+
+
+## A physics world of its own under `parent`, never rendered: room for MAX_PER_WORLD pairs.
+static func add_arena(parent: Node) -> SubViewport:
+	var arena := SubViewport.new()
+	arena.own_world_3d = true
+	arena.render_target_update_mode = SubViewport.UPDATE_DISABLED
+	parent.add_child(arena)
+	return arena
 
 
 static func _set_layers(scene_root: Node, layer: int, mask: int) -> void:

@@ -48,12 +48,10 @@ var _idle_frames_left := -1
 
 
 func _initialize() -> void:
-	for argument in OS.get_cmdline_user_args():
-		var parts := argument.trim_prefix("--").split("=", true, 1)
-		if parts.size() != 2 or not _options.has(parts[0]):
-			_fail("unknown argument '%s' (expected --%s=VALUE)" % [argument, "=VALUE, --".join(_options.keys())])
-			return
-		_options[parts[0]] = parts[1]
+	var error := PunchPair.read_options(_options)
+	if error != "":
+		_fail(error)
+		return
 	for value in _options.sigmas.split(","):
 		_sigmas.append(float(value))
 	_episodes_total = int(_options.episodes)
@@ -123,10 +121,7 @@ func _start_batch() -> void:
 	var arena: SubViewport
 	for slot in count:
 		if slot % per_world == 0:
-			arena = SubViewport.new()
-			arena.own_world_3d = true
-			arena.render_target_update_mode = SubViewport.UPDATE_DISABLED
-			root.add_child(arena)
+			arena = PunchPair.add_arena(root)
 			_arenas.append(arena)
 		var seed := int(_options.seed) * 1000003 + _sigma_index * 100003 + _episodes_done + slot
 		var offset := Vector3(bag[2], bag[1], bag[0])

@@ -41,12 +41,10 @@ var _scale_range := Vector2.ZERO
 
 
 func _initialize() -> void:
-	for argument in OS.get_cmdline_user_args():
-		var parts := argument.trim_prefix("--").split("=", true, 1)
-		if parts.size() != 2 or not _options.has(parts[0]):
-			_fail("unknown argument '%s' (expected --%s=VALUE)" % [argument, "=VALUE, --".join(_options.keys())])
-			return
-		_options[parts[0]] = parts[1]
+	var error := PunchPair.read_options(_options)
+	if error != "":
+		_fail(error)
+		return
 	if _options.policy == "" or _options.out == "" or _options.bags == "" or _options.scales == "":
 		_fail("--policy, --bags, --scales and --out are needed")
 		return
@@ -98,10 +96,7 @@ func _start_batch() -> void:
 	var controllers: Array[Node] = []
 	for slot in count:
 		if slot % per_world == 0:
-			arena = SubViewport.new()
-			arena.own_world_3d = true
-			arena.render_target_update_mode = SubViewport.UPDATE_DISABLED
-			root.add_child(arena)
+			arena = PunchPair.add_arena(root)
 			_arenas.append(arena)
 		var episode: Array = _episodes[_next + slot]
 		var entry: Dictionary = _bags[episode[2]]
