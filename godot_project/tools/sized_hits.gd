@@ -52,7 +52,7 @@ func _initialize() -> void:
 		_fail("policy file not found: %s" % _options.policy)
 		return
 	for value in _options.scales.split(","):
-		var parts := value.split("x")
+		var parts: PackedStringArray = value.split("x")
 		_scales.append(Vector2(float(parts[0]), float(parts[-1])))
 	for value in _options.sigmas.split(","):
 		_sigmas.append(float(value))

@@ -397,7 +397,9 @@ impl SkeletonPoser {
 /// The rig's fist centre at rest (skeleton space): three quarters of the way (`FIST_ALONG_HAND`) from the hand bone's
 /// head (the wrist) to its knuckles, the mean of its fingers' roots: where a closed fist's centre is. A finger root is a child of the hand, or, for a child that starts within a fifth
 /// of the forearm bone's head from the wrist (a metacarpal or a finger base, as MakeHuman and CMU rigs have), the
-/// mean of that child's children. A hand without children: a quarter of that forearm on past the wrist. The forearm's rest
+/// mean of that child's children. A hand of two roots, one much nearer the wrist than the other, is a thumb and one
+/// bone for all four fingers (CMU rigs): the fingers' root then counts four times, as on a hand of five. A hand
+/// without children: a quarter of that forearm on past the wrist. The forearm's rest
 /// direction is taken toward it, so the visible fist lies on the line of the simulated forearm even when the
 /// rig's hand is bent at rest.
 pub fn rig_fist(parents: &[i32], rest: &[(Quat, Vec3)], hand: usize, forearm: usize) -> Vec3 {
@@ -421,7 +423,14 @@ pub fn rig_fist(parents: &[i32], rest: &[(Quat, Vec3)], hand: usize, forearm: us
     if roots.is_empty() {
         return head + 0.25 * (head - forearm);
     }
-    let knuckles = roots.iter().sum::<Vec3>() / roots.len() as f32;
+    let knuckles = match roots[..] {
+        // A thumb and one bone for the four fingers (CMU): the fingers' root stands for four, as on a hand of five.
+        [a, b] if a.distance(head).min(b.distance(head)) < 0.6 * a.distance(head).max(b.distance(head)) => {
+            let (thumb, fingers) = if a.distance(head) < b.distance(head) { (a, b) } else { (b, a) };
+            (4.0 * fingers + thumb) / 5.0
+        }
+        _ => roots.iter().sum::<Vec3>() / roots.len() as f32,
+    };
     head + FIST_ALONG_HAND * (knuckles - head)
 }
 
