@@ -82,8 +82,8 @@ def test_a_style_caps_the_sampling_sigma_of_the_guard_where_it_narrows_the_searc
     from punch_trainer.sim.rewards import load_reward
     from punch_trainer.sim.style import style_named
 
-    model = ActorCritic(51, 10, seed=0)
-    obs = torch.zeros(3, 51)
+    model = ActorCritic(54, 10, seed=0)
+    obs = torch.zeros(3, 54)
     plain = load_reward("straight")
     styled = replace(plain, style=style_named("boxing"))
     assert style_sigma_cap(plain, 10) is None

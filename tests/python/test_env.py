@@ -33,7 +33,7 @@ def test_episode_shape_features_and_reward():
     feature_sum = Reward("feature_sum", lambda f: f.features[..., 0], frames=50)  # any function of the features
     with PunchEnv(frames=50, reward=feature_sum) as env:
         observation, info = env.reset(seed=3)
-        assert observation.shape == (51,) and observation.dtype == np.float32
+        assert observation.shape == (54,) and observation.dtype == np.float32
         assert info["features"].shape == (len(env.feature_names),)
         for decision in range(10):
             observation, reward, terminated, truncated, info = env.step(np.zeros(10, dtype=np.float32))
@@ -56,7 +56,7 @@ def test_vector_env_over_two_processes():
     try:
         assert env.num_envs == 6
         observations, info = env.reset(seed=0)
-        assert observations.shape == (6, 51)
+        assert observations.shape == (6, 54)
         for _ in range(2):
             observations, rewards, terminated, truncated, info = env.step(env.action_space.sample())
         assert terminated.all() and not truncated.any()

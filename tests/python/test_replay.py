@@ -57,9 +57,9 @@ def test_parity_of_godot_controller_and_torch_policy(trained, tmp_path):
     out, rows = run_replay(ReplayArgs(policy=path, sigmas=[0.0], episodes=4, out=tmp_path / "r", keep_frames=True), progress=False)
     meta = json.loads((out / "frames" / "meta.json").read_text())
     record = replay_frames(out / "frames", 0, meta)
-    assert record["observations"].shape == (4, 10, 51) and record["features"].shape == (4, 50, 60)
+    assert record["observations"].shape == (4, 10, 54) and record["features"].shape == (4, 50, 63)
     with torch.no_grad():
-        torch_means = model(torch.as_tensor(record["observations"].reshape(-1, 51)))[0].numpy()
+        torch_means = model(torch.as_tensor(record["observations"].reshape(-1, 54)))[0].numpy()
     assert np.abs(torch_means - record["mean_actions"].reshape(-1, 10)).max() < 1e-5
     assert np.array_equal(record["actions"], record["mean_actions"]), "sigma 0 adds no noise"
     assert np.all(record["features"] == record["features"][:1]), "every sigma-0 punch is the same punch"
@@ -160,13 +160,13 @@ def hostile_model_files(directory: Path) -> dict[str, Path]:
                               helper.make_node("Identity", ["cond_in"], ["cond_out"])], "body",
                              [helper.make_tensor_value_info("i", TensorProto.INT64, []),
                               helper.make_tensor_value_info("cond_in", TensorProto.BOOL, []),
-                              helper.make_tensor_value_info("x_in", TensorProto.FLOAT, ["batch", 51])],
+                              helper.make_tensor_value_info("x_in", TensorProto.FLOAT, ["batch", 54])],
                              [helper.make_tensor_value_info("cond_out", TensorProto.BOOL, []),
-                              helper.make_tensor_value_info("x_out", TensorProto.FLOAT, ["batch", 51])])
+                              helper.make_tensor_value_info("x_out", TensorProto.FLOAT, ["batch", 54])])
     loop = helper.make_graph(
         [helper.make_node("Loop", ["trips", "", "obs"], ["mean"], body=body)], "loop",
-        [helper.make_tensor_value_info("obs", TensorProto.FLOAT, ["batch", 51])],
-        [helper.make_tensor_value_info("mean", TensorProto.FLOAT, ["batch", 51])],
+        [helper.make_tensor_value_info("obs", TensorProto.FLOAT, ["batch", 54])],
+        [helper.make_tensor_value_info("mean", TensorProto.FLOAT, ["batch", 54])],
         initializer=[helper.make_tensor("trips", TensorProto.INT64, [], [2**40])])
     shipped = SHIPPED_POLICY.read_bytes()
     files = {"loop_first": _protobuf_field(7, loop.SerializeToString()) + shipped,
@@ -184,7 +184,7 @@ def hostile_model_files(directory: Path) -> dict[str, Path]:
          helper.make_node("Slice", ["square", "zero", "one", "last"], ["cut"]),
          helper.make_node("Slice", ["cut", "zero", "ten", "one"], ["flat"]),
          helper.make_node("Flatten", ["flat"], ["mean"], axis=1)], "growth",
-        [helper.make_tensor_value_info("obs", TensorProto.FLOAT, ["batch", 51])],
+        [helper.make_tensor_value_info("obs", TensorProto.FLOAT, ["batch", 54])],
         [helper.make_tensor_value_info("mean", TensorProto.FLOAT, ["batch", 10])], initializer=ints)
     grown = helper.make_model(growth, opset_imports=[helper.make_opsetid("", 17)])
     helper.set_model_props(grown, policy_metadata(SHIPPED_POLICY))  # otherwise a real policy's

@@ -42,7 +42,8 @@ impl PunchingPolicy {
             return Err(incompatible(format!(
                 "it was trained for policy spec version {version}; this extension reads version \
                  {OBS_SPEC_VERSION} (version 2 added the character's own motion to the observation, for punching \
-                 on the move): retrain it with this version's `punch train` (the addon's own policies are)"
+                 on the move; version 3 the arms' lengths, for characters of any size): retrain it with this \
+                 version's `punch train` (the addon's own policies are)"
             )));
         }
         policy
