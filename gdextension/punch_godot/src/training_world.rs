@@ -230,7 +230,7 @@ struct Slot {
     geometry: CharacterGeometry,
 }
 
-/// Most sized character templates kept (training draws arm sizes on a grid: `MotionRange` in the trainer).
+/// Most sized character templates kept (training draws arm sizes on a grid: `ArmRange` in the trainer).
 const MAX_SIZED_TEMPLATES: usize = 1024;
 
 /// The key of a sized template: the scale's exact values.
