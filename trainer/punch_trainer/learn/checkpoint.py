@@ -89,6 +89,19 @@ def load_checkpoint(run_dir: Path, kind: str) -> dict[str, Any] | None:
     path = run_dir / CHECKPOINT_FILE
     if not path.exists():
         return None
+    saved = read_checkpoint(path, kind)
+    expected = run_identity(run_dir)
+    for key, label in (("seed", "seed"), ("reward", "reward"), ("reward_fingerprint", "reward's source"), ("run_id", "run")):
+        if saved["identity"].get(key) != expected.get(key):
+            raise CheckpointError(f"{path} is not this run's checkpoint: its {label} differs from the run's "
+                                  f"({saved['identity'].get(key)!r}, not {expected.get(key)!r}); it is not resumed")
+    state: dict[str, Any] = saved["state"]
+    return state
+
+
+def read_checkpoint(path: Path, kind: str) -> dict[str, Any]:
+    """A checkpoint file of `kind`, whichever run wrote it: its `identity` and `state`. CheckpointError for a file
+    that is missing, damaged, edited or of another kind."""
     try:
         data = path.read_bytes()
     except OSError as error:
@@ -106,13 +119,7 @@ def load_checkpoint(run_dir: Path, kind: str) -> dict[str, Any] | None:
     if (not isinstance(saved, dict) or saved.get("version") != CHECKPOINT_VERSION or saved.get("kind") != kind
             or not isinstance(saved.get("state"), dict) or not isinstance(saved.get("identity"), dict)):
         raise CheckpointError(f"{path} is not a version-{CHECKPOINT_VERSION} {kind} checkpoint")
-    expected = run_identity(run_dir)
-    for key, label in (("seed", "seed"), ("reward", "reward"), ("reward_fingerprint", "reward's source"), ("run_id", "run")):
-        if saved["identity"].get(key) != expected.get(key):
-            raise CheckpointError(f"{path} is not this run's checkpoint: its {label} differs from the run's "
-                                  f"({saved['identity'].get(key)!r}, not {expected.get(key)!r}); it is not resumed")
-    state: dict[str, Any] = saved["state"]
-    return state
+    return saved
 
 
 def _governing_config(run_dir: Path) -> Path | None:

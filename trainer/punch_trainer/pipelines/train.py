@@ -28,6 +28,7 @@ from punch_trainer.learn.pretrain import PretrainArgs, pretrain
 from punch_trainer.learn.reach import ReachVolume
 from punch_trainer.learn.search import SearchArgs, SearchResult, placement_search
 from punch_trainer.learn.volume import ArmRange, EpisodeConditions, MotionRange, VolumeArgs, distribution_observations, validate
+from punch_trainer.learn.warm_start import warm_start
 from punch_trainer.options import bounds
 from punch_trainer.pipelines.search import run_search
 from punch_trainer.report.a2c_report import write_a2c_report
@@ -118,6 +119,9 @@ class TrainArgs:
     arms: Literal["sized", "scene"] = "sized"
     """volume: 'sized': A2C's characters have arms of the sizes a rig may have (`PunchCharacter.size_arms`,
     README, "Your own character"), and so do some validation placements; 'scene': every character has the scene's"""
+    init_from: Path | None = None
+    """an earlier `punch train` run (its folder) whose best policy A2C starts from instead of a pretraining on this
+    run's search: for a policy contract that added inputs (they start at zero weight; learn/warm_start.py)"""
     processes: int = SearchArgs.processes
     """Godot processes (with --ray: Ray workers, docs/cluster.md) of 64 characters for the searches"""
 
@@ -229,8 +233,14 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
         if pretrained is None:
             statistics = (restarts.run(functools.partial(distribution_observations, env, conditions, punches))
                           if conditions is not None else None)
-            pretrain_args = PretrainArgs(epochs=args.pretrain_epochs, seed=args.seed, initial_sigma=defaults.pretrain_initial_sigma)
-            pretrain_history = pretrain(model, data, pretrain_args, progress, statistics)
+            if args.init_from is not None:
+                added = warm_start(model, args.init_from, env.info.observation_names,
+                                   data["observations"] if statistics is None else statistics)
+                pretrain_history = [{"warm_start": str(args.init_from), "new_inputs": added}]
+            else:
+                pretrain_args = PretrainArgs(epochs=args.pretrain_epochs, seed=args.seed,
+                                             initial_sigma=defaults.pretrain_initial_sigma)
+                pretrain_history = pretrain(model, data, pretrain_args, progress, statistics)
             save_checkpoint(out / "pretrain", "pretrain", {"model": model.state_dict(), "history": pretrain_history})
         else:
             model.load_state_dict(pretrained["model"])
@@ -271,7 +281,10 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
     lines = [
         f"# punch train: {reward.name}", "", f"- motion style: {style_label(reward.style)} (docs/style.md)",
         f"- trajectory search: best return {search.best_return:.4f} ({search_args.iterations} iterations of {search_args.rollouts} rollouts)",
-        f"- after pretraining ({args.pretrain_epochs} epochs, final actor MSE {pretrain_history[-1]['actor_mse']:.2e}): noise-free return {pretrained_return:.4f}",
+        (f"- after pretraining ({args.pretrain_epochs} epochs, final actor MSE {pretrain_history[-1]['actor_mse']:.2e}): "
+         f"noise-free return {pretrained_return:.4f}" if args.init_from is None else
+         f"- warm start from {args.init_from}'s best policy (new inputs, at zero weight: "
+         f"{', '.join(pretrain_history[-1]['new_inputs']) or 'none'}): noise-free return {pretrained_return:.4f}"),
         f"- after A2C ({len(a2c_history) - 1} updates x {processes * args.a2c_characters} episodes, advantage '{args.advantage}', "
         f"sigma at least {a2c_args.sigma_floor}): "
         f"best noise-free return {max(h['eval_return'] for h in a2c_history):.4f}",

@@ -1,0 +1,70 @@
+"""Warm start (`punch train --init-from RUN`): A2C starts from an earlier run's best policy instead of from a
+pretraining on this run's search, when the observation has only gained entries since (a policy contract that
+added inputs, such as version 3's arm lengths). Every input the earlier policy had keeps its weights and its
+normalisation; every new one gets zero weights, so the policy first acts exactly as the earlier one did, and the
+normalisation of this run's episodes, so A2C can learn what the new input says."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from punch_trainer.errors import PunchError
+from punch_trainer.learn.checkpoint import CHECKPOINT_FILE, CheckpointError, read_checkpoint
+from punch_trainer.learn.policy import ActorCritic
+
+INPUT_LAYERS = ("actor.0.weight", "critic.0.weight")
+"""the first layers of the actor and the critic: the only weights that see the observation"""
+
+
+class WarmStartError(PunchError):
+    """An earlier run that a warm start cannot use: no A2C checkpoint, another network, or inputs this run lacks."""
+
+
+def earlier_observation_names(run_dir: Path) -> list[str]:
+    """The observation names of the earlier run `run_dir` (its search's dataset records them)."""
+    dataset = run_dir / "search" / "dataset.npz"
+    try:
+        with np.load(dataset, allow_pickle=False) as data:
+            return [str(name) for name in data["observation_names"]]
+    except (OSError, KeyError, ValueError) as error:
+        raise WarmStartError(f"{run_dir} is not a finished `punch train` run: cannot read the observation names "
+                             f"of {dataset} ({error})") from None
+
+
+def warm_start(model: ActorCritic, run_dir: Path, names: list[str], statistics: np.ndarray) -> list[str]:
+    """Loads the best A2C policy of the earlier run `run_dir` into `model`, whose observation is `names`;
+    `statistics` [n, len(names)] are observations of this run's episodes, for the new inputs' normalisation.
+    Returns the names of the new inputs."""
+    try:
+        earlier = read_checkpoint(run_dir / "a2c" / CHECKPOINT_FILE, "a2c")["state"]["best_model"]
+    except (CheckpointError, KeyError) as error:
+        raise WarmStartError(f"cannot start from {run_dir}: {error}") from None
+    earlier_names = earlier_observation_names(run_dir)
+    lost = [name for name in earlier_names if name not in names]
+    if lost:
+        raise WarmStartError(f"cannot start from {run_dir}: its policy observes {', '.join(lost)}, which this run's "
+                             "observation has not")
+    columns = torch.as_tensor([names.index(name) for name in earlier_names])
+    state = model.state_dict()
+    for key, value in state.items():
+        old = earlier.get(key)
+        expected = (value.shape[0], len(earlier_names)) if key in INPUT_LAYERS else tuple(value.shape)
+        if key in ("obs_mean", "obs_std"):
+            expected = (len(earlier_names),)
+        if old is None or tuple(old.shape) != expected:
+            raise WarmStartError(f"cannot start from {run_dir}: its network differs from this run's at '{key}' "
+                                 f"({None if old is None else tuple(old.shape)}, expected {expected})")
+    mean = torch.as_tensor(statistics.mean(axis=0), dtype=torch.float32)
+    std = torch.as_tensor(statistics.std(axis=0) + 1e-3, dtype=torch.float32)  # as ActorCritic.set_normalization
+    mean[columns], std[columns] = earlier["obs_mean"], earlier["obs_std"]
+    started = {key: earlier[key].clone() for key in state if key not in (*INPUT_LAYERS, "obs_mean", "obs_std")}
+    started["obs_mean"], started["obs_std"] = mean, std
+    for key in INPUT_LAYERS:
+        weights = torch.zeros_like(state[key])
+        weights[:, columns] = earlier[key]
+        started[key] = weights
+    model.load_state_dict(started)
+    return [name for name in names if name not in earlier_names]
