@@ -6,7 +6,8 @@ and match bitwise on Intel and AMD machines alike. The network's side (pretraini
 CPU kernels round differently from one processor family to another (the recorded weights were reproduced on
 an Intel Xeon, not on an AMD EPYC: 2026-11-23), so there the run must repeat bitwise on the machine it runs
 on, and land near the recorded returns. The figures were recorded at commit 6b8202b, held until the policy
-contract's version 2 (punching on the move: a kinematic pelvis, 60 features) and were recorded again then; the
+contract's version 2 (punching on the move: a kinematic pelvis, 60 features) and were recorded again then, and
+again at version 3 (the arms' lengths observed, 63 features, and A2C over arm sizes); the
 full `punch search --reward straight --seed 0` was once compared the same way (best return
 5.473997661378235 after 150 iterations, peak fist speed 7.47 m/s, identical dataset arrays).
 

@@ -13,7 +13,7 @@ use punch_core::{CoreError, Policy, runtime};
 
 /// The observation spec hash of every policy the addon ships (their `punch_spec_hash`), pinned: a change to
 /// the observation (features, order, decision period) changes it, and the shipped policies must be retrained.
-const SHIPPED_SPEC_HASH: &str = "ebf0242d6815ecc2";
+const SHIPPED_SPEC_HASH: &str = "b3b18e1568362141";
 
 fn load(path: std::path::PathBuf) -> Policy {
     if let Err(error) = runtime::init_from_dir(&common::onnxruntime_dir()) {
