@@ -335,15 +335,15 @@ func _hand_fist(skeleton: Skeleton3D, bone_map: Dictionary) -> Vector3:
 
 ## The fist centre (skeleton space, posed or at rest): three quarters of the way from the hand's head to its
 ## knuckles, the mean of its fingers' roots: its children's heads, or for a child within a fifth of the forearm (from the `forearm` bone's
-## head to the wrist) of the wrist (a metacarpal), the mean of that child's children's; with no children, a quarter
-## of the forearm on.
+## head to the wrist) of the wrist (a metacarpal), the mean of that child's children's (a thumb near the wrist and
+## one other root: the other counts four times); with no children, a quarter of the forearm on.
 func _fist_centre(skeleton: Skeleton3D, hand: int, forearm_bone: int, rest: bool) -> Vector3:
 	var at := func(bone: int) -> Vector3:
 		return skeleton.get_bone_global_rest(bone).origin if rest else skeleton.get_bone_global_pose(bone).origin
 	var head: Vector3 = at.call(hand)
 	var forearm: Vector3 = at.call(forearm_bone)
 	var near := 0.2 * head.distance_to(forearm)
-	var knuckles := Vector3.ZERO
+	var roots: Array[Vector3] = []
 	var children := skeleton.get_bone_children(hand)
 	for child in children:
 		var below := skeleton.get_bone_children(child)
@@ -351,12 +351,21 @@ func _fist_centre(skeleton: Skeleton3D, hand: int, forearm_bone: int, rest: bool
 			var mean := Vector3.ZERO
 			for b in below:
 				mean += at.call(b)
-			knuckles += mean / below.size()
+			roots.append(mean / below.size())
 		else:
-			knuckles += at.call(child)
-	if children.is_empty():
+			roots.append(at.call(child))
+	if roots.is_empty():
 		return head + 0.25 * (head - forearm)
-	return head + 0.75 * (knuckles / children.size() - head)
+	var knuckles := Vector3.ZERO
+	for root in roots:
+		knuckles += root / roots.size()
+	if roots.size() == 2:
+		# A thumb and one bone for four fingers (CMU): the fingers' root counts four times.
+		var near_root: Vector3 = roots[0] if roots[0].distance_to(head) < roots[1].distance_to(head) else roots[1]
+		var far_root: Vector3 = roots[1] if near_root == roots[0] else roots[0]
+		if near_root.distance_to(head) < 0.6 * far_root.distance_to(head):
+			knuckles = (4.0 * far_root + near_root) / 5.0
+	return head + 0.75 * (knuckles - head)
 
 
 ## The rig's arm lengths at rest, m: [upper arm, forearm to the fist centre, shoulder width].
