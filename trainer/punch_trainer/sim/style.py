@@ -61,7 +61,7 @@ class Style:
     chain_cost: float = 0.0
     """cost of a joint turning faster, relative to a captured punch's peak, than the joint before it in the chain
     (waist rotation, shoulder, elbow) has turned so far, until the fist lands: the proximal-to-distal order of
-    boxing (docs/style.md; 0 in `boxing`, tried as `boxing_chain`)"""
+    boxing (0 in `boxing`; tried as `boxing_chain`: docs/experiments.md)"""
     chain_peak_rad_s: tuple[float, float, float] = (3.0, 10.0, 18.0)
     """waist rotation, shoulder and elbow speeds the chain measures against: the captured punches' peaks
     (../shared/data, CMU 143/23: trunk yaw 3.5-5.4, upper arm 12.6-18.8, elbow 23.7-30.8 rad/s, peaking in
