@@ -64,8 +64,9 @@ class Style:
     boxing (0 in `boxing`; tried as `boxing_chain`: docs/experiments.md)"""
     chain_peak_rad_s: tuple[float, float, float] = (3.0, 10.0, 18.0)
     """waist rotation, shoulder and elbow speeds the chain measures against: the captured punches' peaks
-    (../shared/data, CMU 143/23: trunk yaw 3.5-5.4, upper arm 12.6-18.8, elbow 23.7-30.8 rad/s, peaking in
-    that order in 3 of 4 punches) scaled so that the elbow's is what the motors reach (18 rad/s)"""
+    (../shared/data, CMU 143/23, from joint positions: the shoulder line's yaw 3.5-5.4, the upper arm's direction
+    12.6-18.8, the elbow angle 23.7-30.8 rad/s, peaking in that order in 3 of 4 punches) scaled so that the
+    elbow's is what the motors reach (18 rad/s)"""
     later_cost_share: float = 0.1
     """how much of the cost after a frame still discounts what that frame earned (0: only the cost before it;
     1: all of it, the whole punch's)"""
