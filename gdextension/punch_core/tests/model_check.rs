@@ -6,6 +6,7 @@ mod common;
 
 use common::onnx_bytes::*;
 use punch_core::model_check::{MAX_ROW_ELEMENTS, ModelCost, check_model, measure_model};
+use punch_core::spec::OBS_DIM;
 use punch_core::{CoreError, Policy, runtime};
 
 fn init() {
@@ -44,14 +45,15 @@ fn refused(bytes: &[u8], expected: &str) {
 fn the_shipped_policies_pass_with_their_measured_cost() {
     for style in ["straight", "hook", "swing"] {
         let cost = measure_model(&shipped(style)).expect(style);
-        // 51 -> 128 -> 128 -> 10 (mean) and 10 (sigma): 25 472 multiply-adds, the input, 439 elements written
-        // by plain operators (16 units each) and 276 by Tanh and Exp (32 each) per row;
-        // the initializers (25 854 elements) are the batch-independent work.
+        // OBS_DIM (54) -> 128 -> 128 -> 10 (mean) and 10 (sigma): 25 856 multiply-adds, the input, 448 elements
+        // written by plain operators (16 units each) and 276 by Tanh and Exp (32 each) per row;
+        // the initializers (26 244 elements) are the batch-independent work.
+        let obs = OBS_DIM as u64;
         let expected = ModelCost {
             largest_row_elements: 128,
             largest_shared_elements: 128 * 128,
-            row_work: 51 + 51 * 128 + 128 * 128 + 2 * 128 * 10 + 16 * (3 * 51 + 276 + 10) + 32 * (266 + 10),
-            shared_work: 51 * 128 + 128 + 128 * 128 + 128 + 2 * (10 * 128 + 10) + 2 * 51 + 4,
+            row_work: obs + obs * 128 + 128 * 128 + 2 * 128 * 10 + 16 * (3 * obs + 276 + 10) + 32 * (266 + 10),
+            shared_work: obs * 128 + 128 + 128 * 128 + 128 + 2 * (10 * 128 + 10) + 2 * obs + 4,
         };
         assert_eq!(cost, expected, "{style}");
     }
