@@ -105,7 +105,8 @@ class SizesEvalArgs:
     """arm scales (a,b,c): upper arm and forearm both times the scale, the shoulders as they are; PunchCharacter.size_arms
     accepts arms 0.75 to 1.25 times the character scene's"""
     proportions: list[tuple[float, float]] = field(
-        default_factory=lambda: [(0.7, 0.85), (0.85, 0.7), (1.3, 1.1), (1.1, 1.3)])
+        default_factory=lambda: [(0.7, 0.85), (0.85, 0.7), (1.3, 1.1), (1.1, 1.3)],
+        metadata=bounds(*SEGMENT_SCALE_RANGE, max_items=20))
     """rigs with other proportions than the scene's (UPPERxFOREARM,...: upper arm and forearm scales, as training
     draws them), measured after the scales"""
     sigmas: list[float] = field(default_factory=lambda: [0.0, 0.3])
