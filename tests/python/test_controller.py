@@ -124,12 +124,16 @@ def test_a_character_facing_any_way_punches_as_it_does_facing_forward(policy):
     for punch in punches:
         turned = np.array(punch["features"]).reshape(50, -1)
         # Relative to the feature's size: float32 world coordinates 30 m from the origin round joint speeds of
-        # tens of rad/s at about 1e-4 of their size.
-        before_contact = (np.abs(turned[:25] - features[:25]) / (1.0 + np.abs(features[:25]))).max()
+        # tens of rad/s at about 1e-4 of their size, and the arm's acceleration grows that over the frames (the
+        # contract-3 straight turned by 180 degrees: 1.0e-3, a shoulder speed in frame 17; a character whose
+        # frame is read wrong differs by the order of the features themselves). Until the fist first touches the
+        # bag: from there on, contact amplifies those roundings (the fists' impulses are columns 12 to 17).
+        contact = int(np.argmax(np.abs(features[:, 12:18]).max(axis=1) > 0)) or 25
+        before_contact = (np.abs(turned[:contact] - features[:contact]) / (1.0 + np.abs(features[:contact]))).max()
         print(f"yaw {punch['yaw']:6.1f}: hits {punch['hits']}, peak {punch['peak_fist_speed_mps']:.3f} m/s, "
-              f"largest relative feature difference over the first 25 frames {before_contact:.2e}")
+              f"largest relative feature difference over the {contact} frames before contact {before_contact:.2e}")
         assert punch["hits"] >= 1, punch["yaw"]
-        assert before_contact < 1e-3, punch["yaw"]
+        assert before_contact < 3e-3, punch["yaw"]
         assert punch["peak_fist_speed_mps"] == pytest.approx(reference["peak_fist_speed_mps"], rel=0.02)
 
 
