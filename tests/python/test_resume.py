@@ -107,7 +107,7 @@ def assert_same_training(result, reference):
 
 def test_a2c_interrupted_mid_update_resumes_and_a_killed_godot_is_restarted(tmp_path):
     straight = load_reward("straight")
-    initial = ActorCritic(51, 10, seed=0)
+    initial = ActorCritic(54, 10, seed=0)
     with PunchVectorEnv(1, 8, frames=50, smoothing_window=3) as env:
         reference = a2c(env, initial, straight)
         per_update = 2 * 10  # an update's episodes and its evaluation: 10 decisions each

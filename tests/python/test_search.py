@@ -36,8 +36,8 @@ def test_small_search_is_reproducible_and_writes_its_run(tmp_path):
     for name in ["config.json", "metrics.csv", "dataset.npz", "report.md", "motion.json", "return.png", "sigma.png", "fist_path.png"]:
         assert (out / name).is_file(), name
     dataset = np.load(out / "dataset.npz")
-    assert dataset["observations"].shape == (10, 51) and dataset["actions"].shape == (10, 10)
-    assert dataset["features"].shape == (50, 60) and dataset["rewards"].shape == (10,)
+    assert dataset["observations"].shape == (10, 54) and dataset["actions"].shape == (10, 10)
+    assert dataset["features"].shape == (50, 63) and dataset["rewards"].shape == (10,)
     assert float(dataset["return"]) == pytest.approx(first.best_return, rel=1e-6)
     assert json.loads((out / "config.json").read_text())["spec_hash"] == str(dataset["spec_hash"])
     assert report["peak_fist_speed_mps"] > 0

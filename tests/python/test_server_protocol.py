@@ -107,7 +107,7 @@ def test_garbage_json_gets_an_error_on_a_living_connection(server):
 def test_handshake_describes_the_spec(server):
     info = server.info
     assert info.slot_count == 2 and info.decision_period == 5 and info.physics_hz == 120
-    assert len(info.action_names) == 10 and len(info.observation_names) == 51
+    assert len(info.action_names) == 10 and len(info.observation_names) == 54
     assert len(info.spec_hash) == 16 and info.spec_version >= 1
     assert "exploit_flags" in info.feature_names
 
