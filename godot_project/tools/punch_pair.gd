@@ -61,6 +61,21 @@ static func add_arena(parent: Node) -> SubViewport:
 	return arena
 
 
+## Frees a finished batch's physics worlds (`add_arena`'s) and empties the list.
+static func free_arenas(arenas: Array[SubViewport]) -> void:
+	for arena in arenas:
+		arena.get_parent().remove_child(arena)
+		arena.free()
+	arenas.clear()
+
+
+## Writes a measuring tool's result, `data` as JSON, to `path`.
+static func write_json(path: String, data: Dictionary) -> void:
+	var out := FileAccess.open(path, FileAccess.WRITE)
+	out.store_string(JSON.stringify(data))
+	out.close()
+
+
 static func _set_layers(scene_root: Node, layer: int, mask: int) -> void:
 	for body in scene_root.find_children("*", "CollisionObject3D", true, false):
 		body.collision_layer = layer

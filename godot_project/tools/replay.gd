@@ -177,10 +177,7 @@ func _collect_batch() -> void:
 			_files[kind].store_buffer((record[kind] as PackedFloat32Array).to_byte_array())
 	_episodes_done += _controllers.size()
 	print("REPLAY_PROGRESS %d %d" % [_sigma_index * _episodes_total + _episodes_done, _sigmas.size() * _episodes_total])
-	for arena in _arenas:
-		root.remove_child(arena)
-		arena.free()
-	_arenas.clear()
+	PunchPair.free_arenas(_arenas)
 	_controllers.clear()
 	if _episodes_done >= _episodes_total:
 		for kind in _files:

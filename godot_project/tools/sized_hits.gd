@@ -73,18 +73,13 @@ func _physics_process(_delta: float) -> bool:
 	if _pending > 0:
 		return false
 	if not _arenas.is_empty():
-		for arena in _arenas:
-			root.remove_child(arena)
-			arena.free()
-		_arenas.clear()
+		PunchPair.free_arenas(_arenas)
 		print("SIZED_PROGRESS %d %d" % [_next, _episodes.size()])
 	if _next < _episodes.size():
 		_start_batch()
 		return false
-	var out := FileAccess.open(_options.out, FileAccess.WRITE)
-	out.store_string(JSON.stringify({"policy": _options.policy, "scales": Array(_scales), "sigmas": Array(_sigmas),
-		"seed": int(_options.seed), "arm_scale_range": [_scale_range.x, _scale_range.y], "rows": _rows}))
-	out.close()
+	PunchPair.write_json(_options.out, {"policy": _options.policy, "sigmas": Array(_sigmas), "seed": int(_options.seed),
+		"arm_scale_range": [_scale_range.x, _scale_range.y], "rows": _rows})
 	print("SIZED_DONE")
 	return true
 
