@@ -119,20 +119,13 @@ var _starts: Array = []  # per slot: [controller, the node that moves, its Motio
 
 
 func _initialize() -> void:
-	var error := PunchPair.read_options(_options)
+	var error := PunchPair.read_options(_options, ["policy", "bags", "cases", "out"])
 	if error != "":
 		_fail(error)
 		return
-	if _options.policy == "" or _options.out == "" or _options.bags == "" or _options.cases == "":
-		_fail("--policy, --bags, --cases and --out are needed")
-		return
-	if not FileAccess.file_exists(_options.policy):
-		_fail("policy file not found: %s" % _options.policy)
-		return
-	for value in _options.sigmas.split(","):
-		_sigmas.append(float(value))
-	_bags = _json_list(_options.bags)
-	_cases = _json_list(_options.cases)
+	_sigmas = PunchPair.floats(_options.sigmas)
+	_bags = PunchPair.json_list(_options.bags)
+	_cases = PunchPair.json_list(_options.cases)
 	if _bags.is_empty() or _cases.is_empty():
 		_fail("--bags and --cases must name JSON files holding non-empty lists")
 		return
@@ -259,11 +252,6 @@ func _start_punches() -> void:
 			return
 		if start[4]:
 			_start_motion(start.slice(1, 4))
-
-
-func _json_list(path: String) -> Array:
-	var parsed = JSON.parse_string(FileAccess.get_file_as_string(path))
-	return parsed if parsed is Array else []
 
 
 func _fail(message: String) -> void:

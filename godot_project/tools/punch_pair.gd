@@ -42,14 +42,33 @@ static func add(parent: Node, slot: int, origin: Vector3, bag_offset: Vector3, p
 
 
 ## Fills `options` (name -> default text) from the command line's user arguments (`--name=value`); returns
-## the error for an argument it does not know, or "".
-static func read_options(options: Dictionary) -> String:
+## the error for an argument it does not know, for a `required` one left empty, or for a `policy` file that is
+## not there; else "".
+static func read_options(options: Dictionary, required: Array[String] = []) -> String:
 	for argument in OS.get_cmdline_user_args():
 		var parts := argument.trim_prefix("--").split("=", true, 1)
 		if parts.size() != 2 or not options.has(parts[0]):
 			return "unknown argument '%s' (expected --%s=VALUE)" % [argument, "=VALUE, --".join(options.keys())]
 		options[parts[0]] = parts[1]
+	if required.any(func(name: String) -> bool: return options[name] == ""):
+		return "--%s are needed" % ", --".join(required)
+	if required.has("policy") and not FileAccess.file_exists(options.policy):
+		return "policy file not found: %s" % options.policy
 	return ""
+
+
+## The numbers of a comma-separated option ("0,0.3").
+static func floats(text: String) -> PackedFloat32Array:
+	var values := PackedFloat32Array()
+	for value in text.split(","):
+		values.append(float(value))
+	return values
+
+
+## The list a JSON file holds, or [] for a file that holds none.
+static func json_list(path: String) -> Array:
+	var parsed = JSON.parse_string(FileAccess.get_file_as_string(path))
+	return parsed if parsed is Array else []
 
 
 ## A physics world of its own under `parent`, never rendered: room for MAX_PER_WORLD pairs.

@@ -52,8 +52,7 @@ func _initialize() -> void:
 	if error != "":
 		_fail(error)
 		return
-	for value in _options.sigmas.split(","):
-		_sigmas.append(float(value))
+	_sigmas = PunchPair.floats(_options.sigmas)
 	_episodes_total = int(_options.episodes)
 	if _options.out == "" or _options.policy == "" or _episodes_total < 1:
 		_fail("--policy, --out and --episodes >= 1 are needed")

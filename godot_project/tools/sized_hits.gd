@@ -41,23 +41,15 @@ var _scale_range := Vector2.ZERO
 
 
 func _initialize() -> void:
-	var error := PunchPair.read_options(_options)
+	var error := PunchPair.read_options(_options, ["policy", "bags", "scales", "out"])
 	if error != "":
 		_fail(error)
-		return
-	if _options.policy == "" or _options.out == "" or _options.bags == "" or _options.scales == "":
-		_fail("--policy, --bags, --scales and --out are needed")
-		return
-	if not FileAccess.file_exists(_options.policy):
-		_fail("policy file not found: %s" % _options.policy)
 		return
 	for value in _options.scales.split(","):
 		var parts: PackedStringArray = value.split("x")
 		_scales.append(Vector2(float(parts[0]), float(parts[-1])))
-	for value in _options.sigmas.split(","):
-		_sigmas.append(float(value))
-	var parsed = JSON.parse_string(FileAccess.get_file_as_string(_options.bags))
-	_bags = parsed if parsed is Array else []
+	_sigmas = PunchPair.floats(_options.sigmas)
+	_bags = PunchPair.json_list(_options.bags)
 	if _bags.is_empty():
 		_fail("--bags must name a JSON file holding a non-empty list")
 		return
