@@ -203,12 +203,14 @@ pub fn feature_index(name: &str) -> Option<usize> {
 #[derive(Debug, Clone)]
 pub struct Sensor {
     geometry: CharacterGeometry,
+    /// The geometry's arm lengths (the `body_*` features), read once: they hold for the whole punch.
+    arms: ArmLengths,
     previous: Option<FrameReading>,
 }
 
 impl Sensor {
     pub fn new(geometry: CharacterGeometry) -> Self {
-        Self { geometry, previous: None }
+        Self { arms: geometry.arm_lengths(), geometry, previous: None }
     }
 
     pub fn geometry(&self) -> &CharacterGeometry {
@@ -308,8 +310,7 @@ impl Sensor {
         push(&speeds);
         push(&local_vector(root_velocity).to_array());
         push(&local_vector(pelvis.angular_velocity).to_array());
-        let arms = g.arm_lengths();
-        push(&[arms.upper_arm_m, arms.forearm_m, arms.shoulder_width_m]);
+        push(&[self.arms.upper_arm_m, self.arms.forearm_m, self.arms.shoulder_width_m]);
         push(&[joint_gap, flags as f32]);
         debug_assert_eq!(cursor, FEATURE_COUNT);
         self.previous = Some(*reading);
