@@ -26,7 +26,7 @@ import torch
 from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.reach import ReachVolume
 from punch_trainer.sim.env import PunchVectorEnv
-from punch_trainer.sim.placement import BagPlacement, EpisodeStart
+from punch_trainer.sim.placement import ARM_SCALE_RANGE, SEGMENT_SCALE_RANGE, BagPlacement, EpisodeStart, arm_scale
 from punch_trainer.sim.rewards import EpisodeScorer, Reward, first_right_contact
 
 DISTRIBUTION_DRAWS = 10**9
@@ -126,12 +126,10 @@ class ArmRange:
 
     sized_share: float = 0.6
     """share of episodes whose character's arms are not the scene's"""
-    arm_scale: tuple[float, float] = (0.75, 1.25)
-    segment_scale: tuple[float, float] = (0.65, 1.35)
+    arm_scale: tuple[float, float] = ARM_SCALE_RANGE
+    segment_scale: tuple[float, float] = SEGMENT_SCALE_RANGE
     shoulder_shift_m: float = 0.04
     step: float = 0.05
-    upper_arm_share: float = 0.455
-    """the scene's upper arm's share of its arm (0.282 of 0.619 m): converts the arm's scale to the segments'"""
 
     def draw(self, rng: np.random.Generator, bags: list[BagPlacement]) -> list[BagPlacement]:
         """`bags` with arm sizes drawn for some of them."""
@@ -142,8 +140,7 @@ class ArmRange:
                 continue
             while True:  # segments on the grid whose arm is in range (about 4 in 5 draws are)
                 upper, forearm = (self.step * np.round(rng.uniform(*self.segment_scale, size=2) / self.step)).tolist()
-                arm = self.upper_arm_share * upper + (1 - self.upper_arm_share) * forearm
-                if self.arm_scale[0] <= arm <= self.arm_scale[1]:
+                if self.arm_scale[0] <= arm_scale(upper, forearm) <= self.arm_scale[1]:
                     break
             shift = 0.01 * round(rng.uniform(-self.shoulder_shift_m, self.shoulder_shift_m) / 0.01)
             out.append(bag.over({"arms_upper_arm_scale": upper, "arms_forearm_scale": forearm,

@@ -49,11 +49,11 @@ def warm_start(model: ActorCritic, run_dir: Path, names: list[str], statistics: 
                              "observation has not")
     columns = torch.as_tensor([names.index(name) for name in earlier_names])
     state = model.state_dict()
+    earlier_shapes = {"obs_mean": (len(earlier_names),), "obs_std": (len(earlier_names),),
+                      **{key: (state[key].shape[0], len(earlier_names)) for key in INPUT_LAYERS}}
     for key, value in state.items():
         old = earlier.get(key)
-        expected = (value.shape[0], len(earlier_names)) if key in INPUT_LAYERS else tuple(value.shape)
-        if key in ("obs_mean", "obs_std"):
-            expected = (len(earlier_names),)
+        expected = earlier_shapes.get(key, tuple(value.shape))
         if old is None or tuple(old.shape) != expected:
             raise WarmStartError(f"cannot start from {run_dir}: its network differs from this run's at '{key}' "
                                  f"({None if old is None else tuple(old.shape)}, expected {expected})")

@@ -28,13 +28,14 @@ from tqdm import tqdm
 from punch_trainer.options import bounds, check_options
 from punch_trainer.pipelines.replay import ReplayError, held_out_placements
 from punch_trainer.sim.godot import run_godot_tool
-from punch_trainer.sim.placement import BagPlacement
+from punch_trainer.sim.placement import (
+    ARM_SCALE_RANGE,
+    SCENE_ARM_LENGTHS_M,
+    SEGMENT_SCALE_RANGE,
+    BagPlacement,
+    arm_scale,
+)
 
-ARM_SCALE_RANGE = (0.75, 1.25)
-"""the arm (shoulder to fist centre) lengths `PunchCharacter.size_arms` accepts, as fractions of the scene's own
-(punch_core's `ARM_SCALE_RANGE`; sized_hits.gd reports Godot's, which the tests compare)"""
-SCENE_ARM_LENGTHS_M = (0.282, 0.337, 0.36)
-"""the character scene's own upper arm, forearm (elbow to fist centre) and shoulder width, m"""
 SIZES_SEED = 4242
 """the placements' and noise's default seed (training seeds are small integers: 0 and the next two)"""
 
@@ -54,12 +55,6 @@ def check_scales(scales: list[float]) -> list[float]:
     return scales
 
 
-UPPER_ARM_SHARE = SCENE_ARM_LENGTHS_M[0] / (SCENE_ARM_LENGTHS_M[0] + SCENE_ARM_LENGTHS_M[1])
-"""the scene's upper arm's share of its arm: an arm's scale from its segments' scales"""
-SEGMENT_SCALE_RANGE = (0.65, 1.35)
-"""each of the two lengths `PunchCharacter.size_arms` accepts, as fractions of the scene's own"""
-
-
 def parse_proportions(text: str) -> list[tuple[float, float]]:
     """`0.7x0.85,1.3x1.1`: upper arm and forearm scales of rigs with other proportions than the scene's (their
     ranges are checked by `check_proportions`)."""
@@ -73,7 +68,7 @@ def parse_proportions(text: str) -> list[tuple[float, float]]:
 def check_proportions(proportions: list[tuple[float, float]]) -> list[tuple[float, float]]:
     """The proportions as given; SizesEvalError names one whose segment or arm `size_arms` would refuse."""
     for upper, forearm in proportions:
-        arm = UPPER_ARM_SHARE * upper + (1 - UPPER_ARM_SHARE) * forearm
+        arm = arm_scale(upper, forearm)
         segments_ok = all(SEGMENT_SCALE_RANGE[0] <= v <= SEGMENT_SCALE_RANGE[1] for v in (upper, forearm))
         if not (segments_ok and ARM_SCALE_RANGE[0] <= arm <= ARM_SCALE_RANGE[1]):
             raise SizesEvalError(f"proportions {upper:g}x{forearm:g} are outside what PunchCharacter.size_arms "

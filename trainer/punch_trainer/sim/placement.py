@@ -72,6 +72,22 @@ class BagPlacement:
         return BagPlacement.from_wire({**self.to_wire(), **changes})
 
 
+SCENE_ARM_LENGTHS_M = (0.282, 0.337, 0.36)
+"""the character scene's own upper arm, forearm (elbow to fist centre) and shoulder width, m"""
+ARM_SCALE_RANGE = (0.75, 1.25)
+"""the arms (shoulder to fist centre) a placement's `arms_*` and `PunchCharacter.size_arms` accept, as fractions of
+the scene's (punch_core::arm_size::ARM_SCALE_RANGE)"""
+SEGMENT_SCALE_RANGE = (0.65, 1.35)
+"""each of the two lengths they accept, as fractions of the scene's (punch_core::arm_size::SEGMENT_SCALE_RANGE)"""
+UPPER_ARM_SHARE = SCENE_ARM_LENGTHS_M[0] / (SCENE_ARM_LENGTHS_M[0] + SCENE_ARM_LENGTHS_M[1])
+"""the scene's upper arm's share of its arm: an arm's scale from its segments' scales"""
+
+
+def arm_scale(upper_arm_scale: float, forearm_scale: float) -> float:
+    """The arm's (shoulder to fist centre) scale when its upper arm and forearm are scaled so."""
+    return UPPER_ARM_SHARE * upper_arm_scale + (1 - UPPER_ARM_SHARE) * forearm_scale
+
+
 BODY_MOTION_FIELDS = ("body_side_mps", "body_forward_mps", "body_turn_rad_s", "body_lunge_m", "body_bob_m")
 """the placement's fields that move the character's root"""
 
