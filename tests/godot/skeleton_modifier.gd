@@ -7,12 +7,12 @@
 ## the shipped straight policy (--policy=PATH, no noise). Glb files given with --glb=PATH (repeatable) are loaded
 ## with GLTFDocument and run alike. The hands close into fists while punching (`fist_curl`) unless --open-hands.
 ##
-## Prints `SKELETON_MODIFIER <json>`: per rig its mapping, warnings, the fist gap (rig fist: the fist centre, three
-## quarters of the way from the hand bone's head to its knuckles; simulated: FistR) at the first hit and its largest
+## Prints `SKELETON_MODIFIER <json>`: per rig its mapping, warnings, the fist gap (rig fist: the fist centre the
+## modifier reads from the rig, `rig_fist_centres`, carried by the hand's pose; simulated: FistR) at the first hit and its largest
 ## while fully blended, for a rig with a skinned mesh the gap of its skinned hand's centre at the first hit and how far
 ## its skinned front lies past the simulated fist's front (FistR plus the fist's radius, along the simulated forearm),
 ## the simulated arms' lengths (sized to the rig) and the rig's own (measured here from its rest, the same way: upper
-## arm head to forearm head, forearm head to the fist centre, between the upper arms' heads; the mean of both sides), the
+## arm head to forearm head, forearm head to that fist centre, between the upper arms' heads; the mean of both sides), the
 ## largest per-frame rotation of each written bone in the blend-in and blend-out windows, of the animation alone and
 ## of the fully simulated pose, and the legs' largest difference from the twin. The tiny rig's arms (0.6 of the
 ## simulated ones) are outside the range the simulated arms can be sized to.
@@ -324,69 +324,37 @@ func _hand_skin(entry: Dictionary) -> Dictionary:
 	return found
 
 
-## The rig's right fist now (global): the fist centre of the bone the modifier maps as the right hand.
-func _hand_fist(skeleton: Skeleton3D, bone_map: Dictionary) -> Vector3:
-	var hand := skeleton.find_bone(bone_map.get("hand_r", ""))
-	if hand < 0:
+## The rig's right fist now (global): the fist centre the modifier reads from the rig at rest
+## (`rig_fist_centres`: from the hand's bones, moved across the hand by its skin), carried by the right hand's pose.
+func _hand_fist(skeleton: Skeleton3D, modifier: Node) -> Vector3:
+	var hand := skeleton.find_bone(modifier.get("bone_map").get("hand_r", ""))
+	var centres: PackedVector3Array = modifier.call("rig_fist_centres")
+	if hand < 0 or centres.is_empty():
 		return Vector3.INF
-	var forearm := skeleton.find_bone(bone_map.get("forearm_r", ""))
-	return skeleton.global_transform * _fist_centre(skeleton, hand, forearm, false)
-
-
-## The fist centre (skeleton space, posed or at rest): three quarters of the way from the hand's head to its
-## knuckles, the mean of its fingers' roots: its children's heads, or for a child within a fifth of the forearm (from the `forearm` bone's
-## head to the wrist) of the wrist (a metacarpal), the mean of that child's children's (a thumb near the wrist and
-## one other root: the other counts four times); with no children, a quarter of the forearm on.
-func _fist_centre(skeleton: Skeleton3D, hand: int, forearm_bone: int, rest: bool) -> Vector3:
-	var at := func(bone: int) -> Vector3:
-		return skeleton.get_bone_global_rest(bone).origin if rest else skeleton.get_bone_global_pose(bone).origin
-	var head: Vector3 = at.call(hand)
-	var forearm: Vector3 = at.call(forearm_bone)
-	var near := 0.2 * head.distance_to(forearm)
-	var roots: Array[Vector3] = []
-	var children := skeleton.get_bone_children(hand)
-	for child in children:
-		var below := skeleton.get_bone_children(child)
-		if at.call(child).distance_to(head) < near and below.size() > 0:
-			var mean := Vector3.ZERO
-			for b in below:
-				mean += at.call(b)
-			roots.append(mean / below.size())
-		else:
-			roots.append(at.call(child))
-	if roots.is_empty():
-		return head + 0.25 * (head - forearm)
-	var knuckles := Vector3.ZERO
-	for root in roots:
-		knuckles += root / roots.size()
-	if roots.size() == 2:
-		# A thumb and one bone for four fingers (CMU): the fingers' root counts four times.
-		var near_root: Vector3 = roots[0] if roots[0].distance_to(head) < roots[1].distance_to(head) else roots[1]
-		var far_root: Vector3 = roots[1] if near_root == roots[0] else roots[0]
-		if near_root.distance_to(head) < 0.6 * far_root.distance_to(head):
-			knuckles = (4.0 * far_root + near_root) / 5.0
-	return head + 0.75 * (knuckles - head)
+	var rest_to_now := skeleton.get_bone_global_pose(hand) * skeleton.get_bone_global_rest(hand).affine_inverse()
+	return skeleton.global_transform * (rest_to_now * centres[0])
 
 
 ## The rig's arm lengths at rest, m: [upper arm, forearm to the fist centre, shoulder width].
-func _rig_arm_lengths(skeleton: Skeleton3D, bone_map: Dictionary) -> Array:
+func _rig_arm_lengths(skeleton: Skeleton3D, modifier: Node) -> Array:
+	var bone_map: Dictionary = modifier.get("bone_map")
+	var centres: PackedVector3Array = modifier.call("rig_fist_centres")
 	var at := func(role: String) -> Vector3:
 		return skeleton.get_bone_global_rest(skeleton.find_bone(bone_map[role])).origin
 	var scale := skeleton.global_transform.basis.get_scale().y
 	var upper := 0.0
 	var fore := 0.0
-	for side in ["r", "l"]:
-		upper += 0.5 * at.call("upper_arm_" + side).distance_to(at.call("forearm_" + side))
-		var hand := skeleton.find_bone(bone_map["hand_" + side])
-		var forearm := skeleton.find_bone(bone_map["forearm_" + side])
-		fore += 0.5 * at.call("forearm_" + side).distance_to(_fist_centre(skeleton, hand, forearm, true))
+	for side in 2:
+		var suffix: String = ["r", "l"][side]
+		upper += 0.5 * at.call("upper_arm_" + suffix).distance_to(at.call("forearm_" + suffix))
+		fore += 0.5 * at.call("forearm_" + suffix).distance_to(centres[side])
 	var width: float = at.call("upper_arm_r").distance_to(at.call("upper_arm_l"))
 	return [scale * upper, scale * fore, scale * width]
 
 
 func _fist_gap(entry: Dictionary) -> float:
 	var fist: Node3D = entry.character.get_node("ForearmR/FistR")
-	return _hand_fist(entry.skeleton, entry.modifier.get("bone_map")).distance_to(fist.global_position)
+	return _hand_fist(entry.skeleton, entry.modifier).distance_to(fist.global_position)
 
 
 func _record(entry: Dictionary) -> void:
@@ -534,7 +502,7 @@ func _summary(entry: Dictionary) -> Dictionary:
 		"max_gap_full_m": max_gap_full, "jumps_rad": jumps, "worst_bone": worst_bone, "blend_frames": blend_frames,
 		"untouched_max_rad": untouched, "frames": frames.size(), "pose_gap_rad": pose_gap, "gaps": gaps,
 		"arm_lengths_m": _array(entry.character.call("arm_lengths")),
-		"rig_arm_lengths_m": _rig_arm_lengths(skeleton, modifier.get("bone_map")) if modifier.call("is_mapped") else []}
+		"rig_arm_lengths_m": _rig_arm_lengths(skeleton, modifier) if modifier.call("is_mapped") else []}
 
 
 func _array(v: Vector3) -> Array:

@@ -171,11 +171,12 @@ const SIDES: [Side; 2] = [Side::Right, Side::Left];
 
 impl SkeletonPoser {
     /// Maps a skeleton (parents, -1 for a root, and every bone's global rest rotation and position in the
-    /// skeleton's space) onto the simulated body's frames.
+    /// skeleton's space; its fist centres at rest, [right, left], from `rig_fists`) onto the simulated body's frames.
     pub fn new(
         map: &BoneMap,
         parents: &[i32],
         rest: &[(Quat, Vec3)],
+        fists: [Vec3; 2],
         frames: BodyFrames,
     ) -> Result<SkeletonPoser, PoseError> {
         if parents.len() != rest.len() {
@@ -208,12 +209,7 @@ impl SkeletonPoser {
             let arm = map.arm(side);
             let what = |part: &str| format!("the {side:?} {part} has no length (its child sits on it)");
             let f_u = frame_or(pos(arm.forearm) - pos(arm.upper_arm), front, -up, &what("upper arm"))?;
-            let f_f = frame_or(
-                rig_fist(parents, rest, arm.hand, arm.forearm) - pos(arm.forearm),
-                front,
-                -up,
-                &what("forearm"),
-            )?;
+            let f_f = frame_or(fists[i] - pos(arm.forearm), front, -up, &what("forearm"))?;
             upper_offset[i] = f_u.inverse() * rot(arm.upper_arm);
             fore_offset[i] = f_f.inverse() * rot(arm.forearm);
         }
@@ -440,17 +436,45 @@ pub fn rig_fist(parents: &[i32], rest: &[(Quat, Vec3)], hand: usize, forearm: us
 /// 1.5 cm further along and 1.8 cm toward the palm; at half, the skin reached 1.5 to 3 cm past the simulated fist.
 pub const FIST_ALONG_HAND: f32 = 0.75;
 
+/// The rig's fist centres at rest, [right, left] (skeleton space): `rig_fist`, moved across the hand by its skin
+/// (`across_hand_skin`) where `hand_skins` has the hand's skin.
+pub fn rig_fists(map: &BoneMap, parents: &[i32], rest: &[(Quat, Vec3)], hand_skins: [&[Vec3]; 2]) -> [Vec3; 2] {
+    [0, 1].map(|i| {
+        let arm = map.arm(SIDES[i]);
+        across_hand_skin(rig_fist(parents, rest, arm.hand, arm.forearm), rest[arm.hand].1, hand_skins[i])
+    })
+}
+
+/// The fewest skin points (vertices) that say where a hand's middle is.
+pub const MIN_HAND_SKIN_POINTS: usize = 16;
+
+/// `fist` (a fist centre found from the bones, `wrist` the hand bone's head) moved across the hand, square to the
+/// line from the wrist to it, onto the centre of `hand_skin` (the rest positions of the vertices bound mostly to
+/// the hand and the bones below it): its distance along the hand stays the bones'. Bones cannot say where the
+/// middle of the knuckles is on a hand whose one finger bone starts at the index finger (CMU rigs), nor how far a
+/// thumb's root pulls their mean toward the thumb; the skin can. Fewer than `MIN_HAND_SKIN_POINTS` points (no
+/// skinned mesh, or a hand bound to nothing): `fist` as it is.
+pub fn across_hand_skin(fist: Vec3, wrist: Vec3, hand_skin: &[Vec3]) -> Vec3 {
+    let Some(along) = (fist - wrist).try_normalize() else {
+        return fist;
+    };
+    if hand_skin.len() < MIN_HAND_SKIN_POINTS {
+        return fist;
+    }
+    let centre = hand_skin.iter().sum::<Vec3>() / hand_skin.len() as f32;
+    let off = centre - fist;
+    fist + off - off.dot(along) * along
+}
+
 /// The rig's arm proportions at rest (the mean of its two sides, in the skeleton's units times `scale`): upper
-/// arm from its head to the forearm's, forearm from its head to the fist centre (`rig_fist`), and the distance
-/// between the upper arms' heads.
-pub fn rig_arm_lengths(map: &BoneMap, parents: &[i32], rest: &[(Quat, Vec3)], scale: f32) -> ArmLengths {
+/// arm from its head to the forearm's, forearm from its head to the fist centre (`fists`, [right, left], from
+/// `rig_fists`), and the distance between the upper arms' heads.
+pub fn rig_arm_lengths(map: &BoneMap, rest: &[(Quat, Vec3)], fists: [Vec3; 2], scale: f32) -> ArmLengths {
     let pos = |b: usize| rest[b].1;
     let mean = |f: &dyn Fn(Side) -> f32| 0.5 * (f(Side::Right) + f(Side::Left)) * scale;
     ArmLengths {
         upper_arm_m: mean(&|s| pos(map.arm(s).forearm).distance(pos(map.arm(s).upper_arm))),
-        forearm_m: mean(&|s| {
-            rig_fist(parents, rest, map.arm(s).hand, map.arm(s).forearm).distance(pos(map.arm(s).forearm))
-        }),
+        forearm_m: 0.5 * (fists[0].distance(pos(map.right.forearm)) + fists[1].distance(pos(map.left.forearm))) * scale,
         shoulder_width_m: scale * pos(map.right.upper_arm).distance(pos(map.left.upper_arm)),
     }
 }

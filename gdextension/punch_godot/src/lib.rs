@@ -4,6 +4,7 @@
 mod arm_sizing;
 mod convert;
 mod engine_io;
+mod hand_skin;
 mod punch_character;
 mod punch_controller;
 mod punch_inference;

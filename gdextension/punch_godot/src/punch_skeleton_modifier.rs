@@ -36,7 +36,9 @@ use std::cell::Cell;
 use std::time::Instant;
 
 use glam::{Quat, Vec3};
-use godot::builtin::{Basis, GString, PackedStringArray, Quaternion, StringName, Transform3D, VarDictionary};
+use godot::builtin::{
+    Basis, GString, PackedStringArray, PackedVector3Array, Quaternion, StringName, Transform3D, VarDictionary,
+};
 use godot::classes::skeleton_3d::ModifierCallbackModeProcess;
 use godot::classes::{Engine, ISkeletonModifier3D, Node3D, Skeleton3D, SkeletonModifier3D};
 use godot::global::godot_error;
@@ -46,9 +48,10 @@ use godot::prelude::{GodotClass, godot_api};
 use punch_core::bone_map::{BoneMap, Role, map_bones_with};
 use punch_core::character::Body;
 use punch_core::fist::FistPose;
-use punch_core::skeleton_pose::{Blend, BodyFrames, BodyRotations, SkeletonPoser, rig_arm_lengths};
+use punch_core::skeleton_pose::{Blend, BodyFrames, BodyRotations, SkeletonPoser, rig_arm_lengths, rig_fists};
 
 use crate::convert::{quat, rotation, vec3, vector3};
+use crate::hand_skin::hand_skin_points;
 use crate::punch_character::{PunchCharacter, is_teleport};
 use crate::punch_controller::PunchController;
 
@@ -113,10 +116,10 @@ pub struct PunchSkeletonModifier {
     #[export]
     #[init(val = true)]
     follow_rig: bool,
-    /// Size the simulated arms to the rig's (upper arm, forearm to the fist centre, three quarters of the way from
-    /// the wrist to the knuckles, and shoulder width), so the skeleton's fists land where the simulated ones do:
-    /// `PunchCharacter.size_arms`, once, before the first punch. A rig whose arm is outside 0.75 to 1.25 times the simulated one (shoulder to fist 0.619 m) gets one
-    /// error and punches with the simulated body's own arms.
+    /// Size the simulated arms to the rig's (upper arm, forearm to the fist centre: `rig_fist_centres()`, and
+    /// shoulder width), so the skeleton's fists land where the simulated ones do: `PunchCharacter.size_arms`, once,
+    /// before the first punch. A rig whose arm is outside 0.75 to 1.25 times the simulated one (shoulder to fist
+    /// 0.619 m) gets one error and punches with the simulated body's own arms.
     #[export]
     #[init(val = true)]
     size_to_rig: bool,
@@ -170,6 +173,8 @@ struct Mapped {
     rest: Vec<(Quat, Vec3)>,
     /// The finger bones' local rotations in a fist.
     fist: FistPose,
+    /// The fist centres at rest, [right, left], skeleton space (`rig_fists`, with the hands' skin).
+    fists: [Vec3; 2],
 }
 
 #[godot_api]
@@ -246,6 +251,15 @@ impl PunchSkeletonModifier {
     #[func]
     fn is_mapped(&self) -> bool {
         self.mapped.is_some()
+    }
+
+    /// The rig's fist centres at rest, [right, left], in the skeleton's space: three quarters of the way from
+    /// each hand bone's head to its knuckles, moved across the hand onto the middle of the hand's skin when a
+    /// skinned mesh deforms the skeleton. The modifier puts these points on the simulated fists' centres and sizes
+    /// the forearms to reach them. Empty while the skeleton is not mapped.
+    #[func]
+    fn rig_fist_centres(&self) -> PackedVector3Array {
+        self.mapped.as_ref().map_or_else(PackedVector3Array::new, |m| m.fists.iter().map(|&f| vector3(f)).collect())
     }
 
     /// What the editor's warning icon says: no skeleton or controller, the roles with no bone (and why).
@@ -385,7 +399,17 @@ impl PunchSkeletonModifier {
             })
             .collect();
         let fist = FistPose::new(&map, &names, &parents, &rest);
-        Ok(Mapped { skeleton: skeleton.instance_id(), version: skeleton.get_version(), map, parents, rest, fist })
+        let skins = hand_skin_points(skeleton, [map.right.hand, map.left.hand], &parents);
+        let fists = rig_fists(&map, &parents, &rest, [&skins[0], &skins[1]]);
+        Ok(Mapped {
+            skeleton: skeleton.instance_id(),
+            version: skeleton.get_version(),
+            map,
+            parents,
+            rest,
+            fist,
+            fists,
+        })
     }
 
     /// The character the controller drives, if both are alive.
@@ -416,7 +440,7 @@ impl PunchSkeletonModifier {
         if needs_sizing && !busy {
             self.sized_for = Some(id);
             let scale = self.base().get_skeleton().map_or(1.0, |s| s.get_global_transform().basis.get_scale().y);
-            let lengths = rig_arm_lengths(&mapped.map, &mapped.parents, &mapped.rest, scale);
+            let lengths = rig_arm_lengths(&mapped.map, &mapped.rest, mapped.fists, scale);
             // Called, not bound; on failure the character says why (one error) and keeps its arms.
             character.clone().call(
                 "size_arms",
@@ -447,8 +471,8 @@ impl PunchSkeletonModifier {
         let frames = BodyFrames::from_geometry(&geometry)
             .map_err(|e| e.to_string())?
             .with_shoulders([shoulder("ShoulderR")?, shoulder("ShoulderL")?]);
-        let poser =
-            SkeletonPoser::new(&mapped.map, &mapped.parents, &mapped.rest, frames).map_err(|e| e.to_string())?;
+        let poser = SkeletonPoser::new(&mapped.map, &mapped.parents, &mapped.rest, mapped.fists, frames)
+            .map_err(|e| e.to_string())?;
         self.poser = Some((character.instance_id(), poser, bodies));
         Ok(())
     }

@@ -81,7 +81,8 @@ fn poser(arm_drop_rad: f32, convention: u32) -> (SkeletonPoser, Vec<i32>, Vec<(Q
     let (names, parents, rest) = humanoid(arm_drop_rad, convention);
     let map = map_bones(&names, &parents).expect("mapped");
     let frames = BodyFrames::from_geometry(&geometry()).expect("frames");
-    (SkeletonPoser::new(&map, &parents, &rest, frames).expect("poser"), parents, rest, map)
+    let fists = rig_fists(&map, &parents, &rest, [&[], &[]]);
+    (SkeletonPoser::new(&map, &parents, &rest, fists, frames).expect("poser"), parents, rest, map)
 }
 
 fn rest_local(parents: &[i32], rest: &[(Quat, Vec3)], bone: usize) -> Quat {
@@ -144,8 +145,10 @@ fn the_rig_frame_is_read_from_the_bones() {
     let turn = Quat::from_rotation_y(std::f32::consts::PI);
     let turned: Vec<(Quat, Vec3)> = rest.iter().map(|(q, p)| (turn * *q, turn * *p)).collect();
     let map = map_bones(&names, &parents).expect("valid");
-    let poser = SkeletonPoser::new(&map, &parents, &turned, BodyFrames::from_geometry(&geometry()).expect("valid"))
-        .expect("valid");
+    let fists = rig_fists(&map, &parents, &turned, [&[], &[]]);
+    let poser =
+        SkeletonPoser::new(&map, &parents, &turned, fists, BodyFrames::from_geometry(&geometry()).expect("valid"))
+            .expect("valid");
     assert!(angle(poser.rig_frame(), turn) < 1e-5);
 }
 
@@ -284,8 +287,10 @@ fn a_rig_without_length_is_refused_by_name() {
     let (names, parents, mut rest) = humanoid(0.0, 0);
     let map = map_bones(&names, &parents).expect("valid");
     rest[map.right.forearm].1 = rest[map.right.upper_arm].1;
-    let error = SkeletonPoser::new(&map, &parents, &rest, BodyFrames::from_geometry(&geometry()).expect("valid"))
-        .expect_err("refused");
+    let fists = rig_fists(&map, &parents, &rest, [&[], &[]]);
+    let error =
+        SkeletonPoser::new(&map, &parents, &rest, fists, BodyFrames::from_geometry(&geometry()).expect("valid"))
+            .expect_err("refused");
     assert!(error.to_string().contains("Right upper arm"), "{error}");
 }
 
@@ -311,4 +316,20 @@ fn the_fist_is_three_quarters_to_the_knuckles_whether_fingers_start_at_the_wrist
     // No fingers: a quarter of the forearm on.
     let fist = rig_fist(&[-1, 0], &direct[..2], 1, 0);
     assert!((fist - Vec3::new(0.35, 1.4, 0.0)).length() < 1e-5, "{fist}");
+}
+
+#[test]
+fn the_skin_moves_the_fist_across_the_hand_but_not_along_it() {
+    let wrist = Vec3::new(0.28, 1.4, 0.0);
+    let fist = Vec3::new(0.355, 1.4, 0.0);
+    // A hand's skin whose middle lies 2 cm toward -Z (the little finger's side) and 5 cm further on than the fist:
+    // the fist moves the 2 cm across, not along.
+    let skin: Vec<Vec3> = (0..40)
+        .map(|i| Vec3::new(0.405 + 0.01 * ((i % 5) as f32 - 2.0), 1.4 + 0.001 * ((i % 3) as f32 - 1.0), -0.02))
+        .collect();
+    let moved = across_hand_skin(fist, wrist, &skin);
+    assert!((moved - Vec3::new(0.355, 1.4, -0.02)).length() < 1e-4, "{moved}");
+    // Too few points (no skinned mesh): the bones' fist.
+    assert_eq!(across_hand_skin(fist, wrist, &skin[..MIN_HAND_SKIN_POINTS - 1]), fist);
+    assert_eq!(across_hand_skin(fist, wrist, &[]), fist);
 }
