@@ -1,11 +1,13 @@
-## The reach volume in the game (demo straight policy): three characters, each turned and moved, with a
-## sandbag at the policy's default offset ("inside"), 1.4 m ahead ("far") and 0.6 m above its head ("high").
+## The reach volume in the game (demo straight policy): four characters, each turned and moved, with a
+## sandbag at the policy's default offset ("inside"), 0.4 m to its left (0.15 m beside the volume: "beside"),
+## 1.4 m ahead ("far") and 0.6 m above its head ("high").
 ## Records `target_out_of_reach` (offset and nearest point, turned back into the character's frame), whether
 ## punch() started, and the punch's hits; prints `REACH <json>` with `reach_volume()` and quits.
 extends SceneTree
 
 const POLICY := "res://addons/punch_controller/policies/straight.onnx"
-const CASES := {"inside": Vector3.ZERO, "far": Vector3(0, 0, 0.68), "high": Vector3(0, 0.9, 0)}
+const CASES := {"inside": Vector3.ZERO, "beside": Vector3(0.4, 0, 0), "far": Vector3(0, 0, 0.68),
+	"high": Vector3(0, 0.9, 0)}
 var _report := {}
 var _pending := 0
 

@@ -325,10 +325,11 @@ def test_the_duel_and_crowd_demos_land_their_punches(scene):
     assert result["punches"] == 40 and result["rate"] >= 0.9, result
 
 
-def test_a_target_out_of_reach_is_said_and_punched_at_the_nearest_point():
+def test_a_target_out_of_reach_is_said_and_one_a_little_out_is_still_hit():
     """The policy's reach volume (from its metadata) decides: a target inside gets the trained punch and no
-    signal; one too far or too high gets `target_out_of_reach` with its offset and the nearest point the
-    policy covers (the offset clamped into the volume), and a punch there. Characters turned and moved."""
+    signal; one beside, too far or too high gets `target_out_of_reach` with its offset and the nearest point
+    the policy covers (the offset clamped into the volume). The one 0.15 m beside the volume is punched where it
+    is, and hit (`AIM_BEYOND_REACH_M`). Characters turned and moved."""
     run = run_script("reach_scene.gd")
     assert "ERROR" not in run.log, run.log[-3000:]
     report = printed(run, "REACH")
@@ -336,7 +337,8 @@ def test_a_target_out_of_reach_is_said_and_punched_at_the_nearest_point():
     assert set(reach) == {"distance_m", "height_m", "side_m", "max_target_speed_mps", "any_start_pose"}
     inside = report["inside"]
     assert inside["started"] and inside["out_of_reach"] == [] and inside["hits"] == 1
-    for name, expected_offset in [("far", [0.0, 1.35, 1.40]), ("high", [0.0, 2.25, 0.72])]:
+    assert report["beside"]["hits"] >= 1, report["beside"]
+    for name, expected_offset in [("beside", [0.4, 1.35, 0.72]), ("far", [0.0, 1.35, 1.40]), ("high", [0.0, 2.25, 0.72])]:
         case = report[name]
         assert case["started"] and len(case["out_of_reach"]) == 1, case
         offset, nearest = np.array(case["out_of_reach"][0][:3]), np.array(case["out_of_reach"][0][3:])

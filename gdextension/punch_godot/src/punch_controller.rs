@@ -173,10 +173,12 @@ impl PunchController {
     #[signal]
     fn punch_started();
 
-    /// Emitted when a punch starts with the target outside the policy's reach volume (`reach_volume()`):
-    /// the punch then goes at `nearest`, the nearest point the policy covers (global coordinates), and may
-    /// miss. `offset` is where the target is in the character's frame (+Z ahead, +Y up, +X its left).
-    /// Move the character (or the target) so that the target's centre is at `nearest` for a real punch.
+    /// Emitted when a punch starts with the target outside the policy's reach volume (`reach_volume()`), so
+    /// it may miss. The punch still goes at the target while it is at most 0.3 m outside (policies reach a little
+    /// past what they were trained on, and a bag swinging back comes within reach), else at the point 0.3 m out
+    /// nearest to it. `offset` is where the target is in the character's frame (+Z ahead, +Y up, +X its left),
+    /// `nearest` the nearest point the policy covers (global coordinates): move the character (or the target)
+    /// so that the target's centre is there for a sure punch.
     #[signal]
     fn target_out_of_reach(offset: Vector3, nearest: Vector3);
 
@@ -208,7 +210,7 @@ impl PunchController {
     /// after a return to guard (`guard_first`) or from the current pose. Returns false (with the reason in the
     /// log) when the controller is not in the scene tree, the policy, the character or the target is missing
     /// or unusable, or the project's physics settings are not the policy's. A target outside the policy's
-    /// reach gets a punch at the nearest point it covers, and `target_out_of_reach`.
+    /// reach gets `target_out_of_reach`, and a punch at it (0.3 m out at most).
     #[func(gd_self)]
     fn punch(mut this: Gd<Self>) -> bool {
         let started = this.bind_mut().start_punch();
@@ -350,10 +352,12 @@ impl PunchController {
         let mut geometry = geometry_of(&character)?;
         let offset = geometry.root_rotation.inverse() * (target.state().position - geometry.root_position);
         let out_of_reach = (!policy.reach.contains(offset)).then(|| {
-            // The policy sees the target at the nearest point it covers, and punches there.
-            let nearest = geometry.root_position + geometry.root_rotation * policy.reach.nearest(offset);
-            target.aim_at(nearest);
-            (offset, nearest)
+            // A little out, the policy sees the target itself; far out, the point of its margin nearest to it.
+            let aim = policy.reach.aim_point(offset);
+            if aim != offset {
+                target.aim_at(geometry.root_position + geometry.root_rotation * aim);
+            }
+            (offset, geometry.root_position + geometry.root_rotation * policy.reach.nearest(offset))
         });
         target.describe(&mut geometry);
         self.aim = Some(target);
