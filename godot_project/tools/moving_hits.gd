@@ -4,7 +4,11 @@
 ##
 ## tools/godot --headless --fixed-fps 120 --path godot_project --script res://tools/moving_hits.gd -- \
 ##     --policy=PATH --bags=FILE.json --cases=FILE.json --out=FILE.json [--sigmas=0,0.3] [--seed=0]
-##     [--characters=64] [--characters-per-world=16] [--lead-s=0.5]
+##     [--characters=64] [--characters-per-world=16] [--lead-s=0.5] [--arms=U,F]
+##
+## `--arms`: every character's upper arm and forearm sized to U and F times its scene's (`PunchPair.size_arms`,
+## as sized_hits.gd sizes them) right after it enters the tree; a size `size_arms` refuses ends the run with exit
+## code 2.
 ##
 ## Every punch (one per sigma, case and placement) is built fresh, side by side like replay.gd's: a SubViewport
 ## with its own World3D per 16 characters, two collision layers per character (tools/punch_pair.gd). Each
@@ -36,7 +40,8 @@
 ## index s at placement p (any case) uses noise seed seed * 1000003 + s * 100003 + p, so every case sees the
 ## same noise at the same placement. The output JSON holds one row per punch: [sigma index, case index,
 ## placement index, hits on the target, target_out_of_reach signals, how it ended, how far the moved node went
-## (m, straight line)]. Progress lines:
+## (m, straight line), how far outside the reach volume the target was when the punch started (m, 0 inside)].
+## Progress lines:
 ## `MOVING_PROGRESS done total`.
 extends SceneTree
 
@@ -102,11 +107,12 @@ class MovingHook extends AnimatableBody3D:
 
 var _options := {
 	"policy": "", "bags": "", "cases": "", "out": "", "sigmas": "0", "seed": "0", "characters": "64",
-	"characters-per-world": "16", "lead-s": "0",
+	"characters-per-world": "16", "lead-s": "0", "arms": "1,1",
 }
 var _bags: Array = []
 var _cases: Array = []
 var _sigmas := PackedFloat32Array()
+var _arms := Vector2.ONE  # (upper arm, forearm) scale
 var _episodes: Array = []  # [sigma index, case index, placement index]
 var _next := 0
 var _rows: Array = []
@@ -124,6 +130,8 @@ func _initialize() -> void:
 		_fail(error)
 		return
 	_sigmas = PunchPair.floats(_options.sigmas)
+	var arms := PunchPair.floats(_options.arms)
+	_arms = Vector2(arms[0], arms[-1])
 	_bags = PunchPair.json_list(_options.bags)
 	_cases = PunchPair.json_list(_options.cases)
 	if _bags.is_empty() or _cases.is_empty():
@@ -156,7 +164,7 @@ func _physics_process(_delta: float) -> bool:
 		_start_batch()
 		return false
 	PunchPair.write_json(_options.out, {"policy": _options.policy, "sigmas": Array(_sigmas),
-		"seed": int(_options.seed), "rows": _rows})
+		"seed": int(_options.seed), "arms": [_arms.x, _arms.y], "rows": _rows})
 	print("MOVING_DONE")
 	return true
 
@@ -180,6 +188,10 @@ func _start_batch() -> void:
 		var controller := PunchPair.add(holder, slot % per_world, Vector3.ZERO,
 			Vector3(entry.side_m, entry.height_m, entry.distance_m), _options.policy, _sigmas[episode[0]], -1, seed)
 		controller.set("auto_recover", false)  # each batch's scene is freed after its punches
+		var refused := PunchPair.size_arms(controller.get("character"), _arms)
+		if refused != "":
+			_fail(refused)
+			return
 		var bag: RigidBody3D = controller.get("target")
 		var hook: PinJoint3D = bag.get_parent().get_node("Hook")
 		# The body the hook is pinned to, placed before it enters the tree (a kinematic body moved into place
@@ -204,11 +216,14 @@ func _start_batch() -> void:
 		anchor.collision_layer = 0
 		anchor.collision_mask = 0
 		hook.node_a = hook.get_path_to(anchor)
-		var row := [episode[0], episode[1], episode[2], 0, 0, "", 0.0]
+		var row := [episode[0], episode[1], episode[2], 0, 0, "", 0.0, 0.0]
 		controller.connect("hit", func(_impulse, _speed, _position, body, _push):
 			if body == bag:
 				row[3] += 1)
-		controller.connect("target_out_of_reach", func(_offset, _nearest): row[4] += 1)
+		var character: Node3D = controller.get("character")
+		controller.connect("target_out_of_reach", func(offset: Vector3, nearest: Vector3):
+			row[4] += 1
+			row[7] = snappedf(offset.distance_to(character.global_transform.affine_inverse() * nearest), 0.001))
 		controller.connect("punch_finished", func(metrics: Dictionary):
 			row[5] = metrics.get("ended", "")
 			if row[5] == "error":

@@ -88,6 +88,21 @@ static func free_arenas(arenas: Array[SubViewport]) -> void:
 	arenas.clear()
 
 
+## Sizes `character`'s arms through `PunchCharacter.size_arms`: its upper arm and forearm (elbow to fist centre)
+## times `scale` (x: upper arm, y: forearm), from the lengths it reports for its own scene (`arm_lengths()`), the
+## shoulders as they are. Returns "" or, for a size it refuses (its error is printed above), what it accepts.
+static func size_arms(character: Node, scale: Vector2) -> String:
+	if scale == Vector2.ONE:
+		return ""
+	var own: Vector3 = character.call("arm_lengths")
+	if character.call("size_arms", own.x * scale.x, own.y * scale.y, own.z):
+		return ""
+	var accepted: Vector2 = character.call("arm_scale_range")
+	var label := str(scale.x) if scale.x == scale.y else "%sx%s" % [scale.x, scale.y]
+	return ("PunchCharacter.size_arms refused the arm scale %s (it accepts %s to %s times the scene's arm; its error "
+		% [label, accepted.x, accepted.y] + "is above)")
+
+
 ## Writes a measuring tool's result, `data` as JSON, to `path`.
 static func write_json(path: String, data: Dictionary) -> void:
 	var out := FileAccess.open(path, FileAccess.WRITE)

@@ -94,11 +94,9 @@ func _start_batch() -> void:
 		controller.set("auto_recover", false)  # each batch's scene is freed after its punches
 		var character: Node = controller.get("character")
 		_scale_range = character.call("arm_scale_range")
-		var own: Vector3 = character.call("arm_lengths")
-		if not character.call("size_arms", own.x * scale.x, own.y * scale.y, own.z):
-			var label := str(scale.x) if scale.x == scale.y else "%sx%s" % [scale.x, scale.y]
-			_fail("PunchCharacter.size_arms refused the arm scale %s (it accepts %s to %s times the scene's arm; "
-				% [label, _scale_range.x, _scale_range.y] + "its error is above)")
+		var refused := PunchPair.size_arms(character, scale)
+		if refused != "":
+			_fail(refused)
 			return
 		var sized: Vector3 = character.call("arm_lengths")
 		var bag: RigidBody3D = controller.get("target")

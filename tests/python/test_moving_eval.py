@@ -46,3 +46,27 @@ def test_eval_moving_reports_every_case_and_the_standing_punches_hit(tmp_path):
     table = (tmp_path / "report.md").read_text()
     assert "| standing | 2/2 |" in table
     assert "| case | straight σ 0 |" in run.stdout
+
+
+def test_eval_moving_sizes_the_arms_it_is_given(tmp_path):
+    """`--arms UxF`: every character's arms sized through size_arms (short ones here), as a rig would size them;
+    the straight still lands from standing and reports the size it ran with."""
+    policy = ADDON_POLICIES / "straight.onnx"
+    run = subprocess.run([sys.executable, "-m", "punch_trainer.cli.main", "eval-moving", "--policy", str(policy),
+                          "--placements", "2", "--sigmas", "0", "--cases", *CASES, "--arms", "0.8x0.75",
+                          "--out", str(tmp_path)], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr[-3000:]
+    report = json.loads((tmp_path / "moving.json").read_text())
+    assert report["arms"] == [0.8, 0.75]
+    standing = report["evaluations"][0]["cases"][0]
+    assert standing["per_sigma"][0]["hits"] == 2, standing
+    assert "arms 0.8x0.75 times" in (tmp_path / "report.md").read_text()
+
+
+def test_arms_a_rig_may_not_have_are_one_clear_error_before_godot(tmp_path):
+    run = subprocess.run([sys.executable, "-m", "punch_trainer.cli.main", "eval-moving", "--policy",
+                          str(ADDON_POLICIES / "straight.onnx"), "--arms", "0.6", "--out", str(tmp_path)],
+                         capture_output=True, text=True, timeout=60)
+    assert run.returncode != 0
+    assert "outside what PunchCharacter.size_arms accepts" in run.stderr, run.stderr[-2000:]
+    assert not (tmp_path / "moving.json").exists()

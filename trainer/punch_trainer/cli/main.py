@@ -216,6 +216,7 @@ def _eval(args: argparse.Namespace) -> int:
 def _eval_moving(args: argparse.Namespace) -> int:
     from punch_trainer.pipelines.moving_eval import run_moving_eval
 
+    check_proportions(args.arms)  # before the options' own bounds check: it names size_arms's range and why
     out, _ = run_moving_eval(dataclass_from_arguments(MovingEvalArgs, args))
     print((out / "report.md").read_text())
     print(f"report: {out / 'report.md'}")
@@ -356,7 +357,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     moving = commands.add_parser("eval-moving", help="hit rates of a policy while its character walks, turns and steps in, "
                                                      "and against a moving target, through PunchController in Godot")
-    add_dataclass_arguments(moving, MovingEvalArgs, exclude=["timeout_s"], value_parsers={"sigmas": parse_sigmas})
+    add_dataclass_arguments(moving, MovingEvalArgs, exclude=["timeout_s"],
+                            value_parsers={"sigmas": parse_sigmas, "arms": parse_proportions})
     moving.set_defaults(run=_eval_moving)
 
     sizes = commands.add_parser("eval-sizes", help="hit rates of a policy when its character's arms are sized to other "

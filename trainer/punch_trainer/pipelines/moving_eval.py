@@ -9,7 +9,8 @@ relative to the character), or the character stands and the target's hook moves.
 sampler's (`ReachVolume.sample`, as `punch eval` draws them) with a seed of their own (`MOVING_HELD_OUT_SEED`),
 so neither training nor `punch eval` uses them. A hit: the controller's `hit` signal on the target during the punch.
 
-    punch eval-moving --policy P.onnx [--baseline OTHER.onnx] [--placements 32] [--sigmas 0,0.3] [--out DIR]
+    punch eval-moving --policy P.onnx [--baseline OTHER.onnx] [--placements 32] [--sigmas 0,0.3] [--arms 0.85x0.7]
+        [--out DIR]
 """
 
 from __future__ import annotations
@@ -26,9 +27,11 @@ import numpy as np
 from tqdm import tqdm
 
 from punch_trainer.learn.reach import HELD_OUT_SEED
+from punch_trainer.options import bounds
 from punch_trainer.pipelines.replay import ReplayError, held_out_placements
+from punch_trainer.pipelines.sizes_eval import size_label
 from punch_trainer.sim.godot import run_godot_tool
-from punch_trainer.sim.placement import BagPlacement
+from punch_trainer.sim.placement import SEGMENT_SCALE_RANGE, BagPlacement
 
 MOVING_HELD_OUT_SEED = HELD_OUT_SEED - 31
 """the placements' seed: neither a training seed nor `punch eval`'s (31: the issue)"""
@@ -124,6 +127,10 @@ class MovingEvalArgs:
     lead_s: float = 0.5
     """how long a moving character has been moving when it punches, s (its bag riding along at its velocity;
     a lunge starts with the punch); 0: it starts moving with the punch, from standing"""
+    arms: list[tuple[float, float]] = field(default_factory=lambda: [(1.0, 1.0)],
+                                            metadata=bounds(*SEGMENT_SCALE_RANGE, max_items=1))
+    """the characters' arms (S, or UPPERxFOREARM): sized through PunchCharacter.size_arms as `punch eval-sizes`
+    sizes them (the upper arm and forearm times these, the shoulders as they are); 1: the scene's own"""
     timeout_s: float = 3600.0
     """how long Godot may take for one policy's punches"""
 
@@ -142,9 +149,10 @@ def select_cases(names: list[str] | None) -> list[MotionCase]:
 
 def run_moving_hits(policy: Path, bags: list[BagPlacement], cases: list[MotionCase], sigmas: list[float], seed: int,
                     timeout_s: float, on_progress: Callable[[int], None] | None = None,
-                    lead_s: float = 0.0) -> list[list[Any]]:
-    """Runs tools/moving_hits.gd for one policy; its rows: [sigma index, case index, placement index, hits on
-    the target, out-of-reach signals, how the punch ended, metres the moved node went]."""
+                    lead_s: float = 0.0, arms: tuple[float, float] = (1.0, 1.0)) -> list[list[Any]]:
+    """Runs tools/moving_hits.gd for one policy, its characters' arms sized by `arms` (upper arm, forearm scales);
+    its rows: [sigma index, case index, placement index, hits on the target, out-of-reach signals, how the punch
+    ended, metres the moved node went, metres outside the reach volume the target was at the start]."""
     with tempfile.TemporaryDirectory(prefix="punch_moving_") as directory:
         folder = Path(directory)
         (folder / "bags.json").write_text(json.dumps([bag.to_wire() for bag in bags]))
@@ -152,7 +160,7 @@ def run_moving_hits(policy: Path, bags: list[BagPlacement], cases: list[MotionCa
         out = folder / "hits.json"
         run_godot_tool("moving_hits", {"policy": Path(policy).resolve(), "bags": folder / "bags.json",
                                        "cases": folder / "cases.json", "out": out, "sigmas": ",".join(map(str, sigmas)),
-                                       "seed": seed, "lead-s": lead_s},
+                                       "seed": seed, "lead-s": lead_s, "arms": f"{arms[0]},{arms[1]}"},
                        what="the moving punches", timeout_s=timeout_s, on_progress=on_progress, timeout_error=MovingEvalError)
         rows: list[list[Any]] = json.loads(out.read_text())["rows"]
         return rows
@@ -169,6 +177,7 @@ def tally(rows: list[list[Any]], cases: list[MotionCase], sigmas: list[float]) -
             per_sigma.append({"sigma": sigma, "hits": sum(1 for row in mine if row[3] > 0), "punches": len(mine),
                               "out_of_reach": len(mine) - len(in_reach),
                               "in_reach_hits": sum(1 for row in in_reach if row[3] > 0),
+                              "out_of_reach_m": sorted(float(row[7]) for row in mine if row[4] > 0),
                               "hit_placements": sorted(int(row[2]) for row in mine if row[3] > 0)})
         moved = [float(row[6]) for row in rows if row[1] == case_index]
         result.append({"case": case.name, "target": case.target, "trained_on": case.trained_on,
@@ -205,16 +214,19 @@ def run_moving_eval(args: MovingEvalArgs, progress: bool = True) -> tuple[Path, 
             def advance(done: int, offset: int = index * per_policy) -> None:
                 bar.update(offset + done - bar.n)
 
-            rows = run_moving_hits(policy, bags, cases, args.sigmas, args.seed, args.timeout_s, advance, args.lead_s)
+            rows = run_moving_hits(policy, bags, cases, args.sigmas, args.seed, args.timeout_s, advance, args.lead_s,
+                                   args.arms[0])
             evaluations.append({"policy": str(policy), "cases": tally(rows, cases, args.sigmas)})
-    report = {"seed": args.seed, "sigmas": args.sigmas, "lead_s": args.lead_s, "placements": [bag.to_wire() for bag in bags],
+    report = {"seed": args.seed, "sigmas": args.sigmas, "lead_s": args.lead_s, "arms": list(args.arms[0]),
+              "placements": [bag.to_wire() for bag in bags],
               "motion_cases": [asdict(case) for case in cases], "evaluations": evaluations,
               "wall_s": round(time.perf_counter() - started, 1)}
     (out / "moving.json").write_text(json.dumps(report, indent=2) + "\n")
     lines = [f"# punch eval-moving: {args.policy}", "",
              f"{len(bags)} held-out placements (seed {args.seed}), one punch per placement, case and sigma (noise on "
              f"every decision), through PunchController in headless Godot ({report['wall_s']:.0f} s in all); a moving "
-             f"character has moved for {args.lead_s:g} s when it punches. A hit: "
+             f"character has moved for {args.lead_s:g} s when it punches; arms {size_label(*args.arms[0])} times the "
+             "character scene's (upper arm, forearm). A hit: "
              "the controller's `hit` signal on the target during the punch. Cases: docs/moving.md.", "",
              *markdown_table(report)]
     (out / "report.md").write_text("\n".join(lines) + "\n")

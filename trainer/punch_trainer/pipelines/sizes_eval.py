@@ -57,10 +57,12 @@ def check_scales(scales: list[float]) -> list[float]:
 
 def parse_proportions(text: str) -> list[tuple[float, float]]:
     """`0.7x0.85,1.3x1.1`: upper arm and forearm scales of rigs with other proportions than the scene's (their
-    ranges are checked by `check_proportions`)."""
+    ranges are checked by `check_proportions`); a bare `0.8` is both lengths times 0.8."""
     try:
-        return [(float(upper), float(forearm)) for upper, forearm in
-                (item.split("x") for item in text.split(",") if item.strip())]
+        sizes = [item.split("x") for item in text.split(",") if item.strip()]
+        if any(len(size) not in (1, 2) for size in sizes):
+            raise ValueError("one or two scales per size")
+        return [(float(size[0]), float(size[-1])) for size in sizes]
     except ValueError as error:
         raise SizesEvalError(f"bad --proportions '{text}' (use UPPERxFOREARM,...: 0.7x0.85,1.3x1.1): {error}") from None
 
