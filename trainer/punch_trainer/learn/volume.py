@@ -26,7 +26,14 @@ import torch
 from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.reach import ReachVolume
 from punch_trainer.sim.env import PunchVectorEnv
-from punch_trainer.sim.placement import ARM_SCALE_RANGE, SEGMENT_SCALE_RANGE, BagPlacement, EpisodeStart, arm_scale
+from punch_trainer.sim.placement import (
+    ARM_SCALE_RANGE,
+    SEGMENT_SCALE_RANGE,
+    UPPER_ARM_SHARE,
+    BagPlacement,
+    EpisodeStart,
+    arm_scale,
+)
 from punch_trainer.sim.rewards import EpisodeScorer, Reward, first_right_contact
 
 DISTRIBUTION_DRAWS = 10**9
@@ -138,14 +145,27 @@ class ArmRange:
             if rng.uniform() >= self.sized_share:
                 out.append(bag)
                 continue
-            while True:  # segments on the grid whose arm is in range (about 4 in 5 draws are)
-                upper, forearm = (self.step * np.round(rng.uniform(*self.segment_scale, size=2) / self.step)).tolist()
-                if self.arm_scale[0] <= arm_scale(upper, forearm) <= self.arm_scale[1]:
-                    break
+            upper, forearm = self.segments(rng)
             shift = 0.01 * round(rng.uniform(-self.shoulder_shift_m, self.shoulder_shift_m) / 0.01)
             out.append(bag.over({"arms_upper_arm_scale": upper, "arms_forearm_scale": forearm,
                                  "arms_shoulder_shift_m": shift}))
         return out
+
+    def segments(self, rng: np.random.Generator) -> tuple[float, float]:
+        """(upper arm, forearm) scales on the grid: the arm's scale uniform over its range, then the forearm's
+        uniform over what that arm allows. (Drawing the two segments uniformly instead puts an arm within 0.07 of
+        either end of its range in only 17% of draws: the shortest arms were the hook's weakest.)"""
+        share = UPPER_ARM_SHARE
+        low, high = self.segment_scale
+        while True:  # rounding to the grid may leave the ranges
+            arm = rng.uniform(*self.arm_scale)
+            forearm = rng.uniform(max(low, (arm - share * high) / (1 - share)),
+                                  min(high, (arm - share * low) / (1 - share)))
+            upper = (arm - (1 - share) * forearm) / share
+            upper, forearm = (self.step * np.round(np.array([upper, forearm]) / self.step)).tolist()
+            if low <= upper <= high and low <= forearm <= high and \
+                    self.arm_scale[0] <= arm_scale(upper, forearm) <= self.arm_scale[1]:
+                return upper, forearm
 
 
 class EpisodeConditions:
