@@ -90,6 +90,11 @@ CHARACTERS: tuple[Character, ...] = (
     Character("mixamo_t_pose_175", "mixamo", MEDIUM, pose="t_pose", notes="arms turned level and sideways in the rest pose"),
     Character("unreal_long_arms_175", "unreal", Body(height_m=1.75, upper_arm_length=0.5, forearm_length=0.5),
               notes="MakeHuman's upper arm and forearm length targets at half their maximum"),
+    # The ends of the range of heights the README promises (1.55 to 1.95 m).
+    Character("mixamo_155", "mixamo", Body(height_m=1.55, gender=0.0, height=-1.0, color=(0.90, 0.72, 0.62, 1.0)),
+              notes="the shortest height the README promises"),
+    Character("cmu_195", "cmu", Body(height_m=1.95, gender=1.0, height=1.0, color=(0.55, 0.40, 0.32, 1.0)),
+              bone_axes="world", notes="the tallest height the README promises"),
 )
 
 
