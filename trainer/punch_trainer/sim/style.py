@@ -62,6 +62,10 @@ class Style:
     """cost of a joint turning faster, relative to a captured punch's peak, than the joint before it in the chain
     (waist rotation, shoulder, elbow) has turned so far, until the fist lands: the proximal-to-distal order of
     boxing (0 in `boxing`; tried as `boxing_chain`: docs/experiments.md)"""
+    drive_cost: float = 0.0
+    """cost of the shoulder or the elbow turning slower, relative to a captured punch's peak, than it already has,
+    until the fist lands: the arm drives into the target, so its joints peak at contact, with the waist, whose
+    turn the policies already speed up until contact (tried as `boxing_drive`: docs/experiments.md)"""
     chain_peak_rad_s: tuple[float, float, float] = (3.0, 10.0, 18.0)
     """waist rotation, shoulder and elbow speeds the chain measures against: the captured punches' peaks
     (../shared/data, CMU 143/23, from joint positions: the shoulder line's yaw 3.5-5.4, the upper arm's direction
@@ -110,7 +114,17 @@ class Style:
             # Each joint may turn (relative to its captured peak) as fast as the one before it has so far.
             ahead = np.maximum(0.0, relative[1] - so_far[0]) ** 2 + np.maximum(0.0, relative[2] - so_far[1]) ** 2
             chain = self.chain_cost * np.where(before_contact, ahead, 0.0)
-        cost = (chain + self.off_fist_cost_per_m2 * beyond(off_from_guard_m, self.off_fist_free_m)
+        drive: np.ndarray | float = 0.0
+        if self.drive_cost > 0.0:
+            shoulder = np.sqrt(sum(frames(f"speed_shoulder_r_{axis}") ** 2
+                                   for axis in ("flexion", "rotation", "abduction")))
+            slowing = 0.0
+            for speed, peak in ((shoulder, self.chain_peak_rad_s[1]), (np.abs(frames("speed_elbow_r_extension")),
+                                                                       self.chain_peak_rad_s[2])):
+                relative = speed / peak
+                slowing = slowing + (np.maximum.accumulate(relative, axis=-1) - relative) ** 2
+            drive = self.drive_cost * np.where(before_contact, slowing, 0.0)
+        cost = (chain + drive + self.off_fist_cost_per_m2 * beyond(off_from_guard_m, self.off_fist_free_m)
                 + self.off_fist_cost_per_mps2 * beyond(off_speed_mps, self.off_fist_free_mps)
                 + self.waist_flexion_cost_per_rad2 * beyond(waist_flexion_rad, self.waist_flexion_free_rad)
                 + self.fist_cost_per_mps2 * beyond(fist_speed_mps, self.fist_free_mps)
@@ -151,9 +165,10 @@ class Style:
 
 
 STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
-                                   "boxing_chain": Style("boxing_chain", chain_cost=4.0)}
-"""the styles by name; `none` is the paper's reward alone; `boxing_chain` is `boxing` asking for the proximal-to-
-distal order too (an experiment: docs/experiments.md)"""
+                                   "boxing_chain": Style("boxing_chain", chain_cost=4.0),
+                                   "boxing_drive": Style("boxing_drive", drive_cost=4.0)}
+"""the styles by name; `none` is the paper's reward alone; `boxing_chain` and `boxing_drive` are `boxing` asking for
+the proximal-to-distal order too (experiments: docs/experiments.md)"""
 DEFAULT_STYLE = "boxing"
 MAX_WEIGHT = 100.0
 
