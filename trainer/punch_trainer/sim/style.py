@@ -105,24 +105,18 @@ class Style:
             return np.asarray(np.maximum(0.0, value - free) ** 2)
 
         chain: np.ndarray | float = 0.0
-        if self.chain_cost > 0.0:
+        drive: np.ndarray | float = 0.0
+        if self.chain_cost > 0.0 or self.drive_cost > 0.0:
             shoulder = np.sqrt(sum(frames(f"speed_shoulder_r_{axis}") ** 2
                                    for axis in ("flexion", "rotation", "abduction")))
             speeds = [np.abs(frames("speed_waist_rotation")), shoulder, np.abs(frames("speed_elbow_r_extension"))]
             relative = [speed / peak for speed, peak in zip(speeds, self.chain_peak_rad_s, strict=True)]
             so_far = [np.maximum.accumulate(r, axis=-1) for r in relative]
-            # Each joint may turn (relative to its captured peak) as fast as the one before it has so far.
+            # Chain: each joint may turn (relative to its captured peak) as fast as the one before it has so far.
             ahead = np.maximum(0.0, relative[1] - so_far[0]) ** 2 + np.maximum(0.0, relative[2] - so_far[1]) ** 2
             chain = self.chain_cost * np.where(before_contact, ahead, 0.0)
-        drive: np.ndarray | float = 0.0
-        if self.drive_cost > 0.0:
-            shoulder = np.sqrt(sum(frames(f"speed_shoulder_r_{axis}") ** 2
-                                   for axis in ("flexion", "rotation", "abduction")))
-            slowing = 0.0
-            for speed, peak in ((shoulder, self.chain_peak_rad_s[1]), (np.abs(frames("speed_elbow_r_extension")),
-                                                                       self.chain_peak_rad_s[2])):
-                relative = speed / peak
-                slowing = slowing + (np.maximum.accumulate(relative, axis=-1) - relative) ** 2
+            # Drive: the shoulder and the elbow do not slow before the fist lands.
+            slowing = (so_far[1] - relative[1]) ** 2 + (so_far[2] - relative[2]) ** 2
             drive = self.drive_cost * np.where(before_contact, slowing, 0.0)
         cost = (chain + drive + self.off_fist_cost_per_m2 * beyond(off_from_guard_m, self.off_fist_free_m)
                 + self.off_fist_cost_per_mps2 * beyond(off_speed_mps, self.off_fist_free_mps)
