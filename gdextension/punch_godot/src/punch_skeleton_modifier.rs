@@ -36,9 +36,7 @@ use std::cell::Cell;
 use std::time::Instant;
 
 use glam::{Quat, Vec3};
-use godot::builtin::{
-    Basis, GString, PackedStringArray, PackedVector3Array, Quaternion, StringName, Transform3D, VarDictionary,
-};
+use godot::builtin::{Basis, GString, PackedStringArray, PackedVector3Array, StringName, Transform3D, VarDictionary};
 use godot::classes::skeleton_3d::ModifierCallbackModeProcess;
 use godot::classes::{Engine, ISkeletonModifier3D, Node3D, Skeleton3D, SkeletonModifier3D};
 use godot::global::godot_error;
@@ -50,7 +48,7 @@ use punch_core::character::Body;
 use punch_core::fist::FistPose;
 use punch_core::skeleton_pose::{Blend, BodyFrames, BodyRotations, SkeletonPoser, rig_arm_lengths, rig_fists};
 
-use crate::convert::{quat, rotation, vec3, vector3};
+use crate::convert::{quat, quaternion, rotation, vec3, vector3};
 use crate::hand_skin::hand_skin_points;
 use crate::punch_character::{PunchCharacter, is_teleport};
 use crate::punch_controller::PunchController;
@@ -544,7 +542,7 @@ impl PunchSkeletonModifier {
         let mut skeleton = skeleton;
         for ((&bone, anim), target) in written.iter().zip(&animated).zip(&targets) {
             let q = if blending { anim.slerp(*target, weight).normalize() } else { *target };
-            skeleton.set_bone_pose_rotation(bone as i32, Quaternion::new(q.x, q.y, q.z, q.w));
+            skeleton.set_bone_pose_rotation(bone as i32, quaternion(q));
         }
         for (bone, fist) in self.fist_bones() {
             let q = if blending {
@@ -552,7 +550,7 @@ impl PunchSkeletonModifier {
             } else {
                 fist
             };
-            skeleton.set_bone_pose_rotation(bone as i32, Quaternion::new(q.x, q.y, q.z, q.w));
+            skeleton.set_bone_pose_rotation(bone as i32, quaternion(q));
         }
         // The spine bends about other points than the simulated waist: the spine's first bone is shifted so that
         // the rig's shoulders sit where the simulated ones are (by the blend weight's share).
@@ -582,7 +580,7 @@ impl PunchSkeletonModifier {
         let now = character.get_global_transform();
         let moved = (vec3(now.origin) - origin).length() > 1e-4
             || quat(now.basis.get_quaternion()).angle_between(rotation) > 1e-3;
-        let basis = Basis::from_quaternion(Quaternion::new(rotation.x, rotation.y, rotation.z, rotation.w));
+        let basis = Basis::from_quaternion(quaternion(rotation));
         let placement = Transform3D::new(basis, vector3(origin));
         if moved {
             character.set_global_transform(placement);
