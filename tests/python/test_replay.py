@@ -125,6 +125,7 @@ def test_a_policy_that_outputs_nan_ends_the_replay_with_an_error(tmp_path, train
     onnx.save(model, str(nan_policy))
     with pytest.raises((ReplayError, GodotRunError), match="stopped on an error: inference failed: the policy returned NaN"):
         run_replay(ReplayArgs(policy=nan_policy, sigmas=[0.0], episodes=2, timeout_s=120), progress=False)
+    assert not list(tmp_path.glob("replay_*")), "a failed replay leaves no folder beside the policy"
 
 
 def test_a_godot_that_hangs_silently_is_stopped_at_the_deadline(tmp_path, monkeypatch):
@@ -211,3 +212,4 @@ def test_a_hostile_model_file_ends_the_replay_with_one_error_at_once(tmp_path):
         errors = [line for line in result.stderr.splitlines() if line.startswith("punch:")]
         assert len(errors) == 1 and "Traceback" not in result.stderr, (name, result.stderr[-2000:])
         assert expected[name] in result.stderr, (name, result.stderr[-2000:])
+        assert not (tmp_path / name).exists(), name

@@ -17,6 +17,7 @@ import json
 import math
 import os
 import selectors
+import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -201,10 +202,16 @@ def run_replay(args: ReplayArgs, progress: bool = True) -> tuple[Path, list[dict
     best = training_best_return(metadata, str(args.policy))
     out = Path(args.out or Path(args.policy).parent / f"replay_{int(time.time())}")
     frames_dir = out / "frames"
+    created = not out.exists()
     frames_dir.mkdir(parents=True, exist_ok=True)
 
     started = time.perf_counter()
-    meta = run_godot_replay(args, frames_dir, progress)
+    try:
+        meta = run_godot_replay(args, frames_dir, progress)
+    except BaseException:
+        if created:  # a replay that failed leaves no empty folder behind (by default, beside the policy)
+            shutil.rmtree(out, ignore_errors=True)
+        raise
     godot_s = time.perf_counter() - started
     names = [str(n) for n in meta["feature_names"]]
     rows, analyses = [], []
