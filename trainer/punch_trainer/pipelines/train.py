@@ -36,6 +36,7 @@ from punch_trainer.report.motion import motion_report
 from punch_trainer.report.naturalness import capture_figures, naturalness_table, punch_naturalness, summarise
 from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.env import PunchVectorEnv
+from punch_trainer.sim.placement import ARM_SCALE_RANGE
 from punch_trainer.sim.rewards import EpisodeScorer, Reward, load_reward
 from punch_trainer.sim.rollouts import RolloutPool
 from punch_trainer.sim.server_group import SimulatorRestarts
@@ -119,6 +120,10 @@ class TrainArgs:
     arms: Literal["sized", "scene"] = "sized"
     """volume: 'sized': A2C's characters have arms of the sizes a rig may have (`PunchCharacter.size_arms`,
     README, "Your own character"), and so do some validation placements; 'scene': every character has the scene's"""
+    arm_range: list[float] = field(default_factory=lambda: list(ARM_SCALE_RANGE),
+                                   metadata=bounds(*ARM_SCALE_RANGE, max_items=2))
+    """volume, with --arms sized: LOW HIGH, the arms' scales (shoulder to fist, times the scene's) A2C draws from,
+    within what `size_arms` accepts: narrow it to the characters of a game"""
     init_from: Path | None = None
     """an earlier `punch train` run (its folder) whose best policy A2C starts from instead of a pretraining on this
     run's search: for a policy contract that added inputs (they start at zero weight; learn/warm_start.py)"""
@@ -182,6 +187,13 @@ def search_volume(args: TrainArgs, volume: VolumeArgs, reward: Reward, centre: S
     return paths, reach, [b.best_return for b in bests], np.stack([b.best_actions for b in bests])
 
 
+def arm_range(values: list[float]) -> tuple[float, float]:
+    """--arm-range as (low, high); ValueError unless it is two scales, low first."""
+    if len(values) != 2 or values[0] > values[1]:
+        raise ValueError(f"--arm-range is two arm scales, the lower first (e.g. 0.75 1.0), not {values}")
+    return values[0], values[1]
+
+
 def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, backend: Backend = LOCAL) -> Path:
     """The whole `punch train` command, with every training server on `backend`. Every stage checkpoints in
     its own folder of the run directory (search/, volume_search/, pretrain/, a2c/); `resume` continues the run
@@ -208,7 +220,7 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
     volume = VolumeArgs(grid=parse_grid(args.grid), search_iterations=args.volume_search_iterations,
                         search_rollouts=args.volume_search_rollouts, default_share=args.default_share,
                         motions=MotionRange() if args.motions == "move" else None,
-                        arms=ArmRange() if args.arms == "sized" else None)
+                        arms=ArmRange(arm_scale=arm_range(args.arm_range)) if args.arms == "sized" else None)
     reach, punches, grid_bests = None, search.best_actions[None], [search.best_return]
     if over_volume:
         dataset_paths, reach, grid_bests, punches = search_volume(args, volume, reward, search, progress, resume, backend)
