@@ -471,10 +471,11 @@ pub fn across_hand_skin(fist: Vec3, wrist: Vec3, hand_skin: &[Vec3]) -> Vec3 {
 /// `rig_fists`), and the distance between the upper arms' heads.
 pub fn rig_arm_lengths(map: &BoneMap, rest: &[(Quat, Vec3)], fists: [Vec3; 2], scale: f32) -> ArmLengths {
     let pos = |b: usize| rest[b].1;
-    let mean = |f: &dyn Fn(Side) -> f32| 0.5 * (f(Side::Right) + f(Side::Left)) * scale;
+    // The mean of both sides ([right, left], as `fists`).
+    let mean = |f: &dyn Fn(usize) -> f32| 0.5 * (f(0) + f(1)) * scale;
     ArmLengths {
-        upper_arm_m: mean(&|s| pos(map.arm(s).forearm).distance(pos(map.arm(s).upper_arm))),
-        forearm_m: 0.5 * (fists[0].distance(pos(map.right.forearm)) + fists[1].distance(pos(map.left.forearm))) * scale,
+        upper_arm_m: mean(&|i| pos(map.arm(SIDES[i]).forearm).distance(pos(map.arm(SIDES[i]).upper_arm))),
+        forearm_m: mean(&|i| fists[i].distance(pos(map.arm(SIDES[i]).forearm))),
         shoulder_width_m: scale * pos(map.right.upper_arm).distance(pos(map.left.upper_arm)),
     }
 }

@@ -352,12 +352,13 @@ impl PunchController {
         let mut geometry = geometry_of(&character)?;
         let offset = geometry.root_rotation.inverse() * (target.state().position - geometry.root_position);
         let out_of_reach = (!policy.reach.contains(offset)).then(|| {
+            let world = |local: Vec3| geometry.root_position + geometry.root_rotation * local;
             // A little out, the policy sees the target itself; far out, the point of its margin nearest to it.
             let aim = policy.reach.aim_point(offset);
             if aim != offset {
-                target.aim_at(geometry.root_position + geometry.root_rotation * aim);
+                target.aim_at(world(aim));
             }
-            (offset, geometry.root_position + geometry.root_rotation * policy.reach.nearest(offset))
+            (offset, world(policy.reach.nearest(offset)))
         });
         target.describe(&mut geometry);
         self.aim = Some(target);

@@ -234,8 +234,8 @@ impl PunchSkeletonModifier {
         self.apply_visibility();
     }
 
-    /// Reads the skeleton again and maps its bones (after renaming bones or editing `bone_map`). Returns true
-    /// when every required role has a bone.
+    /// Reads the skeleton again and maps its bones (after renaming bones, editing `bone_map` or changing the skinned
+    /// meshes that say where the fists are). Returns true when every required role has a bone.
     #[func]
     fn remap(&mut self) -> bool {
         self.mapped = None;
@@ -254,7 +254,8 @@ impl PunchSkeletonModifier {
     /// The rig's fist centres at rest, [right, left], in the skeleton's space: three quarters of the way from
     /// each hand bone's head to its knuckles, moved across the hand onto the middle of the hand's skin when a
     /// skinned mesh deforms the skeleton. The modifier puts these points on the simulated fists' centres and sizes
-    /// the forearms to reach them. Empty while the skeleton is not mapped.
+    /// the forearms to reach them. Read when the skeleton is mapped: call `remap()` after changing its meshes.
+    /// Empty while the skeleton is not mapped.
     #[func]
     fn rig_fist_centres(&self) -> PackedVector3Array {
         self.mapped.as_ref().map_or_else(PackedVector3Array::new, |m| m.fists.iter().map(|&f| vector3(f)).collect())
