@@ -48,17 +48,14 @@ var _idle_frames_left := -1
 
 
 func _initialize() -> void:
-	var error := PunchPair.read_options(_options)
+	var error := PunchPair.read_options(_options, ["policy", "out"])
 	if error != "":
 		_fail(error)
 		return
 	_sigmas = PunchPair.floats(_options.sigmas)
 	_episodes_total = int(_options.episodes)
-	if _options.out == "" or _options.policy == "" or _episodes_total < 1:
-		_fail("--policy, --out and --episodes >= 1 are needed")
-		return
-	if not FileAccess.file_exists(_options.policy):
-		_fail("policy file not found: %s" % _options.policy)
+	if _episodes_total < 1:
+		_fail("--episodes must be at least 1")
 		return
 	if _options.bags != "":
 		var parsed = JSON.parse_string(FileAccess.get_file_as_string(_options.bags))
