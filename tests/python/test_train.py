@@ -20,7 +20,8 @@ def test_small_training_run_exports_a_policy_that_repeats_its_punch(tmp_path, st
     """With a style too: A2C's decision-by-decision rewards add up to the episode's styled return, and the
     policy records its style."""
     args = TrainArgs(reward="straight", style=style, out=tmp_path / "run", search_iterations=4, search_rollouts=16,
-                     pretrain_epochs=300, a2c_updates=2, a2c_characters=4, a2c_time_budget_s=0, reach="spot")
+                     pretrain_epochs=300, a2c_updates=2, a2c_characters=4, a2c_time_budget_s=0, reach="spot",
+                     a2c_snapshot_every=1)
     out = run_train(args, progress=False)
     for name in ["policy.onnx", "report.md", "summary.json", "a2c_metrics.csv", "a2c_diagnostics.png", "search/dataset.npz"]:
         assert (out / name).is_file(), name
@@ -33,8 +34,15 @@ def test_small_training_run_exports_a_policy_that_repeats_its_punch(tmp_path, st
             assert math.isfinite(float(update[column])), (column, update)
         assert float(update["reward/forward"]) == pytest.approx(float(update["mean_return"]), rel=1e-5)
     assert "a2c_diagnostics.png" in (out / "report.md").read_text()
+    # The policy along the way, exported with the same contract, to be measured beside the one A2C kept.
+    snapshots = sorted(p.name for p in (out / "a2c" / "snapshots").iterdir())
+    assert snapshots == ["update_00001.onnx", "update_00002.onnx"]
+    snapshot = {p.key: p.value for p in onnx.load(str(out / "a2c" / "snapshots" / snapshots[-1])).metadata_props}
+    assert json.loads(snapshot["punch_training_summary"]) == {"a2c_snapshot_update": 2}
     model = onnx.load(str(out / "policy.onnx"))
     metadata = {p.key: p.value for p in model.metadata_props}
+    assert {key: value for key, value in snapshot.items() if key != "punch_training_summary"} == \
+        {key: value for key, value in metadata.items() if key != "punch_training_summary"}
     for key in ["punch_spec_hash", "punch_action_spec", "punch_decision_period", "punch_smoothing_window",
                 "punch_physics_hz", "punch_reward", "punch_training_summary"]:
         assert metadata.get(key), key

@@ -57,6 +57,8 @@ class A2CArgs:
     since noise there alone costs a styled punch everything it earns."""
     time_budget_s: float | None = None
     seed: int = 0
+    snapshot_every: int = 0
+    """hand the model to `on_snapshot` every this many updates (0: never)"""
 
 
 def evaluate_noise_free(model: ActorCritic, env: PunchVectorEnv, reward: Reward) -> float:
@@ -193,7 +195,8 @@ def restore_a2c(saved: dict[str, Any], model: ActorCritic, optimizer: torch.opti
 def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVectorEnv, progress: bool = True,
               start_rollouts: int = 0, run_dir: Path | None = None, max_restarts: int = 3,
               conditions: Callable[[int, int], EpisodeStart] | None = None,
-              validation: list[BagPlacement] | None = None) -> tuple[ActorCritic, list[dict[str, Any]]]:
+              validation: list[BagPlacement] | None = None,
+              on_snapshot: Callable[[int, ActorCritic], None] | None = None) -> tuple[ActorCritic, list[dict[str, Any]]]:
     """Trains in place and returns the parameters with the best noise-free return, with the history.
 
     `conditions(count, update)` gives each update's reset options (training over the reach volume: random
@@ -203,7 +206,8 @@ def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVecto
     With `run_dir` it checkpoints after every update (model, optimizer, best model, history and the random
     state) and first continues from the checkpoint it finds there. A Godot process that crashes, is killed or
     hangs during an update is restarted, and the update's episodes run again with the same random numbers, so
-    either way the result is the one an uninterrupted run gives."""
+    either way the result is the one an uninterrupted run gives. `on_snapshot(update, model)` sees the model as
+    it is every `args.snapshot_every` updates (and after the last)."""
     torch.manual_seed(args.seed)
 
     def evaluate() -> tuple[float, float | None]:
@@ -273,6 +277,8 @@ def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVecto
                         "mean_return": float(episode_returns.mean()), "eval_return": evaluation, "eval_success": eval_success,
                         **diagnostics})
         stopped = update == args.updates or (args.time_budget_s is not None and elapsed >= args.time_budget_s)
+        if on_snapshot is not None and args.snapshot_every and (update % args.snapshot_every == 0 or stopped):
+            on_snapshot(update, model)
         if run_dir is not None:
             save_checkpoint(run_dir, "a2c", {
                 "update": update, "model": model.state_dict(), "optimizer": optimizer.state_dict(),

@@ -103,6 +103,10 @@ class TrainArgs:
     """the least sigma A2C samples actions with"""
     a2c_time_budget_s: float | None = None
     """stop A2C after this much wall time (0: no limit, which makes a run reproducible)"""
+    a2c_snapshot_every: int = 0
+    """also export the policy as A2C has it every this many updates, to a2c/snapshots/update_<N>.onnx (0: none):
+    A2C keeps the parameters with the best return on its validation placements, which need not be the ones that hit
+    most often at a weak spot; `punch eval-sizes` or `punch eval` on the snapshots tells (policies/README.md)"""
     reach: Literal["volume", "spot"] = "volume"
     """'volume': every target placement of the spec's reach volume (docs/env.md), minutes; 'spot': the default
     placement only, seconds (the quickstart; the policy hits only there)"""
@@ -265,10 +269,16 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
         sigma_floor = args.a2c_sigma_floor if args.a2c_sigma_floor is not None else defaults.a2c_sigma_floor
         a2c_args = A2CArgs(updates=updates, characters=env.num_envs, advantage=args.advantage,
                            smoothing_window=args.smoothing_window, sigma_floor=sigma_floor,
-                           time_budget_s=budget or None, seed=args.seed)
+                           time_budget_s=budget or None, seed=args.seed, snapshot_every=args.a2c_snapshot_every)
+
+        def snapshot(update: int, current: ActorCritic) -> None:
+            export_policy(current, out / "a2c" / "snapshots" / f"update_{update:05d}.onnx", contract=data["policy_metadata"],
+                          reward=reward.name, style=reward.style, summary={"a2c_snapshot_update": update})
+
         model, a2c_history = train_a2c(model, reward, a2c_args, env, progress, run_dir=out / "a2c",
                                        start_rollouts=search.history[-1]["rollouts"] if search.history else 0,
-                                       conditions=conditions, validation=validation)
+                                       conditions=conditions, validation=validation,
+                                       on_snapshot=snapshot if args.a2c_snapshot_every else None)
         timings["a2c_s"] = time.perf_counter() - started - timings["search_s"] - timings["pretrain_s"]
 
         summary = {"search_best_return": search.best_return, "pretrained_return": pretrained_return,
