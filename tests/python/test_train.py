@@ -36,8 +36,10 @@ def test_small_training_run_exports_a_policy_that_repeats_its_punch(tmp_path, st
     assert "a2c_diagnostics.png" in (out / "report.md").read_text()
     # The policy along the way, exported with the same contract, to be measured beside the one A2C kept.
     snapshots = sorted(p.name for p in (out / "a2c" / "snapshots").iterdir())
-    assert snapshots == ["update_00001.onnx", "update_00002.onnx"]
-    snapshot = {p.key: p.value for p in onnx.load(str(out / "a2c" / "snapshots" / snapshots[-1])).metadata_props}
+    assert snapshots == ["update_00001", "update_00002"]
+    last = out / "a2c" / "snapshots" / snapshots[-1]
+    assert (last / "checkpoint.pt").is_file()  # for `--init-from`
+    snapshot = {p.key: p.value for p in onnx.load(str(last / "policy.onnx")).metadata_props}
     assert json.loads(snapshot["punch_training_summary"]) == {"a2c_snapshot_update": 2}
     model = onnx.load(str(out / "policy.onnx"))
     metadata = {p.key: p.value for p in model.metadata_props}

@@ -11,7 +11,7 @@ import torch
 
 from punch_trainer.learn.checkpoint import save_checkpoint
 from punch_trainer.learn.policy import ActorCritic
-from punch_trainer.learn.warm_start import WarmStartError, warm_start
+from punch_trainer.learn.warm_start import SNAPSHOT_KIND, WarmStartError, warm_start
 
 EARLIER = ["fist_x", "bag_x", "root_spin", "episode_phase"]
 NOW = ["fist_x", "bag_x", "root_spin", "arm_m", "forearm_m", "episode_phase"]
@@ -49,3 +49,19 @@ def test_a_run_whose_policy_observes_what_this_one_does_not_is_refused(tmp_path:
         warm_start(ActorCritic(len(NOW), 10), tmp_path, NOW, np.zeros((4, len(NOW))))
     with pytest.raises(WarmStartError, match="cannot start from"):
         warm_start(ActorCritic(len(NOW), 10), tmp_path / "nowhere", NOW, np.zeros((4, len(NOW))))
+
+
+def test_a_snapshot_is_started_from_as_it_was_not_the_runs_best(tmp_path: Path) -> None:
+    """`--init-from RUN/a2c/snapshots/update_<N>`: the model as A2C had it then (`--a2c-snapshot-every`)."""
+    best = earlier_run(tmp_path, NOW)
+    snapshot = ActorCritic(len(NOW), 10, seed=7)
+    snapshot.set_normalization(np.random.default_rng(4).normal(size=(100, len(NOW))))
+    folder = tmp_path / "a2c" / "snapshots" / "update_00200"
+    folder.mkdir(parents=True)
+    save_checkpoint(folder, SNAPSHOT_KIND, {"update": 200, "model": snapshot.state_dict()})
+    observations = torch.as_tensor(np.random.default_rng(5).normal(size=(8, len(NOW))), dtype=torch.float32)
+    for source, expected in ((folder, snapshot), (tmp_path, best)):
+        model = ActorCritic(len(NOW), 10, seed=0)
+        assert warm_start(model, source, NOW, np.zeros((4, len(NOW)))) == []
+        with torch.no_grad():
+            torch.testing.assert_close(model(observations)[0], expected(observations)[0])

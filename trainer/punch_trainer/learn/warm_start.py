@@ -1,6 +1,7 @@
-"""Warm start (`punch train --init-from RUN`): A2C starts from an earlier run's best policy instead of from a
-pretraining on this run's search, when the observation has only gained entries since (a policy contract that
-added inputs, such as version 3's arm lengths). Every input the earlier policy had keeps its weights and its
+"""Warm start (`punch train --init-from RUN`): A2C starts from an earlier run's best policy (or one of its
+snapshots, RUN/a2c/snapshots/update_<N>) instead of from a pretraining on this run's search: to train a policy
+further, and when the observation has only gained entries since (a policy contract that added inputs, such as
+version 3's arm lengths). Every input the earlier policy had keeps its weights and its
 normalisation; every new one gets zero weights, so the policy first acts exactly as the earlier one did, and the
 normalisation of this run's episodes, so A2C can learn what the new input says."""
 
@@ -15,6 +16,8 @@ from punch_trainer.errors import PunchError
 from punch_trainer.learn.checkpoint import CHECKPOINT_FILE, CheckpointError, read_checkpoint
 from punch_trainer.learn.policy import ActorCritic
 
+SNAPSHOT_KIND = "a2c_snapshot"
+"""the checkpoint kind of a snapshot of A2C's model (`punch train --a2c-snapshot-every`)"""
 INPUT_LAYERS = ("actor.0.weight", "critic.0.weight")
 """the first layers of the actor and the critic: the only weights that see the observation"""
 
@@ -34,18 +37,27 @@ def earlier_observation_names(run_dir: Path) -> list[str]:
                              f"of {dataset} ({error})") from None
 
 
-def warm_start(model: ActorCritic, run_dir: Path, names: list[str], statistics: np.ndarray) -> list[str]:
-    """Loads the best A2C policy of the earlier run `run_dir` into `model`, whose observation is `names`;
-    `statistics` [n, len(names)] are observations of this run's episodes, for the new inputs' normalisation.
-    Returns the names of the new inputs."""
+def earlier_parameters(source: Path) -> tuple[dict[str, torch.Tensor], Path]:
+    """The parameters `--init-from source` names and the run they come from: a run folder's best A2C policy, or a
+    snapshot folder's (RUN/a2c/snapshots/update_<N>) model."""
+    is_snapshot = (source / CHECKPOINT_FILE).is_file() and source.parent.name == "snapshots"
     try:
-        earlier = read_checkpoint(run_dir / "a2c" / CHECKPOINT_FILE, "a2c")["state"]["best_model"]
+        if is_snapshot:
+            return read_checkpoint(source / CHECKPOINT_FILE, SNAPSHOT_KIND)["state"]["model"], source.parents[2]
+        return read_checkpoint(source / "a2c" / CHECKPOINT_FILE, "a2c")["state"]["best_model"], source
     except (CheckpointError, KeyError) as error:
-        raise WarmStartError(f"cannot start from {run_dir}: {error}") from None
+        raise WarmStartError(f"cannot start from {source}: {error}") from None
+
+
+def warm_start(model: ActorCritic, source: Path, names: list[str], statistics: np.ndarray) -> list[str]:
+    """Loads the policy `source` names (a run's best, or a snapshot: `earlier_parameters`) into `model`, whose
+    observation is `names`; `statistics` [n, len(names)] are observations of this run's episodes, for the new
+    inputs' normalisation. Returns the names of the new inputs."""
+    earlier, run_dir = earlier_parameters(source)
     earlier_names = earlier_observation_names(run_dir)
     lost = [name for name in earlier_names if name not in names]
     if lost:
-        raise WarmStartError(f"cannot start from {run_dir}: its policy observes {', '.join(lost)}, which this run's "
+        raise WarmStartError(f"cannot start from {source}: its policy observes {', '.join(lost)}, which this run's "
                              "observation has not")
     columns = torch.as_tensor([names.index(name) for name in earlier_names])
     state = model.state_dict()
@@ -55,7 +67,7 @@ def warm_start(model: ActorCritic, run_dir: Path, names: list[str], statistics: 
         old = earlier.get(key)
         expected = earlier_shapes.get(key, tuple(value.shape))
         if old is None or tuple(old.shape) != expected:
-            raise WarmStartError(f"cannot start from {run_dir}: its network differs from this run's at '{key}' "
+            raise WarmStartError(f"cannot start from {source}: its network differs from this run's at '{key}' "
                                  f"({None if old is None else tuple(old.shape)}, expected {expected})")
     mean = torch.as_tensor(statistics.mean(axis=0), dtype=torch.float32)
     std = torch.as_tensor(statistics.std(axis=0) + 1e-3, dtype=torch.float32)  # as ActorCritic.set_normalization

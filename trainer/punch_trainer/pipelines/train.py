@@ -28,7 +28,7 @@ from punch_trainer.learn.pretrain import PretrainArgs, pretrain
 from punch_trainer.learn.reach import ReachVolume
 from punch_trainer.learn.search import SearchArgs, SearchResult, placement_search
 from punch_trainer.learn.volume import ArmRange, EpisodeConditions, MotionRange, VolumeArgs, distribution_observations, validate
-from punch_trainer.learn.warm_start import warm_start
+from punch_trainer.learn.warm_start import SNAPSHOT_KIND, warm_start
 from punch_trainer.options import bounds
 from punch_trainer.pipelines.search import run_search
 from punch_trainer.report.a2c_report import write_a2c_report
@@ -104,7 +104,7 @@ class TrainArgs:
     a2c_time_budget_s: float | None = None
     """stop A2C after this much wall time (0: no limit, which makes a run reproducible)"""
     a2c_snapshot_every: int = 0
-    """also export the policy as A2C has it every this many updates, to a2c/snapshots/update_<N>.onnx (0: none):
+    """also export the policy as A2C has it every this many updates, to a2c/snapshots/update_<N>/policy.onnx (0: none):
     A2C keeps the parameters with the best return on its validation placements, which need not be the ones that hit
     most often at a weak spot; `punch eval-sizes` or `punch eval` on the snapshots tells (policies/README.md)"""
     reach: Literal["volume", "spot"] = "volume"
@@ -130,7 +130,8 @@ class TrainArgs:
     within what `size_arms` accepts: narrow it to the characters of a game"""
     init_from: Path | None = None
     """an earlier `punch train` run (its folder) whose best policy A2C starts from instead of a pretraining on this
-    run's search: for a policy contract that added inputs (they start at zero weight; learn/warm_start.py)"""
+    run's search, or one of its snapshots (RUN/a2c/snapshots/update_<N>): to train a policy further, or for a policy
+    contract that added inputs (they start at zero weight; learn/warm_start.py)"""
     processes: int = SearchArgs.processes
     """Godot processes (with --ray: Ray workers, docs/cluster.md) of 64 characters for the searches"""
 
@@ -272,8 +273,10 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
                            time_budget_s=budget or None, seed=args.seed, snapshot_every=args.a2c_snapshot_every)
 
         def snapshot(update: int, current: ActorCritic) -> None:
-            export_policy(current, out / "a2c" / "snapshots" / f"update_{update:05d}.onnx", contract=data["policy_metadata"],
-                          reward=reward.name, style=reward.style, summary={"a2c_snapshot_update": update})
+            folder = out / "a2c" / "snapshots" / f"update_{update:05d}"
+            export_policy(current, folder / "policy.onnx", contract=data["policy_metadata"], reward=reward.name,
+                          style=reward.style, summary={"a2c_snapshot_update": update})
+            save_checkpoint(folder, SNAPSHOT_KIND, {"update": update, "model": current.state_dict()})  # for --init-from
 
         model, a2c_history = train_a2c(model, reward, a2c_args, env, progress, run_dir=out / "a2c",
                                        start_rollouts=search.history[-1]["rollouts"] if search.history else 0,
@@ -305,7 +308,7 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
         f"- trajectory search: best return {search.best_return:.4f} ({search_args.iterations} iterations of {search_args.rollouts} rollouts)",
         (f"- after pretraining ({args.pretrain_epochs} epochs, final actor MSE {pretrain_history[-1]['actor_mse']:.2e}): "
          f"noise-free return {pretrained_return:.4f}" if args.init_from is None else
-         f"- warm start from {args.init_from}'s best policy (new inputs, at zero weight: "
+         f"- warm start from {args.init_from} (its best policy, or the snapshot; new inputs, at zero weight: "
          f"{', '.join(pretrain_history[-1]['new_inputs']) or 'none'}): noise-free return {pretrained_return:.4f}"),
         f"- after A2C ({len(a2c_history) - 1} updates x {processes * args.a2c_characters} episodes, advantage '{args.advantage}', "
         f"sigma at least {a2c_args.sigma_floor}): "
