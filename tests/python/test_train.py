@@ -40,11 +40,13 @@ def test_small_training_run_exports_a_policy_that_repeats_its_punch(tmp_path, st
     last = out / "a2c" / "snapshots" / snapshots[-1]
     assert (last / "checkpoint.pt").is_file()  # for `--init-from`
     snapshot = {p.key: p.value for p in onnx.load(str(last / "policy.onnx")).metadata_props}
-    assert json.loads(snapshot["punch_training_summary"]) == {"a2c_snapshot_update": 2}
     model = onnx.load(str(out / "policy.onnx"))
     metadata = {p.key: p.value for p in model.metadata_props}
     assert {key: value for key, value in snapshot.items() if key != "punch_training_summary"} == \
         {key: value for key, value in metadata.items() if key != "punch_training_summary"}
+    snapshot_summary = json.loads(snapshot["punch_training_summary"])
+    assert snapshot_summary["a2c_snapshot_update"] == 2 and snapshot_summary["reach"] == "spot"
+    assert snapshot_summary["search_best_return"] == json.loads(metadata["punch_training_summary"])["search_best_return"]
     for key in ["punch_spec_hash", "punch_action_spec", "punch_decision_period", "punch_smoothing_window",
                 "punch_physics_hz", "punch_reward", "punch_training_summary"]:
         assert metadata.get(key), key

@@ -275,7 +275,8 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
         def snapshot(update: int, current: ActorCritic) -> None:
             folder = out / "a2c" / "snapshots" / f"update_{update:05d}"
             export_policy(current, folder / "policy.onnx", contract=data["policy_metadata"], reward=reward.name,
-                          style=reward.style, summary={"a2c_snapshot_update": update})
+                          style=reward.style, summary={"search_best_return": search.best_return, "a2c_snapshot_update": update,
+                                                       "reach": args.reach})
             save_checkpoint(folder, SNAPSHOT_KIND, {"update": update, "model": current.state_dict()})  # for --init-from
 
         model, a2c_history = train_a2c(model, reward, a2c_args, env, progress, run_dir=out / "a2c",
