@@ -38,6 +38,22 @@ func build_stage(camera_at: Vector3) -> void:
 	layer.add_child(_label)
 
 
+## Adds a sky that lights the scene (the rendered GIFs' look) under `parent`.
+static func add_sky(parent: Node) -> void:
+	var environment := Environment.new()
+	var sky_material := ProceduralSkyMaterial.new()
+	sky_material.sky_top_color = Color(0.32, 0.42, 0.58)
+	environment.background_mode = Environment.BG_SKY
+	environment.sky = Sky.new()
+	environment.sky.sky_material = sky_material
+	environment.ambient_light_source = Environment.AMBIENT_SOURCE_SKY
+	environment.ambient_light_energy = 0.6
+	environment.tonemap_mode = Environment.TONE_MAPPER_FILMIC
+	var world := WorldEnvironment.new()
+	world.environment = environment
+	parent.add_child(world)
+
+
 ## A character at `where` (its +Z is where it faces), added under `parent`.
 func add_character(parent: Node3D, where: Transform3D) -> Node3D:
 	var character: Node3D = CHARACTER_SCENE.instantiate()

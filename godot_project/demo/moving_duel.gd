@@ -16,6 +16,7 @@
 extends Node3D
 
 const CHARACTER_SCENE := preload("res://addons/punch_controller/scenes/punch_character.tscn")
+const ARENA := preload("res://demo/arena.gd")
 const STYLES := ["straight", "hook", "swing"]
 ## Distance between the two roots while circling, m (out of reach: the trained target distances are 0.6-0.85 m).
 const STANDOFF_M := 1.1
@@ -389,18 +390,7 @@ func _report() -> void:
 
 
 func _build_stage() -> void:
-	var environment := Environment.new()
-	var sky_material := ProceduralSkyMaterial.new()
-	sky_material.sky_top_color = Color(0.32, 0.42, 0.58)
-	environment.background_mode = Environment.BG_SKY
-	environment.sky = Sky.new()
-	environment.sky.sky_material = sky_material
-	environment.ambient_light_source = Environment.AMBIENT_SOURCE_SKY
-	environment.ambient_light_energy = 0.6
-	environment.tonemap_mode = Environment.TONE_MAPPER_FILMIC
-	var world := WorldEnvironment.new()
-	world.environment = environment
-	add_child(world)
+	ARENA.add_sky(self)
 	var sun := DirectionalLight3D.new()
 	sun.shadow_enabled = true
 	sun.rotation_degrees = Vector3(-70, 30, 0)

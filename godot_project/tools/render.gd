@@ -7,6 +7,7 @@
 extends Node3D
 
 const PunchPair := preload("res://tools/punch_pair.gd")
+const ARENA := preload("res://demo/arena.gd")
 ## Metres between neighbouring pairs (arms and swinging bags never reach the next pair).
 const SPACING_M := 2.2
 ## Seconds of rest between punches.
@@ -74,18 +75,7 @@ func _add_pair(index: int, count: int, sigma: float) -> void:
 
 
 func _build_stage(count: int) -> void:
-	var environment := Environment.new()
-	var sky_material := ProceduralSkyMaterial.new()
-	sky_material.sky_top_color = Color(0.32, 0.42, 0.58)
-	environment.background_mode = Environment.BG_SKY
-	environment.sky = Sky.new()
-	environment.sky.sky_material = sky_material
-	environment.ambient_light_source = Environment.AMBIENT_SOURCE_SKY
-	environment.ambient_light_energy = 0.6
-	environment.tonemap_mode = Environment.TONE_MAPPER_FILMIC
-	var world := WorldEnvironment.new()
-	world.environment = environment
-	add_child(world)
+	ARENA.add_sky(self)
 	var sun := DirectionalLight3D.new()
 	sun.shadow_enabled = true
 	sun.look_at_from_position(Vector3(0, 4, 0), Vector3(0.7, 3, -0.6))
