@@ -74,7 +74,7 @@ def nan_policy(path, contract: dict[str, str]):
             mean = obs[:, :10] * torch.tensor(float("nan"))
             return mean, mean  # (ones_like would export as Expand, which a policy may not use)
 
-    return export_onnx(NanActor(), 54, path, metadata=contract, verify=False)
+    return export_onnx(NanActor(), int(contract["punch_observation_size"]), path, metadata=contract, verify=False)
 
 
 @pytest.mark.expensive
@@ -365,6 +365,7 @@ def hostile_policy_files(policy, directory):
     from onnx import TensorProto, helper
 
     contract = policy_metadata(policy)
+    observations = int(contract["punch_observation_size"])
     files = {}
 
     class Swapped(torch.nn.Module):
@@ -372,14 +373,14 @@ def hostile_policy_files(policy, directory):
             mean = torch.tanh(obs[:, :10])
             return mean * 0.5, mean
 
-    files["swapped"] = export_onnx(Swapped(), 54, directory / "swapped.onnx", metadata=contract,
+    files["swapped"] = export_onnx(Swapped(), observations, directory / "swapped.onnx", metadata=contract,
                                    output_names=("sigma", "mean"))
-    files["foo"] = export_onnx(Swapped(), 54, directory / "foo.onnx", metadata=contract, output_names=("foo", "sigma"))
+    files["foo"] = export_onnx(Swapped(), observations, directory / "foo.onnx", metadata=contract, output_names=("foo", "sigma"))
     for key, value in [("punch_frames", "0"), ("punch_frames", "7"), ("punch_frames", "1000000000000"),
                        ("punch_smoothing_window", "0"), ("punch_smoothing_window", "999"), ("punch_physics_hz", "60"),
                        ("punch_decision_period", "-5")]:
         name = f"{key}_{value}"
-        files[name] = export_onnx(Swapped(), 54, directory / f"{name}.onnx", metadata={**contract, key: value})
+        files[name] = export_onnx(Swapped(), observations, directory / f"{name}.onnx", metadata={**contract, key: value})
     # A policy of the spec before punching on the move (45 observations), as the addon shipped it.
     class Spec1(torch.nn.Module):
         def forward(self, obs):
@@ -390,22 +391,22 @@ def hostile_policy_files(policy, directory):
     # One of the spec before arms of any size (51 observations), as the addon shipped it for punching on the move.
     files["spec_2"] = export_onnx(Spec1(), 51, directory / "spec_2.onnx", metadata={**contract, "punch_spec_version": "2"})
     # A noise scale that would multiply the designer's sigma by 5 on one joint.
-    files["noise_scale"] = export_onnx(Swapped(), 54, directory / "noise_scale.onnx",
+    files["noise_scale"] = export_onnx(Swapped(), observations, directory / "noise_scale.onnx",
                                        metadata={**contract, "punch_noise_scale": "[1, 1, 1, 1, 1, 1, 1, 1, 1, 5]"})
     # A Loop whose body runs 2^40 times: the graph is small and valid, and ONNX Runtime would run it.
     body = helper.make_graph(
         [helper.make_node("Identity", ["cond_in"], ["cond_out"]), helper.make_node("Identity", ["x_in"], ["x_out"])],
         "body", [helper.make_tensor_value_info("i", TensorProto.INT64, []),
                  helper.make_tensor_value_info("cond_in", TensorProto.BOOL, []),
-                 helper.make_tensor_value_info("x_in", TensorProto.FLOAT, ["batch", 54])],
+                 helper.make_tensor_value_info("x_in", TensorProto.FLOAT, ["batch", observations])],
         [helper.make_tensor_value_info("cond_out", TensorProto.BOOL, []),
-         helper.make_tensor_value_info("x_out", TensorProto.FLOAT, ["batch", 54])])
+         helper.make_tensor_value_info("x_out", TensorProto.FLOAT, ["batch", observations])])
     graph = helper.make_graph(
         [helper.make_node("Constant", [], ["trips"], value=helper.make_tensor("t", TensorProto.INT64, [], [2**40])),
          helper.make_node("Constant", [], ["go"], value=helper.make_tensor("g", TensorProto.BOOL, [], [True])),
          helper.make_node("Loop", ["trips", "go", "obs"], ["looped"], body=body),
          helper.make_node("Slice", ["looped", "starts", "ends", "axes"], ["mean"])],
-        "loop", [helper.make_tensor_value_info("obs", TensorProto.FLOAT, ["batch", 54])],
+        "loop", [helper.make_tensor_value_info("obs", TensorProto.FLOAT, ["batch", observations])],
         [helper.make_tensor_value_info("mean", TensorProto.FLOAT, ["batch", 10])],
         initializer=[helper.make_tensor("starts", TensorProto.INT64, [1], [0]),
                      helper.make_tensor("ends", TensorProto.INT64, [1], [10]),

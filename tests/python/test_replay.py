@@ -157,17 +157,19 @@ def hostile_model_files(directory: Path) -> dict[str, Path]:
     (Concat of copies to [batch, 16384], an outer product by MatMul to [batch, 16384, 16384])."""
     from onnx import TensorProto, helper
 
+    observations = int(policy_metadata(SHIPPED_POLICY)["punch_observation_size"])
+
     body = helper.make_graph([helper.make_node("Identity", ["x_in"], ["x_out"]),
                               helper.make_node("Identity", ["cond_in"], ["cond_out"])], "body",
                              [helper.make_tensor_value_info("i", TensorProto.INT64, []),
                               helper.make_tensor_value_info("cond_in", TensorProto.BOOL, []),
-                              helper.make_tensor_value_info("x_in", TensorProto.FLOAT, ["batch", 54])],
+                              helper.make_tensor_value_info("x_in", TensorProto.FLOAT, ["batch", observations])],
                              [helper.make_tensor_value_info("cond_out", TensorProto.BOOL, []),
-                              helper.make_tensor_value_info("x_out", TensorProto.FLOAT, ["batch", 54])])
+                              helper.make_tensor_value_info("x_out", TensorProto.FLOAT, ["batch", observations])])
     loop = helper.make_graph(
         [helper.make_node("Loop", ["trips", "", "obs"], ["mean"], body=body)], "loop",
-        [helper.make_tensor_value_info("obs", TensorProto.FLOAT, ["batch", 54])],
-        [helper.make_tensor_value_info("mean", TensorProto.FLOAT, ["batch", 54])],
+        [helper.make_tensor_value_info("obs", TensorProto.FLOAT, ["batch", observations])],
+        [helper.make_tensor_value_info("mean", TensorProto.FLOAT, ["batch", observations])],
         initializer=[helper.make_tensor("trips", TensorProto.INT64, [], [2**40])])
     shipped = SHIPPED_POLICY.read_bytes()
     files = {"loop_first": _protobuf_field(7, loop.SerializeToString()) + shipped,
@@ -185,7 +187,7 @@ def hostile_model_files(directory: Path) -> dict[str, Path]:
          helper.make_node("Slice", ["square", "zero", "one", "last"], ["cut"]),
          helper.make_node("Slice", ["cut", "zero", "ten", "one"], ["flat"]),
          helper.make_node("Flatten", ["flat"], ["mean"], axis=1)], "growth",
-        [helper.make_tensor_value_info("obs", TensorProto.FLOAT, ["batch", 54])],
+        [helper.make_tensor_value_info("obs", TensorProto.FLOAT, ["batch", observations])],
         [helper.make_tensor_value_info("mean", TensorProto.FLOAT, ["batch", 10])], initializer=ints)
     grown = helper.make_model(growth, opset_imports=[helper.make_opsetid("", 17)])
     helper.set_model_props(grown, policy_metadata(SHIPPED_POLICY))  # otherwise a real policy's
