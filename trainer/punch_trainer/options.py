@@ -76,7 +76,7 @@ BOUNDS: dict[str, Bounds] = {
     "iterations": ITERATIONS, "search_iterations": ITERATIONS, "volume_search_iterations": ITERATIONS,
     "plateau_iterations": Bounds(0, 100_000),
     "rollouts": ROLLOUTS, "search_rollouts": ROLLOUTS, "volume_search_rollouts": ROLLOUTS,
-    "updates": ITERATIONS, "a2c_updates": ITERATIONS, "a2c_snapshot_every": Bounds(0, 100_000),
+    "updates": ITERATIONS, "a2c_updates": ITERATIONS, "snapshot_every": Bounds(0, 100_000), "a2c_snapshot_every": Bounds(0, 100_000),
     "epochs": Bounds(1, 1_000_000), "pretrain_epochs": Bounds(1, 1_000_000),
     "episodes": Bounds(1, 100_000),
     "noisy_episodes": Bounds(0, 1000),
