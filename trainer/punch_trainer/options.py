@@ -64,6 +64,8 @@ SIGMA = Bounds(0.0, 1.0, max_items=100)
 """A noise sigma: PunchController clamps to 0..1, so a value outside is refused rather than played as another."""
 SEED = Bounds(0, 2**32 - 1, max_items=100)
 ITERATIONS = Bounds(1, 100_000)
+EVERY_UPDATES = Bounds(0, 100_000)
+"""how often, in updates, something is done along a run (0: never)"""
 ROLLOUTS = Bounds(1, 4096)
 CHARACTERS = Bounds(1, 4096, max_items=32)
 SHARE = Bounds(0.0, 1.0)
@@ -76,7 +78,7 @@ BOUNDS: dict[str, Bounds] = {
     "iterations": ITERATIONS, "search_iterations": ITERATIONS, "volume_search_iterations": ITERATIONS,
     "plateau_iterations": Bounds(0, 100_000),
     "rollouts": ROLLOUTS, "search_rollouts": ROLLOUTS, "volume_search_rollouts": ROLLOUTS,
-    "updates": ITERATIONS, "a2c_updates": ITERATIONS, "snapshot_every": Bounds(0, 100_000), "a2c_snapshot_every": Bounds(0, 100_000),
+    "updates": ITERATIONS, "a2c_updates": ITERATIONS, "snapshot_every": EVERY_UPDATES, "a2c_snapshot_every": EVERY_UPDATES,
     "epochs": Bounds(1, 1_000_000), "pretrain_epochs": Bounds(1, 1_000_000),
     "episodes": Bounds(1, 100_000),
     "noisy_episodes": Bounds(0, 1000),

@@ -272,22 +272,22 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
                            smoothing_window=args.smoothing_window, sigma_floor=sigma_floor,
                            time_budget_s=budget or None, seed=args.seed, snapshot_every=args.a2c_snapshot_every)
 
+        run_facts = {"search_best_return": search.best_return, "reach": args.reach}  # in every policy file's summary
+
         def snapshot(update: int, current: ActorCritic) -> None:
             folder = out / "a2c" / "snapshots" / f"update_{update:05d}"
             export_policy(current, folder / "policy.onnx", contract=data["policy_metadata"], reward=reward.name,
-                          style=reward.style, summary={"search_best_return": search.best_return, "a2c_snapshot_update": update,
-                                                       "reach": args.reach})
+                          style=reward.style, summary={**run_facts, "a2c_snapshot_update": update})
             save_checkpoint(folder, SNAPSHOT_KIND, {"update": update, "model": current.state_dict()})  # for --init-from
 
         model, a2c_history = train_a2c(model, reward, a2c_args, env, progress, run_dir=out / "a2c",
                                        start_rollouts=search.history[-1]["rollouts"] if search.history else 0,
-                                       conditions=conditions, validation=validation,
-                                       on_snapshot=snapshot if args.a2c_snapshot_every else None)
+                                       conditions=conditions, validation=validation, on_snapshot=snapshot)
         timings["a2c_s"] = time.perf_counter() - started - timings["search_s"] - timings["pretrain_s"]
 
-        summary = {"search_best_return": search.best_return, "pretrained_return": pretrained_return,
+        summary = {**run_facts, "pretrained_return": pretrained_return,
                    "a2c_best_eval_return": max(h["eval_return"] for h in a2c_history), "a2c_updates": len(a2c_history) - 1,
-                   "reach": args.reach, "grid_best_returns": [round(r, 4) for r in grid_bests]}
+                   "grid_best_returns": [round(r, 4) for r in grid_bests]}
         validated = restarts.run(functools.partial(validate, model, env, reward, validation)) if validation is not None else None
         if validated is not None:
             summary["validation"] = validated.to_json()
