@@ -97,6 +97,42 @@ def test_the_chain_style_charges_a_joint_that_leads_the_one_before_it_and_boxing
     assert np.all(Style("boxing").cost(frames_of(features(**elbow_first))) == 0.0)
 
 
+def landing(**columns: np.ndarray) -> dict[str, np.ndarray]:
+    """A punch whose fist closes on the bag's centre from 0.6 to 0.2 m, within 0.3 m (landing) from frame 38."""
+    return features(**{"fist_r_bag_distance": np.linspace(0.6, 0.2, FRAMES), "speed_waist_rotation": np.zeros(FRAMES),
+                       **columns})
+
+
+def test_the_fast_style_charges_a_slow_landing_and_nothing_else() -> None:
+    """`boxing_fast`: the fist landing slower than a boxer's 8.5 m/s costs, only inside the landing zone and
+    before contact; a fast landing, or a slow fist far from the bag, costs nothing, and `boxing` never charges it."""
+    fast = style_named("boxing_fast")
+    assert fast is not None and fast.landing_cost_per_mps2 > 0
+    zone = np.linspace(0.6, 0.2, FRAMES) < fast.landing_zone_m
+    slow = fast.cost(frames_of(landing(fist_r_vel_z=np.full(FRAMES, 6.0))))
+    assert np.all(slow[zone] > 0.0) and np.all(slow[~zone] == 0.0)
+    np.testing.assert_allclose(slow[zone], fast.landing_cost_per_mps2 * (fast.landing_free_mps - 6.0) ** 2)
+    assert np.all(fast.cost(frames_of(landing(fist_r_vel_z=np.full(FRAMES, 8.8)))) == 0.0)
+    touched = np.where(np.arange(FRAMES) >= 40, 1.0, 0.0)
+    landed = fast.cost(frames_of(landing(fist_r_vel_z=np.full(FRAMES, 6.0), fist_r_impulse_z=touched)))
+    assert np.all(landed[40:] == 0.0) and np.all(landed[zone & (np.arange(FRAMES) < 40)] > 0.0)
+    assert np.all(Style("boxing").cost(frames_of(landing(fist_r_vel_z=np.full(FRAMES, 6.0)))) == 0.0)
+
+
+def test_the_lead_style_charges_a_waist_still_speeding_up_as_the_punch_lands() -> None:
+    """`boxing_lead`: the waist's turn peaking before the fist is landing costs nothing; still speeding up
+    inside the landing zone (the break in the shipped punches' proximal-to-distal order) costs."""
+    lead = style_named("boxing_lead")
+    assert lead is not None and lead.waist_lead_cost > 0
+    frame = np.arange(FRAMES)
+    peaked_before = lead.cost(frames_of(landing(speed_waist_rotation=np.minimum(frame, 60 - frame) / 5.0)))
+    assert np.all(peaked_before == 0.0)  # speeds up to frame 30, slows down from there
+    still_speeding = lead.cost(frames_of(landing(speed_waist_rotation=-frame / 5.0)))  # either way round
+    zone = np.linspace(0.6, 0.2, FRAMES) < lead.landing_zone_m
+    assert np.all(still_speeding[zone] > 0.0) and np.all(still_speeding[~zone] == 0.0)
+    assert np.all(Style("boxing").cost(frames_of(landing(speed_waist_rotation=frame / 5.0))) == 0.0)
+
+
 def test_flailing_after_the_punch_has_landed_costs_what_it_earned() -> None:
     """Earnings stay partly at risk until the punch ends: a guard hand that flies off after the fist lands
     discounts what the fist earned, where a discount of later frames only would let it go free."""

@@ -71,6 +71,14 @@ class Style:
     (../shared/data, CMU 143/23, from joint positions: the shoulder line's yaw 3.5-5.4, the upper arm's direction
     12.6-18.8, the elbow angle 23.7-30.8 rad/s, peaking in that order in 3 of 4 punches) scaled so that the
     elbow's is what the motors reach (18 rad/s)"""
+    landing_zone_m: float = 0.3
+    """how near the bag (the fist's distance from its centre, the presets' near zone) a punch is landing"""
+    landing_free_mps: float = 0.0
+    """the punching fist's speed, on the body, below which a landing punch (inside the zone, before contact) costs"""
+    landing_cost_per_mps2: float = 0.0
+    waist_lead_cost: float = 0.0
+    """cost of the waist's rotation speeding up (per (rad/s)^2 of the frame's gain) while a punch is landing: the
+    trunk's turn peaks before the fist lands, as in boxing's proximal-to-distal order"""
     later_cost_share: float = 0.1
     """how much of the cost after a frame still discounts what that frame earned (0: only the cost before it;
     1: all of it, the whole punch's)"""
@@ -118,7 +126,17 @@ class Style:
             # Drive: the shoulder and the elbow do not slow before the fist lands.
             slowing = (so_far[1] - relative[1]) ** 2 + (so_far[2] - relative[2]) ** 2
             drive = self.drive_cost * np.where(before_contact, slowing, 0.0)
-        cost = (chain + drive + self.off_fist_cost_per_m2 * beyond(off_from_guard_m, self.off_fist_free_m)
+        slow_landing: np.ndarray | float = 0.0
+        waist_lead: np.ndarray | float = 0.0
+        if self.landing_cost_per_mps2 > 0.0 or self.waist_lead_cost > 0.0:
+            landing = (frames("fist_r_bag_distance") < self.landing_zone_m) & before_contact
+            slow = np.maximum(0.0, self.landing_free_mps - fist_speed_mps) ** 2
+            slow_landing = self.landing_cost_per_mps2 * np.where(landing, slow, 0.0)
+            # The waist's turn may not speed up once the punch is landing: it has peaked before.
+            waist_speed = np.abs(frames("speed_waist_rotation"))
+            waist_gain = np.diff(waist_speed, axis=-1, prepend=waist_speed[..., :1])
+            waist_lead = self.waist_lead_cost * np.where(landing, np.maximum(0.0, waist_gain) ** 2, 0.0)
+        cost = (chain + drive + slow_landing + waist_lead + self.off_fist_cost_per_m2 * beyond(off_from_guard_m, self.off_fist_free_m)
                 + self.off_fist_cost_per_mps2 * beyond(off_speed_mps, self.off_fist_free_mps)
                 + self.waist_flexion_cost_per_rad2 * beyond(waist_flexion_rad, self.waist_flexion_free_rad)
                 + self.fist_cost_per_mps2 * beyond(fist_speed_mps, self.fist_free_mps)
@@ -160,9 +178,12 @@ class Style:
 
 STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
                                    "boxing_chain": Style("boxing_chain", chain_cost=4.0),
-                                   "boxing_drive": Style("boxing_drive", drive_cost=4.0)}
-"""the styles by name; `none` is the paper's reward alone; `boxing_chain` and `boxing_drive` are `boxing` asking for
-the proximal-to-distal order too (experiments: docs/experiments.md)"""
+                                   "boxing_drive": Style("boxing_drive", drive_cost=4.0),
+                                   "boxing_fast": Style("boxing_fast", landing_free_mps=8.5, landing_cost_per_mps2=0.2),
+                                   "boxing_lead": Style("boxing_lead", waist_lead_cost=0.5)}
+"""the styles by name; `none` is the paper's reward alone; `boxing_chain`, `boxing_drive` and `boxing_lead` are
+`boxing` asking for the proximal-to-distal order too, `boxing_fast` for a boxer's landing speed (boxers' hooks land
+faster than their straights, ../shared/design/ANCHORS.md §3); experiments: docs/experiments.md"""
 DEFAULT_STYLE = "boxing"
 MAX_WEIGHT = 100.0
 
