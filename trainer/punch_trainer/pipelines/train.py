@@ -76,7 +76,8 @@ class TrainArgs:
     reward: str = SearchArgs.reward
     """a preset (straight, straight100, hook, swing) or FILE.py:FUNCTION"""
     style: str = SearchArgs.style
-    """the motion style added to the reward in every stage (docs/style.md): boxing, or none for the reward alone"""
+    """the motion style added to the reward in every stage (docs/style.md): boxing, none for the reward alone, or
+    one of the styles experiments compare (sim/style.py: boxing_fast, boxing_lead, ...)"""
     style_weight: float = field(default=SearchArgs.style_weight, metadata=bounds(0.0, MAX_STYLE_WEIGHT))
     """how strongly the style holds (1: as measured in docs/style.md)"""
     frames: int | None = None

@@ -76,6 +76,7 @@ class Style:
     landing_free_mps: float = 0.0
     """the punching fist's speed, on the body, below which a landing punch (inside the zone, before contact) costs"""
     landing_cost_per_mps2: float = 0.0
+    """cost per frame of a landing punch, per (m/s)^2 by which the fist is slower than `landing_free_mps`"""
     waist_lead_cost: float = 0.0
     """cost of the waist's rotation speeding up (per (rad/s)^2 of the frame's gain) while a punch is landing: the
     trunk's turn peaks before the fist lands, as in boxing's proximal-to-distal order"""
