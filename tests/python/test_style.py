@@ -119,6 +119,22 @@ def test_the_fast_style_charges_a_slow_landing_and_nothing_else() -> None:
     assert np.all(Style("boxing").cost(frames_of(landing(fist_r_vel_z=np.full(FRAMES, 6.0)))) == 0.0)
 
 
+def test_the_arm_style_asks_a_shorter_arm_for_a_slower_landing() -> None:
+    """`boxing_fast_arm`: the floor is 8.5 m/s with the scene's arms and scales with the arm's length, so 7 m/s
+    lands free with arms 0.75 times as long (floor 6.4 m/s) and costs with the scene's."""
+    arm = style_named("boxing_fast_arm")
+    assert arm is not None and arm.landing_floor_with_arm
+    upper_m, forearm_m = 0.282, 0.337  # the character scene's (sim/placement.py)
+
+    def cost(scale: float) -> np.ndarray:
+        return arm.cost(frames_of(landing(fist_r_vel_z=np.full(FRAMES, 7.0), body_upper_arm_m=np.full(FRAMES, scale * upper_m),
+                                          body_forearm_m=np.full(FRAMES, scale * forearm_m))))
+
+    zone = np.linspace(0.6, 0.2, FRAMES) < arm.landing_zone_m
+    np.testing.assert_allclose(cost(1.0)[zone], arm.landing_cost_per_mps2 * 1.5 ** 2)
+    assert np.all(cost(0.75) == 0.0)
+
+
 def test_the_lead_style_charges_a_waist_still_speeding_up_as_the_punch_lands() -> None:
     """`boxing_lead`: the waist's turn peaking before the fist is landing costs nothing; still speeding up
     inside the landing zone (the break in the shipped punches' proximal-to-distal order) costs."""

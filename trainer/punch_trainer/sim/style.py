@@ -29,6 +29,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from punch_trainer.errors import PunchError
+from punch_trainer.sim.placement import SCENE_ARM_LENGTHS_M
 
 FramesLike = Callable[[str], np.ndarray]
 """`frames[name]` of punch_trainer.sim.rewards.Frames: a feature's values [..., frames]"""
@@ -77,6 +78,9 @@ class Style:
     """the punching fist's speed, on the body, below which a landing punch (inside the zone, before contact) costs"""
     landing_cost_per_mps2: float = 0.0
     """cost per frame of a landing punch, per (m/s)^2 by which the fist is slower than `landing_free_mps`"""
+    landing_floor_with_arm: bool = False
+    """the floor scales with the arm's length (upper arm and forearm, as sized) over the character scene's: the same
+    joint speeds move a shorter arm's fist slower"""
     waist_lead_cost: float = 0.0
     """cost of the waist's rotation speeding up (per (rad/s)^2 of the frame's gain) while a punch is landing: the
     trunk's turn peaks before the fist lands, as in boxing's proximal-to-distal order"""
@@ -131,7 +135,11 @@ class Style:
         waist_lead: np.ndarray | float = 0.0
         if self.landing_cost_per_mps2 > 0.0 or self.waist_lead_cost > 0.0:
             landing = (frames("fist_r_bag_distance") < self.landing_zone_m) & before_contact
-            slow = np.maximum(0.0, self.landing_free_mps - fist_speed_mps) ** 2
+            floor_mps: np.ndarray | float = self.landing_free_mps
+            if self.landing_floor_with_arm:
+                arm_m = frames("body_upper_arm_m") + frames("body_forearm_m")
+                floor_mps = self.landing_free_mps * arm_m / (SCENE_ARM_LENGTHS_M[0] + SCENE_ARM_LENGTHS_M[1])
+            slow = np.maximum(0.0, floor_mps - fist_speed_mps) ** 2
             slow_landing = self.landing_cost_per_mps2 * np.where(landing, slow, 0.0)
             # The waist's turn may not speed up once the punch is landing: it has peaked before.
             waist_speed = np.abs(frames("speed_waist_rotation"))
@@ -181,10 +189,13 @@ STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
                                    "boxing_chain": Style("boxing_chain", chain_cost=4.0),
                                    "boxing_drive": Style("boxing_drive", drive_cost=4.0),
                                    "boxing_fast": Style("boxing_fast", landing_free_mps=8.5, landing_cost_per_mps2=0.2),
+                                   "boxing_fast_arm": Style("boxing_fast_arm", landing_free_mps=8.5, landing_cost_per_mps2=0.2,
+                                                            landing_floor_with_arm=True),
                                    "boxing_lead": Style("boxing_lead", waist_lead_cost=0.5)}
 """the styles by name; `none` is the paper's reward alone; `boxing_chain`, `boxing_drive` and `boxing_lead` are
-`boxing` asking for the proximal-to-distal order too, `boxing_fast` for a boxer's landing speed (boxers' hooks land
-faster than their straights, ../shared/design/ANCHORS.md §3); experiments: docs/experiments.md"""
+`boxing` asking for the proximal-to-distal order too, `boxing_fast` and `boxing_fast_arm` for a boxer's landing
+speed (boxers' hooks land faster than their straights, ../shared/design/ANCHORS.md §3); experiments:
+docs/experiments.md"""
 DEFAULT_STYLE = "boxing"
 MAX_WEIGHT = 100.0
 
