@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from punch_trainer.sim.placement import SCENE_ARM_LENGTHS_M
 from punch_trainer.sim.style import Style, StyleError, style_from_label, style_label, style_named
 
 FRAMES = 50
@@ -124,7 +125,7 @@ def test_the_arm_style_asks_a_shorter_arm_for_a_slower_landing() -> None:
     lands free with arms 0.75 times as long (floor 6.4 m/s) and costs with the scene's."""
     arm = style_named("boxing_fast_arm")
     assert arm is not None and arm.landing_floor_with_arm
-    upper_m, forearm_m = 0.282, 0.337  # the character scene's (sim/placement.py)
+    upper_m, forearm_m, _ = SCENE_ARM_LENGTHS_M
 
     def cost(scale: float) -> np.ndarray:
         return arm.cost(frames_of(landing(fist_r_vel_z=np.full(FRAMES, 7.0), body_upper_arm_m=np.full(FRAMES, scale * upper_m),

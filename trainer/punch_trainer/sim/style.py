@@ -145,7 +145,8 @@ class Style:
             waist_speed = np.abs(frames("speed_waist_rotation"))
             waist_gain = np.diff(waist_speed, axis=-1, prepend=waist_speed[..., :1])
             waist_lead = self.waist_lead_cost * np.where(landing, np.maximum(0.0, waist_gain) ** 2, 0.0)
-        cost = (chain + drive + slow_landing + waist_lead + self.off_fist_cost_per_m2 * beyond(off_from_guard_m, self.off_fist_free_m)
+        cost = (chain + drive + slow_landing + waist_lead
+                + self.off_fist_cost_per_m2 * beyond(off_from_guard_m, self.off_fist_free_m)
                 + self.off_fist_cost_per_mps2 * beyond(off_speed_mps, self.off_fist_free_mps)
                 + self.waist_flexion_cost_per_rad2 * beyond(waist_flexion_rad, self.waist_flexion_free_rad)
                 + self.fist_cost_per_mps2 * beyond(fist_speed_mps, self.fist_free_mps)
