@@ -223,13 +223,17 @@ def test_an_episode_scored_decision_by_decision_adds_up_to_its_return_with_and_w
         score,
     )
 
-    names = [*NAMES, "fist_r_bag_distance", "exploit_flags"]
+    names = [*NAMES, "fist_r_bag_distance", "exploit_flags", "speed_waist_rotation", "body_upper_arm_m", "body_forearm_m"]
     rng = np.random.default_rng(3)
     values = np.zeros((3, FRAMES, len(names)))
     values[..., names.index("fist_r_vel_z")] = rng.uniform(0, 12, (3, FRAMES))
     values[..., names.index("fist_l_pos_y")] = np.linspace(0, 0.4, FRAMES)  # the guard hand drifts off
+    values[..., names.index("fist_r_bag_distance")] = np.linspace(0.6, 0.2, FRAMES)  # and lands (the landing terms)
+    values[..., names.index("speed_waist_rotation")] = rng.uniform(-6, 6, (3, FRAMES))
+    values[..., names.index("body_upper_arm_m")], values[..., names.index("body_forearm_m")] = 0.25, 0.3
     plain = load_reward("straight")
-    for reward in (plain, replace(plain, style=style_named("boxing"))):
+    for reward in (plain, *[replace(plain, style=style_named(name)) for name in ("boxing", "boxing_fast", "boxing_fast_arm",
+                                                                                 "boxing_lead")]):
         per_decision = decision_rewards(reward, values, names, 5)
         assert per_decision.shape == (3, FRAMES // 5)
         np.testing.assert_allclose(per_decision.sum(axis=-1), score(reward, values, names), rtol=1e-9, atol=1e-9)
