@@ -136,6 +136,27 @@ def test_the_arm_style_asks_a_shorter_arm_for_a_slower_landing() -> None:
     assert np.all(cost(0.75) == 0.0)
 
 
+def test_the_near_style_leaves_a_target_beyond_the_arm_to_a_slower_punch() -> None:
+    """`boxing_fast_near`: the floor counts only where the bag's near side starts within 1.1 arm lengths of the
+    shoulder (across the ground): a target 0.75 m ahead is near for the scene's arm (0.96 of it) and far for an
+    arm 0.75 times as long (1.28), and the same slow landing costs only the first."""
+    near = style_named("boxing_fast_near")
+    assert near is not None and near.landing_reach_share == 1.1
+    upper_m, forearm_m, width_m = SCENE_ARM_LENGTHS_M
+
+    def cost(scale: float, ahead_m: float, side_m: float = 0.0) -> np.ndarray:
+        full = np.full(FRAMES, 1.0)
+        return near.cost(frames_of(landing(fist_r_vel_z=np.full(FRAMES, 6.0), body_upper_arm_m=scale * upper_m * full,
+                                           body_forearm_m=scale * forearm_m * full, body_shoulder_width_m=width_m * full,
+                                           bag_pos_z=ahead_m * full, bag_pos_x=side_m * full)))
+
+    zone = np.linspace(0.6, 0.2, FRAMES) < near.landing_zone_m
+    np.testing.assert_allclose(cost(1.0, 0.75)[zone], near.landing_cost_per_mps2 * 2.5 ** 2)
+    assert np.all(cost(0.75, 0.75) == 0.0)
+    assert np.all(cost(0.75, 0.6, -0.18)[zone] > 0.0)  # straight out from the shoulder: near for the short arm too
+    assert np.all(cost(1.0, 0.85, 0.25) == 0.0)  # across the body at the volume's far corner: beyond every arm
+
+
 def test_the_lead_style_charges_a_waist_still_speeding_up_as_the_punch_lands() -> None:
     """`boxing_lead`: the waist's turn peaking before the fist is landing costs nothing; still speeding up
     inside the landing zone (the break in the shipped punches' proximal-to-distal order) costs."""
@@ -223,7 +244,8 @@ def test_an_episode_scored_decision_by_decision_adds_up_to_its_return_with_and_w
         score,
     )
 
-    names = [*NAMES, "fist_r_bag_distance", "exploit_flags", "speed_waist_rotation", "body_upper_arm_m", "body_forearm_m"]
+    names = [*NAMES, "fist_r_bag_distance", "exploit_flags", "speed_waist_rotation", "body_upper_arm_m", "body_forearm_m",
+             "body_shoulder_width_m"]
     rng = np.random.default_rng(3)
     values = np.zeros((3, FRAMES, len(names)))
     values[..., names.index("fist_r_vel_z")] = rng.uniform(0, 12, (3, FRAMES))
@@ -231,9 +253,10 @@ def test_an_episode_scored_decision_by_decision_adds_up_to_its_return_with_and_w
     values[..., names.index("fist_r_bag_distance")] = np.linspace(0.6, 0.2, FRAMES)  # and lands (the landing terms)
     values[..., names.index("speed_waist_rotation")] = rng.uniform(-6, 6, (3, FRAMES))
     values[..., names.index("body_upper_arm_m")], values[..., names.index("body_forearm_m")] = 0.25, 0.3
+    values[..., names.index("body_shoulder_width_m")], values[..., names.index("bag_pos_z")] = 0.36, 0.6  # within reach
     plain = load_reward("straight")
     for reward in (plain, *[replace(plain, style=style_named(name)) for name in ("boxing", "boxing_fast", "boxing_fast_arm",
-                                                                                 "boxing_lead")]):
+                                                                                 "boxing_fast_near", "boxing_lead")]):
         per_decision = decision_rewards(reward, values, names, 5)
         assert per_decision.shape == (3, FRAMES // 5)
         np.testing.assert_allclose(per_decision.sum(axis=-1), score(reward, values, names), rtol=1e-9, atol=1e-9)

@@ -29,7 +29,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from punch_trainer.errors import PunchError
-from punch_trainer.sim.placement import SCENE_ARM_LENGTHS_M
+from punch_trainer.sim.placement import SCENE_ARM_LENGTHS_M, SCENE_BAG_RADIUS_M
 
 FramesLike = Callable[[str], np.ndarray]
 """`frames[name]` of punch_trainer.sim.rewards.Frames: a feature's values [..., frames]"""
@@ -81,6 +81,10 @@ class Style:
     landing_floor_with_arm: bool = False
     """the floor scales with the arm's length (upper arm and forearm, as sized) over the character scene's: the same
     joint speeds move a shorter arm's fist slower"""
+    landing_reach_share: float = 0.0
+    """the floor counts only where the bag's near side starts within this share of the arm's length (shoulder to
+    fist centre, as sized) from the shoulder, across the ground; a farther target is left to a slower punch at
+    full stretch (0: the floor counts everywhere)"""
     waist_lead_cost: float = 0.0
     """cost of the waist's rotation speeding up (per (rad/s)^2 of the frame's gain) while a punch is landing: the
     trunk's turn peaks before the fist lands, as in boxing's proximal-to-distal order"""
@@ -139,6 +143,8 @@ class Style:
             if self.landing_floor_with_arm:
                 arm_m = frames("body_upper_arm_m") + frames("body_forearm_m")
                 floor_mps = self.landing_free_mps * arm_m / (SCENE_ARM_LENGTHS_M[0] + SCENE_ARM_LENGTHS_M[1])
+            if self.landing_reach_share > 0.0:
+                floor_mps = np.where(reach_share(frames) <= self.landing_reach_share, floor_mps, 0.0)
             slow = np.maximum(0.0, floor_mps - fist_speed_mps) ** 2
             slow_landing = self.landing_cost_per_mps2 * np.where(landing, slow, 0.0)
             # The waist's turn may not speed up once the punch is landing: it has peaked before.
@@ -192,12 +198,24 @@ STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
                                    "boxing_fast": Style("boxing_fast", landing_free_mps=8.5, landing_cost_per_mps2=0.2),
                                    "boxing_fast_arm": Style("boxing_fast_arm", landing_free_mps=8.5, landing_cost_per_mps2=0.2,
                                                             landing_floor_with_arm=True),
+                                   "boxing_fast_near": Style("boxing_fast_near", landing_free_mps=8.5,
+                                                             landing_cost_per_mps2=0.2, landing_reach_share=1.1),
                                    "boxing_lead": Style("boxing_lead", waist_lead_cost=0.5)}
 """the styles by name; `none` is the paper's reward alone; `boxing_chain`, `boxing_drive` and `boxing_lead` are
-`boxing` asking for the proximal-to-distal order too, `boxing_fast` and `boxing_fast_arm` for a boxer's landing
-speed (boxers' hooks land faster than their straights, ../shared/design/ANCHORS.md §3); experiments:
+`boxing` asking for the proximal-to-distal order too, `boxing_fast`, `boxing_fast_arm` and `boxing_fast_near`
+for a boxer's landing speed (boxers' hooks land faster than their straights, ../shared/design/ANCHORS.md §3); experiments:
 docs/experiments.md"""
 DEFAULT_STYLE = "boxing"
+
+
+def reach_share(frames: FramesLike) -> np.ndarray:
+    """How far the bag's near side is from the right shoulder at the episode's start, across the ground (the bag
+    hangs upright, so a fist meets it at any height it reaches), as a share of the arm (shoulder to fist centre):
+    [..., 1], under 1 where the fist reaches it without the trunk. The shoulder sits at the character's rest
+    place (the scene's: its shoulders' midpoint over the root, half the shoulder width to the right)."""
+    bag_side_m = frames("bag_pos_x")[..., :1] + 0.5 * frames("body_shoulder_width_m")[..., :1]
+    near_side_m = np.hypot(bag_side_m, frames("bag_pos_z")[..., :1]) - SCENE_BAG_RADIUS_M
+    return np.asarray(near_side_m / (frames("body_upper_arm_m") + frames("body_forearm_m"))[..., :1])
 MAX_WEIGHT = 100.0
 
 
