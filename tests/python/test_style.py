@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
-from punch_trainer.sim.placement import SCENE_ARM_LENGTHS_M
+from punch_trainer.sim.placement import SCENE_ARM_LENGTHS_M, SCENE_BAG_RADIUS_M
 from punch_trainer.sim.style import Style, StyleError, style_from_label, style_label, style_named
 
 FRAMES = 50
@@ -155,6 +157,8 @@ def test_the_near_style_leaves_a_target_beyond_the_arm_to_a_slower_punch() -> No
     assert np.all(cost(0.75, 0.75) == 0.0)
     assert np.all(cost(0.75, 0.6, -0.18)[zone] > 0.0)  # straight out from the shoulder: near for the short arm too
     assert np.all(cost(1.0, 0.85, 0.25) == 0.0)  # across the body at the volume's far corner: beyond every arm
+    sandbag = (Path(__file__).parents[2] / "addons/punch_controller/scenes/punch_sandbag.tscn").read_text()
+    assert f"radius = {SCENE_BAG_RADIUS_M}" in sandbag, "the style's bag radius is the sandbag scene's"
 
 
 def test_the_lead_style_charges_a_waist_still_speeding_up_as_the_punch_lands() -> None:

@@ -206,6 +206,7 @@ STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
 for a boxer's landing speed (boxers' hooks land faster than their straights, ../shared/design/ANCHORS.md §3); experiments:
 docs/experiments.md"""
 DEFAULT_STYLE = "boxing"
+MAX_WEIGHT = 100.0
 
 
 def reach_share(frames: FramesLike) -> np.ndarray:
@@ -216,7 +217,6 @@ def reach_share(frames: FramesLike) -> np.ndarray:
     bag_side_m = frames("bag_pos_x")[..., :1] + 0.5 * frames("body_shoulder_width_m")[..., :1]
     near_side_m = np.hypot(bag_side_m, frames("bag_pos_z")[..., :1]) - SCENE_BAG_RADIUS_M
     return np.asarray(near_side_m / (frames("body_upper_arm_m") + frames("body_forearm_m"))[..., :1])
-MAX_WEIGHT = 100.0
 
 
 def style_named(name: str, weight: float = 1.0) -> Style | None:
