@@ -161,6 +161,33 @@ def test_the_near_style_leaves_a_target_beyond_the_arm_to_a_slower_punch() -> No
     assert f"radius = {SCENE_BAG_RADIUS_M}" in sandbag, "the style's bag radius is the sandbag scene's"
 
 
+def test_the_entry_style_charges_a_slow_landing_once_and_at_most_its_cap() -> None:
+    """`boxing_fast_entry`: the shortfall is charged on the first landing frame only, and at most 1.5 m/s of it, so a
+    punch landing at 2 m/s (one recovering from a knock) keeps part of what it earns; one at 8 m/s pays a little."""
+    entry = style_named("boxing_fast_entry")
+    assert entry is not None and entry.landing_at_entry
+    within_reach = {"body_upper_arm_m": np.full(FRAMES, 0.282), "body_forearm_m": np.full(FRAMES, 0.337),
+                    "body_shoulder_width_m": np.full(FRAMES, 0.36), "bag_pos_z": np.full(FRAMES, 0.6)}
+    first = int(np.argmax(np.linspace(0.6, 0.2, FRAMES) < entry.landing_zone_m))
+    for speed_mps, shortfall_mps in ((2.0, 1.5), (8.0, 0.5), (9.0, 0.0)):
+        cost = entry.cost(frames_of(landing(fist_r_vel_z=np.full(FRAMES, speed_mps), **within_reach)))
+        np.testing.assert_allclose(cost[first], entry.landing_cost_per_mps2 * shortfall_mps ** 2)
+        assert np.all(np.delete(cost, first) == 0.0)
+
+
+def test_the_capped_style_charges_every_landing_frame_at_most_its_cap() -> None:
+    """`boxing_fast_capped`: `boxing_fast_near`'s charge on every landing frame, of at most 1.5 m/s of shortfall."""
+    capped = style_named("boxing_fast_capped")
+    assert capped is not None and not capped.landing_at_entry
+    within_reach = {"body_upper_arm_m": np.full(FRAMES, 0.282), "body_forearm_m": np.full(FRAMES, 0.337),
+                    "body_shoulder_width_m": np.full(FRAMES, 0.36), "bag_pos_z": np.full(FRAMES, 0.6)}
+    zone = np.linspace(0.6, 0.2, FRAMES) < capped.landing_zone_m
+    for speed_mps, shortfall_mps in ((2.0, 1.5), (8.0, 0.5)):
+        cost = capped.cost(frames_of(landing(fist_r_vel_z=np.full(FRAMES, speed_mps), **within_reach)))
+        np.testing.assert_allclose(cost[zone], capped.landing_cost_per_mps2 * shortfall_mps ** 2)
+        assert np.all(cost[~zone] == 0.0)
+
+
 def test_the_lead_style_charges_a_waist_still_speeding_up_as_the_punch_lands() -> None:
     """`boxing_lead`: the waist's turn peaking before the fist is landing costs nothing; still speeding up
     inside the landing zone (the break in the shipped punches' proximal-to-distal order) costs."""
@@ -260,7 +287,8 @@ def test_an_episode_scored_decision_by_decision_adds_up_to_its_return_with_and_w
     values[..., names.index("body_shoulder_width_m")], values[..., names.index("bag_pos_z")] = 0.36, 0.6  # within reach
     plain = load_reward("straight")
     for reward in (plain, *[replace(plain, style=style_named(name)) for name in ("boxing", "boxing_fast", "boxing_fast_arm",
-                                                                                 "boxing_fast_near", "boxing_lead")]):
+                                                                                 "boxing_fast_near", "boxing_fast_entry",
+                                                                                 "boxing_fast_capped", "boxing_lead")]):
         per_decision = decision_rewards(reward, values, names, 5)
         assert per_decision.shape == (3, FRAMES // 5)
         np.testing.assert_allclose(per_decision.sum(axis=-1), score(reward, values, names), rtol=1e-9, atol=1e-9)

@@ -85,6 +85,12 @@ class Style:
     """the floor counts only where the bag's near side starts within this share of the arm's length (shoulder to
     fist centre, as sized) from the shoulder, across the ground; a farther target is left to a slower punch at
     full stretch (0: the floor counts everywhere)"""
+    landing_at_entry: bool = False
+    """the shortfall is charged once a punch, on its first landing frame (the fist's speed as it enters the zone),
+    instead of on every landing frame: a slow punch that still lands, as one knocked off its line recovers, is
+    charged no more than a fast one that lands after fewer frames"""
+    landing_shortfall_cap_mps: float = float("inf")
+    """the most of the shortfall that costs: a slow landing keeps part of what it earns"""
     waist_lead_cost: float = 0.0
     """cost of the waist's rotation speeding up (per (rad/s)^2 of the frame's gain) while a punch is landing: the
     trunk's turn peaks before the fist lands, as in boxing's proximal-to-distal order"""
@@ -145,8 +151,9 @@ class Style:
                 floor_mps = self.landing_free_mps * arm_m / (SCENE_ARM_LENGTHS_M[0] + SCENE_ARM_LENGTHS_M[1])
             if self.landing_reach_share > 0.0:
                 floor_mps = np.where(reach_share(frames) <= self.landing_reach_share, floor_mps, 0.0)
-            slow = np.maximum(0.0, floor_mps - fist_speed_mps) ** 2
-            slow_landing = self.landing_cost_per_mps2 * np.where(landing, slow, 0.0)
+            slow = np.minimum(np.maximum(0.0, floor_mps - fist_speed_mps), self.landing_shortfall_cap_mps) ** 2
+            charged = landing & (np.cumsum(landing, axis=-1) == 1) if self.landing_at_entry else landing
+            slow_landing = self.landing_cost_per_mps2 * np.where(charged, slow, 0.0)
             # The waist's turn may not speed up once the punch is landing: it has peaked before.
             waist_speed = np.abs(frames("speed_waist_rotation"))
             waist_gain = np.diff(waist_speed, axis=-1, prepend=waist_speed[..., :1])
@@ -200,10 +207,16 @@ STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
                                                             landing_floor_with_arm=True),
                                    "boxing_fast_near": Style("boxing_fast_near", landing_free_mps=8.5,
                                                              landing_cost_per_mps2=0.2, landing_reach_share=1.1),
+                                   "boxing_fast_entry": Style("boxing_fast_entry", landing_free_mps=8.5, landing_cost_per_mps2=0.4,
+                                                              landing_reach_share=1.1, landing_at_entry=True,
+                                                              landing_shortfall_cap_mps=1.5),
+                                   "boxing_fast_capped": Style("boxing_fast_capped", landing_free_mps=8.5,
+                                                               landing_cost_per_mps2=0.2, landing_reach_share=1.1,
+                                                               landing_shortfall_cap_mps=1.5),
                                    "boxing_lead": Style("boxing_lead", waist_lead_cost=0.5)}
 """the styles by name; `none` is the paper's reward alone; `boxing_chain`, `boxing_drive` and `boxing_lead` are
-`boxing` asking for the proximal-to-distal order too, `boxing_fast`, `boxing_fast_arm` and `boxing_fast_near`
-for a boxer's landing speed (boxers' hooks land faster than their straights, ../shared/design/ANCHORS.md §3); experiments:
+`boxing` asking for the proximal-to-distal order too, `boxing_fast`, `boxing_fast_arm`, `boxing_fast_near`,
+`boxing_fast_entry` and `boxing_fast_capped` for a boxer's landing speed (boxers' hooks land faster than their straights, ../shared/design/ANCHORS.md §3); experiments:
 docs/experiments.md"""
 DEFAULT_STYLE = "boxing"
 MAX_WEIGHT = 100.0
