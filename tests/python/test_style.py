@@ -106,6 +106,11 @@ def landing(**columns: np.ndarray) -> dict[str, np.ndarray]:
                        **columns})
 
 
+WITHIN_REACH = {"body_upper_arm_m": np.full(FRAMES, SCENE_ARM_LENGTHS_M[0]), "body_forearm_m": np.full(FRAMES, SCENE_ARM_LENGTHS_M[1]),
+                "body_shoulder_width_m": np.full(FRAMES, SCENE_ARM_LENGTHS_M[2]), "bag_pos_z": np.full(FRAMES, 0.6)}
+"""the scene's arms and a bag 0.6 m ahead: well within the arm's reach (0.69 of it)"""
+
+
 def test_the_fast_style_charges_a_slow_landing_and_nothing_else() -> None:
     """`boxing_fast`: the fist landing slower than a boxer's 8.5 m/s costs, only inside the landing zone and
     before contact; a fast landing, or a slow fist far from the bag, costs nothing, and `boxing` never charges it."""
@@ -146,10 +151,11 @@ def test_the_near_style_leaves_a_target_beyond_the_arm_to_a_slower_punch() -> No
     assert near is not None and near.landing_reach_share == 1.1
     upper_m, forearm_m, width_m = SCENE_ARM_LENGTHS_M
 
-    def cost(scale: float, ahead_m: float, side_m: float = 0.0) -> np.ndarray:
+    def cost(scale: float, ahead_m: float, side_m: float = 0.0, shoulder_shift_m: float = 0.0) -> np.ndarray:
         full = np.full(FRAMES, 1.0)
         return near.cost(frames_of(landing(fist_r_vel_z=np.full(FRAMES, 6.0), body_upper_arm_m=scale * upper_m * full,
-                                           body_forearm_m=scale * forearm_m * full, body_shoulder_width_m=width_m * full,
+                                           body_forearm_m=scale * forearm_m * full,
+                                           body_shoulder_width_m=(width_m + 2 * shoulder_shift_m) * full,
                                            bag_pos_z=ahead_m * full, bag_pos_x=side_m * full)))
 
     zone = np.linspace(0.6, 0.2, FRAMES) < near.landing_zone_m
@@ -157,6 +163,9 @@ def test_the_near_style_leaves_a_target_beyond_the_arm_to_a_slower_punch() -> No
     assert np.all(cost(0.75, 0.75) == 0.0)
     assert np.all(cost(0.75, 0.6, -0.18)[zone] > 0.0)  # straight out from the shoulder: near for the short arm too
     assert np.all(cost(1.0, 0.85, 0.25) == 0.0)  # across the body at the volume's far corner: beyond every arm
+    # Across the body, 0.75 m ahead and 0.22 m left: near for the scene's shoulders (1.09), far once they sit 4 cm
+    # wider each (1.12), as a rig's may (the right shoulder further from a bag on the left).
+    assert np.all(cost(1.0, 0.75, 0.22)[zone] > 0.0) and np.all(cost(1.0, 0.75, 0.22, shoulder_shift_m=0.04) == 0.0)
     sandbag = (Path(__file__).parents[2] / "addons/punch_controller/scenes/punch_sandbag.tscn").read_text()
     assert f"radius = {SCENE_BAG_RADIUS_M}" in sandbag, "the style's bag radius is the sandbag scene's"
 
@@ -166,11 +175,9 @@ def test_the_entry_style_charges_a_slow_landing_once_and_at_most_its_cap() -> No
     punch landing at 2 m/s (one recovering from a knock) keeps part of what it earns; one at 8 m/s pays a little."""
     entry = style_named("boxing_fast_entry")
     assert entry is not None and entry.landing_at_entry
-    within_reach = {"body_upper_arm_m": np.full(FRAMES, 0.282), "body_forearm_m": np.full(FRAMES, 0.337),
-                    "body_shoulder_width_m": np.full(FRAMES, 0.36), "bag_pos_z": np.full(FRAMES, 0.6)}
     first = int(np.argmax(np.linspace(0.6, 0.2, FRAMES) < entry.landing_zone_m))
     for speed_mps, shortfall_mps in ((2.0, 1.5), (8.0, 0.5), (9.0, 0.0)):
-        cost = entry.cost(frames_of(landing(fist_r_vel_z=np.full(FRAMES, speed_mps), **within_reach)))
+        cost = entry.cost(frames_of(landing(fist_r_vel_z=np.full(FRAMES, speed_mps), **WITHIN_REACH)))
         np.testing.assert_allclose(cost[first], entry.landing_cost_per_mps2 * shortfall_mps ** 2)
         assert np.all(np.delete(cost, first) == 0.0)
 
@@ -179,11 +186,9 @@ def test_the_capped_style_charges_every_landing_frame_at_most_its_cap() -> None:
     """`boxing_fast_capped`: `boxing_fast_near`'s charge on every landing frame, of at most 1.5 m/s of shortfall."""
     capped = style_named("boxing_fast_capped")
     assert capped is not None and not capped.landing_at_entry
-    within_reach = {"body_upper_arm_m": np.full(FRAMES, 0.282), "body_forearm_m": np.full(FRAMES, 0.337),
-                    "body_shoulder_width_m": np.full(FRAMES, 0.36), "bag_pos_z": np.full(FRAMES, 0.6)}
     zone = np.linspace(0.6, 0.2, FRAMES) < capped.landing_zone_m
     for speed_mps, shortfall_mps in ((2.0, 1.5), (8.0, 0.5)):
-        cost = capped.cost(frames_of(landing(fist_r_vel_z=np.full(FRAMES, speed_mps), **within_reach)))
+        cost = capped.cost(frames_of(landing(fist_r_vel_z=np.full(FRAMES, speed_mps), **WITHIN_REACH)))
         np.testing.assert_allclose(cost[zone], capped.landing_cost_per_mps2 * shortfall_mps ** 2)
         assert np.all(cost[~zone] == 0.0)
 

@@ -77,7 +77,8 @@ class Style:
     landing_free_mps: float = 0.0
     """the punching fist's speed, on the body, below which a landing punch (inside the zone, before contact) costs"""
     landing_cost_per_mps2: float = 0.0
-    """cost per frame of a landing punch, per (m/s)^2 by which the fist is slower than `landing_free_mps`"""
+    """cost per charged frame of a landing punch (every landing frame, or its first with `landing_at_entry`), per
+    (m/s)^2 by which the fist is slower than `landing_free_mps`"""
     landing_floor_with_arm: bool = False
     """the floor scales with the arm's length (upper arm and forearm, as sized) over the character scene's: the same
     joint speeds move a shorter arm's fist slower"""
