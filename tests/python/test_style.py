@@ -127,6 +127,17 @@ def test_the_fast_style_charges_a_slow_landing_and_nothing_else() -> None:
     assert np.all(Style("boxing").cost(frames_of(landing(fist_r_vel_z=np.full(FRAMES, 6.0)))) == 0.0)
 
 
+def test_the_straight_style_charges_a_fist_faster_than_a_boxers_straight_where_boxing_does_not() -> None:
+    """`boxing_straight`: the punching fist beyond 6.5 m/s costs with the square of the excess, as `boxing`'s beyond
+    9 m/s; a fist at 8 m/s is free with `boxing` and charged with it."""
+    straight = style_named("boxing_straight")
+    assert straight is not None and straight.fist_free_mps < Style("boxing").fist_free_mps
+    at_8_mps = frames_of(features(fist_r_vel_z=np.full(FRAMES, 8.0)))
+    np.testing.assert_allclose(straight.cost(at_8_mps), straight.fist_cost_per_mps2 * (8.0 - straight.fist_free_mps) ** 2)
+    assert np.all(Style("boxing").cost(at_8_mps) == 0.0)
+    assert np.all(straight.cost(frames_of(features(fist_r_vel_z=np.full(FRAMES, 6.4)))) == 0.0)
+
+
 def test_the_arm_style_asks_a_shorter_arm_for_a_slower_landing() -> None:
     """`boxing_fast_arm`: the floor is 8.5 m/s with the scene's arms and scales with the arm's length, so 7 m/s
     lands free with arms 0.75 times as long (floor 6.4 m/s) and costs with the scene's."""

@@ -214,11 +214,14 @@ STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
                                    "boxing_fast_capped": Style("boxing_fast_capped", landing_free_mps=8.5,
                                                                landing_cost_per_mps2=0.2, landing_reach_share=1.1,
                                                                landing_shortfall_cap_mps=1.5),
-                                   "boxing_lead": Style("boxing_lead", waist_lead_cost=0.5)}
+                                   "boxing_lead": Style("boxing_lead", waist_lead_cost=0.5),
+                                   "boxing_straight": Style("boxing_straight", fist_free_mps=6.5)}
 """the styles by name; `none` is the paper's reward alone; `boxing_chain`, `boxing_drive` and `boxing_lead` are
 `boxing` asking for the proximal-to-distal order too, `boxing_fast`, `boxing_fast_arm`, `boxing_fast_near`,
-`boxing_fast_entry` and `boxing_fast_capped` for a boxer's landing speed (boxers' hooks land faster than their straights, ../shared/design/ANCHORS.md §3); experiments:
-docs/experiments.md"""
+`boxing_fast_entry` and `boxing_fast_capped` for a boxer's landing speed (boxers' hooks land faster than their straights, ../shared/design/ANCHORS.md §3);
+`boxing_straight` is `boxing` whose punching fist is free only up to 6.5 m/s (lead straights peak at 6.32 m/s in
+junior boxers, 7.16 in elite ones, ANCHORS §3), the shipped straight's, so that the hook is the faster punch as a
+boxer's is; experiments: docs/experiments.md"""
 DEFAULT_STYLE = "boxing"
 MAX_WEIGHT = 100.0
 
