@@ -138,6 +138,19 @@ def test_the_straight_style_charges_a_fist_faster_than_a_boxers_straight_where_b
     assert np.all(straight.cost(frames_of(features(fist_r_vel_z=np.full(FRAMES, 6.4)))) == 0.0)
 
 
+def test_the_late_style_charges_a_first_contact_before_its_frame_once_and_a_later_one_nothing() -> None:
+    """`boxing_late`: the first contact frame, if it comes before `contact_not_before_frames`, costs per frame early,
+    on that frame only; a later first contact, and any contact with `boxing`, costs nothing."""
+    late = style_named("boxing_late")
+    assert late is not None and late.early_contact_cost_per_frame > 0 and late.contact_not_before_frames == 16
+    for first, expected in ((10, late.early_contact_cost_per_frame * 6), (20, 0.0)):
+        touched = frames_of(features(fist_r_impulse_z=np.where(np.arange(FRAMES) >= first, 1.0, 0.0)))
+        cost = late.cost(touched)
+        np.testing.assert_allclose(cost[first], expected)
+        assert np.all(np.delete(cost, first) == 0.0)
+        assert np.all(Style("boxing").cost(touched) == 0.0)
+
+
 def test_the_arm_style_asks_a_shorter_arm_for_a_slower_landing() -> None:
     """`boxing_fast_arm`: the floor is 8.5 m/s with the scene's arms and scales with the arm's length, so 7 m/s
     lands free with arms 0.75 times as long (floor 6.4 m/s) and costs with the scene's."""

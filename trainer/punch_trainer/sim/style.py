@@ -95,6 +95,11 @@ class Style:
     waist_lead_cost: float = 0.0
     """cost of the waist's rotation speeding up (per (rad/s)^2 of the frame's gain) while a punch is landing: the
     trunk's turn peaks before the fist lands, as in boxing's proximal-to-distal order"""
+    contact_not_before_frames: int = 0
+    """the first frame a punch may touch the bag without `early_contact_cost_per_frame` (captured punches take 17-22
+    frames at 120 Hz from onset to full reach; the policies touch the bag after 7-9)"""
+    early_contact_cost_per_frame: float = 0.0
+    """cost, charged on the first contact frame, per frame by which it comes before `contact_not_before_frames`"""
     later_cost_share: float = 0.1
     """how much of the cost after a frame still discounts what that frame earned (0: only the cost before it;
     1: all of it, the whole punch's)"""
@@ -159,7 +164,12 @@ class Style:
             waist_speed = np.abs(frames("speed_waist_rotation"))
             waist_gain = np.diff(waist_speed, axis=-1, prepend=waist_speed[..., :1])
             waist_lead = self.waist_lead_cost * np.where(landing, np.maximum(0.0, waist_gain) ** 2, 0.0)
-        cost = (chain + drive + slow_landing + waist_lead
+        early_contact: np.ndarray | float = 0.0
+        if self.early_contact_cost_per_frame > 0.0:
+            first_touch = touching & (np.cumsum(touching, axis=-1) == 1)
+            frames_early = np.maximum(0, self.contact_not_before_frames - np.arange(touching.shape[-1]))
+            early_contact = self.early_contact_cost_per_frame * np.where(first_touch, frames_early, 0.0)
+        cost = (chain + drive + slow_landing + waist_lead + early_contact
                 + self.off_fist_cost_per_m2 * beyond(off_from_guard_m, self.off_fist_free_m)
                 + self.off_fist_cost_per_mps2 * beyond(off_speed_mps, self.off_fist_free_mps)
                 + self.waist_flexion_cost_per_rad2 * beyond(waist_flexion_rad, self.waist_flexion_free_rad)
@@ -215,13 +225,20 @@ STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
                                                                landing_cost_per_mps2=0.2, landing_reach_share=1.1,
                                                                landing_shortfall_cap_mps=1.5),
                                    "boxing_lead": Style("boxing_lead", waist_lead_cost=0.5),
-                                   "boxing_straight": Style("boxing_straight", fist_free_mps=6.5)}
+                                   "boxing_straight": Style("boxing_straight", fist_free_mps=6.5),
+                                   "boxing_late": Style("boxing_late", contact_not_before_frames=16,
+                                                        early_contact_cost_per_frame=0.2),
+                                   "boxing_late_chain": Style("boxing_late_chain", contact_not_before_frames=16,
+                                                              early_contact_cost_per_frame=0.2, chain_cost=4.0),
+                                   "boxing_late_lead": Style("boxing_late_lead", contact_not_before_frames=16,
+                                                             early_contact_cost_per_frame=0.2, waist_lead_cost=0.5)}
 """the styles by name; `none` is the paper's reward alone; `boxing_chain`, `boxing_drive` and `boxing_lead` are
 `boxing` asking for the proximal-to-distal order too, `boxing_fast`, `boxing_fast_arm`, `boxing_fast_near`,
 `boxing_fast_entry` and `boxing_fast_capped` for a boxer's landing speed (boxers' hooks land faster than their straights, ../shared/design/ANCHORS.md §3);
 `boxing_straight` is `boxing` whose punching fist is free only up to 6.5 m/s (lead straights peak at 6.32 m/s in
 junior boxers, 7.16 in elite ones, ANCHORS §3), the shipped straight's, so that the hook is the faster punch as a
-boxer's is; experiments: docs/experiments.md"""
+boxer's is; `boxing_late`, `boxing_late_chain` and `boxing_late_lead` ask a punch to land no sooner than a captured
+one, for the order; experiments: docs/experiments.md"""
 DEFAULT_STYLE = "boxing"
 MAX_WEIGHT = 100.0
 
