@@ -1,4 +1,4 @@
-"""The captured punches retargeted onto the character's joints (punch_trainer.learn.capture_prior); skipped where
+"""The captured punches retargeted onto the character's joints (punch_trainer.report.capture_prior); skipped where
 ../shared/data, which holds the capture, is not there."""
 
 from __future__ import annotations
@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from punch_trainer.learn.capture_prior import CapturePriorError, captured_actions, captured_joint_angles
 from punch_trainer.learn.reach import placement
+from punch_trainer.report.capture_prior import CapturePriorError, captured_actions, captured_joint_angles
 from punch_trainer.report.mocap import DEFAULT_BVH
 from punch_trainer.report.naturalness import captured_punches
 from punch_trainer.sim.rewards import first_right_contact

@@ -9,7 +9,8 @@ rotation, abduction, from the upper arm's direction and the plane of the forearm
 are the signs of the action table in docs/env.md (a forward flexion of the shoulder is negative, the trunk turning
 left positive). The guard arm stays at its guard. As actions, each angle is a share of the joint's range, so the
 action sequence can start a trajectory search (`placement_search(init_mu=...)`). The capture is the team's
-reference data (../shared/data, `report.mocap.DEFAULT_BVH`), not part of the project."""
+reference data (../shared/data, `report.mocap.DEFAULT_BVH`), not part of the project; this module sits with the
+capture's reading (report), above the search (learn) it can start."""
 
 from __future__ import annotations
 
