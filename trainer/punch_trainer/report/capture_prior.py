@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from punch_trainer.errors import PunchError
-from punch_trainer.report.naturalness import CapturedPunch
+from punch_trainer.report.naturalness import CapturedPunch, angle_between
 
 CAPTURED_JOINTS = ("waist_flexion", "waist_rotation", "shoulder_r_flexion", "shoulder_r_rotation",
                    "shoulder_r_abduction", "elbow_r_extension")
@@ -62,7 +62,7 @@ def captured_joint_angles(punch: CapturedPunch) -> np.ndarray:
     # A joint's rotation since the guard, in its parent's frame: Q(t) Q(onset)^T.
     waist = _rotation_vector(np.einsum("fij,kj->fik", trunk_on_hips, trunk_on_hips[onset]))
     shoulder = _rotation_vector(np.einsum("fij,kj->fik", arm_on_trunk, arm_on_trunk[onset]))
-    elbow_opening = np.arccos(np.clip(np.sum(_unit(-upper_arm) * _unit(forearm), axis=-1), -1.0, 1.0))
+    elbow_opening = angle_between(-upper_arm, forearm)
     return np.column_stack([waist[:, 0], waist[:, 1], shoulder, elbow_opening - elbow_opening[onset]])
 
 
@@ -77,11 +77,10 @@ def captured_actions(punch: CapturedPunch, action_names: list[str], lower_rad: l
         raise CapturePriorError(f"the character's actions start {action_names[:len(CAPTURED_JOINTS)]}, not {list(CAPTURED_JOINTS)}")
     angles = captured_joint_angles(punch)
     capture_frames_per_physics_frame = 1.0 / (physics_hz * punch.frame_time_s)
-    actions = np.zeros((decisions, len(lower_rad)))
-    for decision in range(decisions):
-        physics_frame = decision_period * (decision + 1 + lead_decisions)
-        frame = min(punch.onset + int(round(physics_frame * capture_frames_per_physics_frame)), len(angles) - 1)
-        for dof, angle in enumerate(angles[frame]):
-            limit = upper_rad[dof] if angle > 0 else -lower_rad[dof]
-            actions[decision, dof] = angle / limit
+    physics_frames = decision_period * (np.arange(decisions) + 1 + lead_decisions)
+    frames = np.minimum(punch.onset + np.round(physics_frames * capture_frames_per_physics_frame).astype(int), len(angles) - 1)
+    pose = angles[frames]
+    count = len(CAPTURED_JOINTS)
+    actions = np.zeros((decisions, len(action_names)))
+    actions[:, :count] = np.where(pose > 0, pose / np.asarray(upper_rad[:count]), pose / -np.asarray(lower_rad[:count]))
     return np.clip(actions, -1.0, 1.0)

@@ -256,14 +256,15 @@ def captured_punches(path: Path = DEFAULT_BVH) -> list[CapturedPunch]:
     return punches
 
 
-def _angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The angle (rad) between vectors a and b [..., 3], per row."""
     cosine = np.sum(a * b, axis=-1) / (np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1))
     return np.asarray(np.arccos(np.clip(cosine, -1.0, 1.0)), dtype=np.float64)
 
 
 def trunk_lean_deg(punch: CapturedPunch) -> np.ndarray:
     """Per frame: the angle of the line from the lower back to the neck from vertical (degrees)."""
-    return np.asarray(np.degrees(_angle_between(punch.joint("Neck") - punch.joint("LowerBack"), np.array([0.0, 1.0, 0.0]))), dtype=np.float64)
+    return np.asarray(np.degrees(angle_between(punch.joint("Neck") - punch.joint("LowerBack"), np.array([0.0, 1.0, 0.0]))), dtype=np.float64)
 
 
 def capture_joint_speeds(punch: CapturedPunch) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -286,7 +287,7 @@ def capture_joint_speeds(punch: CapturedPunch) -> tuple[np.ndarray, np.ndarray, 
     upper = punch.joint("RightForeArm") - punch.joint("RightArm")
     in_trunk = np.einsum("fij,fj->fi", trunk, upper / np.linalg.norm(upper, axis=1, keepdims=True))
     shoulder = np.linalg.norm(np.gradient(in_trunk, dt, axis=0), axis=1)
-    elbow = np.gradient(_angle_between(punch.joint("RightArm") - punch.joint("RightForeArm"),
+    elbow = np.gradient(angle_between(punch.joint("RightArm") - punch.joint("RightForeArm"),
                                        punch.joint("RightHand") - punch.joint("RightForeArm")), dt)
     return waist, shoulder, elbow
 

@@ -158,7 +158,7 @@ class Style:
             if self.landing_reach_share > 0.0:
                 floor_mps = np.where(reach_share(frames) <= self.landing_reach_share, floor_mps, 0.0)
             slow = np.minimum(np.maximum(0.0, floor_mps - fist_speed_mps), self.landing_shortfall_cap_mps) ** 2
-            charged = landing & (np.cumsum(landing, axis=-1) == 1) if self.landing_at_entry else landing
+            charged = first_frame(landing) if self.landing_at_entry else landing
             slow_landing = self.landing_cost_per_mps2 * np.where(charged, slow, 0.0)
             # The waist's turn may not speed up once the punch is landing: it has peaked before.
             waist_speed = np.abs(frames("speed_waist_rotation"))
@@ -166,9 +166,8 @@ class Style:
             waist_lead = self.waist_lead_cost * np.where(landing, np.maximum(0.0, waist_gain) ** 2, 0.0)
         early_contact: np.ndarray | float = 0.0
         if self.early_contact_cost_per_frame > 0.0:
-            first_touch = touching & (np.cumsum(touching, axis=-1) == 1)
             frames_early = np.maximum(0, self.contact_not_before_frames - np.arange(touching.shape[-1]))
-            early_contact = self.early_contact_cost_per_frame * np.where(first_touch, frames_early, 0.0)
+            early_contact = self.early_contact_cost_per_frame * np.where(first_frame(touching), frames_early, 0.0)
         cost = (chain + drive + slow_landing + waist_lead + early_contact
                 + self.off_fist_cost_per_m2 * beyond(off_from_guard_m, self.off_fist_free_m)
                 + self.off_fist_cost_per_mps2 * beyond(off_speed_mps, self.off_fist_free_mps)
@@ -241,6 +240,11 @@ boxer's is; `boxing_late`, `boxing_late_chain` and `boxing_late_lead` ask a punc
 one, for the order; experiments: docs/experiments.md"""
 DEFAULT_STYLE = "boxing"
 MAX_WEIGHT = 100.0
+
+
+def first_frame(mask: np.ndarray) -> np.ndarray:
+    """Only the first True frame of each episode of `mask` [..., frames]."""
+    return np.asarray(mask & (np.cumsum(mask, axis=-1) == 1))
 
 
 def reach_share(frames: FramesLike) -> np.ndarray:
