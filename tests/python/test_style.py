@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from punch_trainer.sim.placement import SCENE_ARM_LENGTHS_M, SCENE_BAG_RADIUS_M
-from punch_trainer.sim.style import Style, StyleError, style_from_label, style_label, style_named
+from punch_trainer.sim.style import Style, StyleError, running_peak_frame, style_from_label, style_label, style_named
 
 FRAMES = 50
 NAMES = [f"{stem}_{axis}" for stem in ("fist_l_pos", "fist_l_vel", "fist_r_vel", "fist_r_pos", "fist_r_impulse", "bag_pos",
@@ -98,6 +98,60 @@ def test_the_chain_style_charges_a_joint_that_leads_the_one_before_it_and_boxing
     landed = features(**elbow_first, fist_r_impulse_z=np.ones(FRAMES))
     assert np.all(chain.cost(frames_of(landed)) == 0.0)
     assert np.all(Style("boxing").cost(frames_of(features(**elbow_first))) == 0.0)
+
+
+def peaking_at(waist: int, shoulder: int, elbow: int, contact: int) -> dict[str, np.ndarray]:
+    """A punch whose waist rotation, shoulder and elbow speeds peak at the given frames, touching the bag from
+    `contact` on (its impulse), whose fist earns 1 a frame until then."""
+    frame = np.arange(FRAMES)
+    bump = lambda peak: np.exp(-0.5 * (frame - peak) ** 2)  # noqa: E731
+    return features(speed_waist_rotation=-3.0 * bump(waist), speed_shoulder_r_flexion=10.0 * bump(shoulder),
+                    speed_shoulder_r_rotation=np.zeros(FRAMES), speed_shoulder_r_abduction=np.zeros(FRAMES),
+                    speed_elbow_r_extension=18.0 * bump(elbow), fist_r_impulse_z=np.where(frame >= contact, 1.0, 0.0))
+
+
+def test_the_order_charges_a_punch_by_the_frames_its_peaks_break_the_order_at_contact() -> None:
+    """A punch's order charges add up to the frames by which the peaks until the first contact break the
+    proximal-to-distal order (docs/naturalness.md); a tie is in order; a joint still speeding up at contact peaks
+    there (what comes after does not count); nothing is charged after contact; a punch that never touches is
+    charged its peaks over the whole episode."""
+    order = Style("order", order_cost_per_frame=0.3)
+    for peaks, frames_out in (((2, 2, 5), 0), ((6, 2, 3), 4), ((3, 5, 4), 1), ((3, 4, 20), 0), ((20, 2, 3), 6)):
+        punch = frames_of(peaking_at(*peaks, contact=8))
+        charge = order.whole_punch_cost(punch)
+        np.testing.assert_allclose(charge.sum(), 0.3 * frames_out, err_msg=str(peaks))
+        assert np.all(charge[9:] == 0.0) and np.all(order.cost(punch) == 0.0)
+        assert np.all(Style("boxing").whole_punch_cost(punch) == 0.0)
+    missed = frames_of(peaking_at(20, 2, 3, contact=FRAMES))
+    np.testing.assert_allclose(order.whole_punch_cost(missed).sum(), 0.3 * 18)  # stopping short does not escape it
+    ordered = style_named("boxing_ordered")  # each joint a frame before the next
+    assert ordered is not None and ordered.order_margin_frames == 1 and not ordered.order_charged_at_contact
+    for peaks, frames_out in (((1, 2, 3), 0), ((2, 2, 5), 1), ((2, 2, 2), 2), ((6, 2, 3), 5)):
+        charge = ordered.whole_punch_cost(frames_of(peaking_at(*peaks, contact=8)))
+        np.testing.assert_allclose(charge.sum(), ordered.order_cost_per_frame * frames_out, err_msg=str(peaks))
+    # The first form charges all on the contact frame, and a miss nothing.
+    at_contact = style_named("boxing_order")
+    assert at_contact is not None and at_contact.order_charged_at_contact
+    charge = at_contact.whole_punch_cost(frames_of(peaking_at(6, 2, 3, contact=8)))
+    np.testing.assert_allclose(charge[8], at_contact.order_cost_per_frame * 4)
+    assert np.all(np.delete(charge, 8) == 0.0) and np.all(at_contact.whole_punch_cost(missed) == 0.0)
+
+
+def test_the_running_peak_frame_is_the_first_frame_of_the_largest_value_so_far() -> None:
+    values = np.array([[0.0, 1.0, 1.0, 3.0, 2.0, 3.0, 5.0, -1.0]])
+    np.testing.assert_array_equal(running_peak_frame(values), [[0, 1, 1, 3, 3, 3, 6, 6]])
+
+
+def test_the_order_charge_takes_what_the_punch_earned_before_it_too() -> None:
+    """Unlike the other costs (a tenth of them reaches back), the order's charge discounts the whole punch: a punch
+    cannot earn before it lands and escape the charge by landing early."""
+    order = style_named("boxing_ordered")
+    assert order is not None
+    earned = {"forward": np.where(np.arange(FRAMES) < 8, 1.0, 0.0)}
+    in_order = order.apply(earned, frames_of(peaking_at(1, 2, 5, contact=8)))["forward"].sum()
+    out_of_order = order.apply(earned, frames_of(peaking_at(6, 2, 3, contact=8)))["forward"].sum()
+    assert in_order == pytest.approx(8.0)
+    assert out_of_order == pytest.approx(8.0 * np.exp(-5 * order.order_cost_per_frame))
 
 
 def landing(**columns: np.ndarray) -> dict[str, np.ndarray]:
@@ -305,19 +359,24 @@ def test_an_episode_scored_decision_by_decision_adds_up_to_its_return_with_and_w
     )
 
     names = [*NAMES, "fist_r_bag_distance", "exploit_flags", "speed_waist_rotation", "body_upper_arm_m", "body_forearm_m",
-             "body_shoulder_width_m"]
+             "body_shoulder_width_m", "speed_shoulder_r_flexion", "speed_shoulder_r_rotation", "speed_shoulder_r_abduction",
+             "speed_elbow_r_extension"]
     rng = np.random.default_rng(3)
     values = np.zeros((3, FRAMES, len(names)))
     values[..., names.index("fist_r_vel_z")] = rng.uniform(0, 12, (3, FRAMES))
     values[..., names.index("fist_l_pos_y")] = np.linspace(0, 0.4, FRAMES)  # the guard hand drifts off
     values[..., names.index("fist_r_bag_distance")] = np.linspace(0.6, 0.2, FRAMES)  # and lands (the landing terms)
     values[..., names.index("speed_waist_rotation")] = rng.uniform(-6, 6, (3, FRAMES))
+    for joint in ("shoulder_r_flexion", "shoulder_r_rotation", "shoulder_r_abduction", "elbow_r_extension"):
+        values[..., names.index(f"speed_{joint}")] = rng.uniform(-12, 12, (3, FRAMES))
+    values[:, 23:, names.index("fist_r_impulse_z")] = 1.0  # touching from a frame inside a decision (the order's charge)
     values[..., names.index("body_upper_arm_m")], values[..., names.index("body_forearm_m")] = 0.25, 0.3
     values[..., names.index("body_shoulder_width_m")], values[..., names.index("bag_pos_z")] = 0.36, 0.6  # within reach
     plain = load_reward("straight")
     for reward in (plain, *[replace(plain, style=style_named(name)) for name in ("boxing", "boxing_fast", "boxing_fast_arm",
                                                                                  "boxing_fast_near", "boxing_fast_entry",
-                                                                                 "boxing_fast_capped", "boxing_lead")]):
+                                                                                 "boxing_fast_capped", "boxing_lead",
+                                                                                 "boxing_order", "boxing_ordered")]):
         per_decision = decision_rewards(reward, values, names, 5)
         assert per_decision.shape == (3, FRAMES // 5)
         np.testing.assert_allclose(per_decision.sum(axis=-1), score(reward, values, names), rtol=1e-9, atol=1e-9)

@@ -100,6 +100,18 @@ class Style:
     frames at 120 Hz from onset to full reach; the policies touch the bag after 7-9)"""
     early_contact_cost_per_frame: float = 0.0
     """cost, charged on the first contact frame, per frame by which it comes before `contact_not_before_frames`"""
+    order_cost_per_frame: float = 0.0
+    """cost per frame by which the peaks of the waist's rotation, the shoulder's and the elbow's speeds until the
+    first contact come out of the proximal-to-distal order (the waist's after the shoulder's, the shoulder's after
+    the elbow's), as docs/naturalness.md measures it; unlike the other costs it takes the whole punch's earnings,
+    those before it too, so a punch cannot land early to escape it (`whole_punch_cost`)"""
+    order_margin_frames: int = 0
+    """how many frames before the next joint's a joint's peak must come to escape the order's charge (0: a tie is in
+    order, as the measure counts it; 1: a tie costs a frame, so that noise does not break a punch held at a tie)"""
+    order_charged_at_contact: bool = False
+    """the order's charge all at once on the first contact frame, so that a punch which never touches the bag
+    escapes it (the first form, in the `boxing_order` styles before `boxing_ordered`: a policy trained with it
+    stopped short of targets that its short arms reached only out of order, docs/experiments.md)"""
     later_cost_share: float = 0.1
     """how much of the cost after a frame still discounts what that frame earned (0: only the cost before it;
     1: all of it, the whole punch's)"""
@@ -176,6 +188,28 @@ class Style:
                 + self.fist_back_cost_per_mps2 * beyond(fist_back_mps, self.fist_back_free_mps))
         return np.asarray(self.weight * cost, dtype=np.float64)
 
+    def whole_punch_cost(self, frames: FramesLike) -> np.ndarray:
+        """Each frame's cost that takes all that the punch has earned, before the frame as after, [..., frames]:
+        the proximal-to-distal order's (0 without `order_cost_per_frame`). Frame t is charged the change, since
+        frame t - 1, of how far the peaks of the waist's rotation, the shoulder's and the elbow's speeds up to t
+        break the order; the peaks stop at the first contact. So the charges of a punch add up to its order as
+        docs/naturalness.md measures it at contact, and a punch that never touches the bag is charged its peaks
+        over the whole episode: stopping short does not escape it."""
+        touching = np.linalg.norm(np.stack([frames(f"fist_r_impulse_{axis}") for axis in "xyz"], axis=-1),
+                                  axis=-1) > 1e-3
+        if self.order_cost_per_frame <= 0.0:
+            return np.zeros(touching.shape, dtype=np.float64)
+        shoulder = np.sqrt(sum(frames(f"speed_shoulder_r_{axis}") ** 2 for axis in ("flexion", "rotation", "abduction")))
+        until_contact = np.cumsum(touching, axis=-1) - touching == 0  # up to and with the first contact frame
+        peaks = [running_peak_frame(np.where(until_contact, np.abs(speed), -1.0))
+                 for speed in (frames("speed_waist_rotation"), shoulder, frames("speed_elbow_r_extension"))]
+        margin = self.order_margin_frames
+        out_of_order = np.maximum(0, peaks[0] - peaks[1] + margin) + np.maximum(0, peaks[1] - peaks[2] + margin)
+        change = np.diff(out_of_order, axis=-1, prepend=0)
+        if self.order_charged_at_contact:
+            change = np.where(first_frame(touching), out_of_order, 0)
+        return np.asarray(self.weight * self.order_cost_per_frame * change, dtype=np.float64)
+
     def apply(self, terms: Mapping[str, np.ndarray], frames: FramesLike) -> dict[str, np.ndarray]:
         """The reward's terms with the style. A frame's positive value is discounted by exp(-the cost up to it),
         and what it earned stays at risk after it: each later frame's cost takes `later_cost_share` of it as
@@ -184,9 +218,10 @@ class Style:
         what its cost takes of the earnings held before it. A term's return, sum over frames f of
         earned_f x exp(-C_f - share x (C_end - C_f)) plus its losses, never falls below its losses alone:
         a hit still beats standing still."""
-        cost = self.cost(frames)
-        discount = np.exp(-np.cumsum(cost, axis=-1))
-        kept = np.exp(-self.later_cost_share * cost)  # what a frame's cost leaves of the earnings held before it
+        cost, whole = self.cost(frames), self.whole_punch_cost(frames)
+        discount = np.exp(-np.cumsum(cost + whole, axis=-1))
+        # what a frame's cost leaves of the earnings held before it
+        kept = np.exp(-self.later_cost_share * cost - whole)
         styled = {}
         for name, values in terms.items():
             earned = np.maximum(values, 0.0) * discount
@@ -225,6 +260,23 @@ STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
                                                                landing_shortfall_cap_mps=1.5),
                                    "boxing_lead": Style("boxing_lead", waist_lead_cost=0.5),
                                    "boxing_straight": Style("boxing_straight", fist_free_mps=6.5),
+                                   "boxing_order": Style("boxing_order", order_charged_at_contact=True, order_cost_per_frame=0.3),
+                                   "boxing_order_hard": Style("boxing_order_hard", order_charged_at_contact=True, order_cost_per_frame=1.0),
+                                   "boxing_order_margin": Style("boxing_order_margin", order_charged_at_contact=True, order_cost_per_frame=1.0,
+                                                                order_margin_frames=1),
+                                   "boxing_straight_order": Style("boxing_straight_order", order_charged_at_contact=True, fist_free_mps=6.5,
+                                                                  order_cost_per_frame=0.3),
+                                   "boxing_straight_order_hard": Style("boxing_straight_order_hard", order_charged_at_contact=True, fist_free_mps=6.5,
+                                                                       order_cost_per_frame=1.0),
+                                   "boxing_straight_order_margin": Style("boxing_straight_order_margin", order_charged_at_contact=True, fist_free_mps=6.5,
+                                                                         order_cost_per_frame=1.0, order_margin_frames=1),
+                                   "boxing_ordered": Style("boxing_ordered", order_cost_per_frame=1.0, order_margin_frames=1),
+                                   "boxing_straight_ordered": Style("boxing_straight_ordered", fist_free_mps=6.3,
+                                                                    fist_cost_per_mps2=0.5, order_cost_per_frame=1.0,
+                                                                    order_margin_frames=1),
+                                   "boxing_straight_order_slow": Style("boxing_straight_order_slow", order_charged_at_contact=True, fist_free_mps=6.3,
+                                                                       fist_cost_per_mps2=1.0, order_cost_per_frame=1.0,
+                                                                       order_margin_frames=1),
                                    "boxing_late": Style("boxing_late", contact_not_before_frames=16,
                                                         early_contact_cost_per_frame=0.2),
                                    "boxing_late_chain": Style("boxing_late_chain", contact_not_before_frames=16,
@@ -237,7 +289,9 @@ STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
 `boxing_straight` is `boxing` whose punching fist is free only up to 6.5 m/s (lead straights peak at 6.32 m/s in
 junior boxers, 7.16 in elite ones, ANCHORS §3), the shipped straight's, so that the hook is the faster punch as a
 boxer's is; `boxing_late`, `boxing_late_chain` and `boxing_late_lead` ask a punch to land no sooner than a captured
-one, for the order; experiments: docs/experiments.md"""
+one, for the order; the `_order` styles charge a punch out of proximal-to-distal order on the whole of what it
+earned, at its first contact (the first form), `boxing_ordered` and `boxing_straight_ordered` over the punch so that
+stopping short does not escape it (docs/style.md, "The proximal-to-distal order"); experiments: docs/experiments.md"""
 DEFAULT_STYLE = "boxing"
 MAX_WEIGHT = 100.0
 
@@ -245,6 +299,14 @@ MAX_WEIGHT = 100.0
 def first_frame(mask: np.ndarray) -> np.ndarray:
     """Only the first True frame of each episode of `mask` [..., frames]."""
     return np.asarray(mask & (np.cumsum(mask, axis=-1) == 1))
+
+
+def running_peak_frame(values: np.ndarray) -> np.ndarray:
+    """For each frame of `values` [..., frames], the frame of the largest value so far (the first, on a tie)."""
+    frame = np.arange(values.shape[-1])
+    best_before = np.maximum.accumulate(values, axis=-1)
+    best_before = np.concatenate([np.full_like(values[..., :1], -np.inf), best_before[..., :-1]], axis=-1)
+    return np.asarray(np.maximum.accumulate(np.where(values > best_before, frame, 0), axis=-1))
 
 
 def reach_share(frames: FramesLike) -> np.ndarray:
