@@ -376,7 +376,7 @@ def test_an_episode_scored_decision_by_decision_adds_up_to_its_return_with_and_w
     for reward in (plain, *[replace(plain, style=style_named(name)) for name in ("boxing", "boxing_fast", "boxing_fast_arm",
                                                                                  "boxing_fast_near", "boxing_fast_entry",
                                                                                  "boxing_fast_capped", "boxing_lead",
-                                                                                 "boxing_order", "boxing_ordered")]):
+                                                                                 "boxing_order", "boxing_ordered", "boxing_straight_ordered_floor")]):
         per_decision = decision_rewards(reward, values, names, 5)
         assert per_decision.shape == (3, FRAMES // 5)
         np.testing.assert_allclose(per_decision.sum(axis=-1), score(reward, values, names), rtol=1e-9, atol=1e-9)

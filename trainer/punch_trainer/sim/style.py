@@ -274,6 +274,10 @@ STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
                                    "boxing_straight_ordered": Style("boxing_straight_ordered", fist_free_mps=6.3,
                                                                     fist_cost_per_mps2=0.5, order_cost_per_frame=1.0,
                                                                     order_margin_frames=1),
+                                   "boxing_straight_ordered_floor": Style("boxing_straight_ordered_floor", fist_free_mps=6.3,
+                                                                          fist_cost_per_mps2=0.5, order_cost_per_frame=1.0,
+                                                                          order_margin_frames=1, landing_free_mps=6.2,
+                                                                          landing_cost_per_mps2=1.0),
                                    "boxing_straight_order_slow": Style("boxing_straight_order_slow", order_charged_at_contact=True, fist_free_mps=6.3,
                                                                        fist_cost_per_mps2=1.0, order_cost_per_frame=1.0,
                                                                        order_margin_frames=1),
@@ -291,7 +295,8 @@ junior boxers, 7.16 in elite ones, ANCHORS §3), the shipped straight's, so that
 boxer's is; `boxing_late`, `boxing_late_chain` and `boxing_late_lead` ask a punch to land no sooner than a captured
 one, for the order; the `_order` styles charge a punch out of proximal-to-distal order on the whole of what it
 earned, at its first contact (the first form), `boxing_ordered` and `boxing_straight_ordered` over the punch so that
-stopping short does not escape it (docs/style.md, "The proximal-to-distal order"); experiments: docs/experiments.md"""
+stopping short does not escape it (docs/style.md, "The proximal-to-distal order"), and `boxing_straight_ordered_floor`,
+the shipped straight's, asks its landing fist for 6.2 m/s as well; experiments: docs/experiments.md"""
 DEFAULT_STYLE = "boxing"
 MAX_WEIGHT = 100.0
 
