@@ -148,10 +148,7 @@ class Style:
         chain: np.ndarray | float = 0.0
         drive: np.ndarray | float = 0.0
         if self.chain_cost > 0.0 or self.drive_cost > 0.0:
-            shoulder = np.sqrt(sum(frames(f"speed_shoulder_r_{axis}") ** 2
-                                   for axis in ("flexion", "rotation", "abduction")))
-            speeds = [np.abs(frames("speed_waist_rotation")), shoulder, np.abs(frames("speed_elbow_r_extension"))]
-            relative = [speed / peak for speed, peak in zip(speeds, self.chain_peak_rad_s, strict=True)]
+            relative = [speed / peak for speed, peak in zip(chain_speeds(frames), self.chain_peak_rad_s, strict=True)]
             so_far = [np.maximum.accumulate(r, axis=-1) for r in relative]
             # Chain: each joint may turn (relative to its captured peak) as fast as the one before it has so far.
             ahead = np.maximum(0.0, relative[1] - so_far[0]) ** 2 + np.maximum(0.0, relative[2] - so_far[1]) ** 2
@@ -199,10 +196,8 @@ class Style:
                                   axis=-1) > 1e-3
         if self.order_cost_per_frame <= 0.0:
             return np.zeros(touching.shape, dtype=np.float64)
-        shoulder = np.sqrt(sum(frames(f"speed_shoulder_r_{axis}") ** 2 for axis in ("flexion", "rotation", "abduction")))
         until_contact = np.cumsum(touching, axis=-1) - touching == 0  # up to and with the first contact frame
-        peaks = [running_peak_frame(np.where(until_contact, np.abs(speed), -1.0))
-                 for speed in (frames("speed_waist_rotation"), shoulder, frames("speed_elbow_r_extension"))]
+        peaks = [running_peak_frame(np.where(until_contact, speed, -1.0)) for speed in chain_speeds(frames)]
         margin = self.order_margin_frames
         out_of_order = np.maximum(0, peaks[0] - peaks[1] + margin) + np.maximum(0, peaks[1] - peaks[2] + margin)
         change = np.diff(out_of_order, axis=-1, prepend=0)
@@ -270,6 +265,9 @@ STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
                                                                        order_cost_per_frame=1.0),
                                    "boxing_straight_order_margin": Style("boxing_straight_order_margin", order_charged_at_contact=True, fist_free_mps=6.5,
                                                                          order_cost_per_frame=1.0, order_margin_frames=1),
+                                   "boxing_straight_order_slow": Style("boxing_straight_order_slow", order_charged_at_contact=True, fist_free_mps=6.3,
+                                                                       fist_cost_per_mps2=1.0, order_cost_per_frame=1.0,
+                                                                       order_margin_frames=1),
                                    "boxing_ordered": Style("boxing_ordered", order_cost_per_frame=1.0, order_margin_frames=1),
                                    "boxing_straight_ordered": Style("boxing_straight_ordered", fist_free_mps=6.3,
                                                                     fist_cost_per_mps2=0.5, order_cost_per_frame=1.0,
@@ -278,9 +276,6 @@ STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
                                                                           fist_cost_per_mps2=0.5, order_cost_per_frame=1.0,
                                                                           order_margin_frames=1, landing_free_mps=6.2,
                                                                           landing_cost_per_mps2=1.0),
-                                   "boxing_straight_order_slow": Style("boxing_straight_order_slow", order_charged_at_contact=True, fist_free_mps=6.3,
-                                                                       fist_cost_per_mps2=1.0, order_cost_per_frame=1.0,
-                                                                       order_margin_frames=1),
                                    "boxing_late": Style("boxing_late", contact_not_before_frames=16,
                                                         early_contact_cost_per_frame=0.2),
                                    "boxing_late_chain": Style("boxing_late_chain", contact_not_before_frames=16,
@@ -304,6 +299,13 @@ MAX_WEIGHT = 100.0
 def first_frame(mask: np.ndarray) -> np.ndarray:
     """Only the first True frame of each episode of `mask` [..., frames]."""
     return np.asarray(mask & (np.cumsum(mask, axis=-1) == 1))
+
+
+def chain_speeds(frames: FramesLike) -> list[np.ndarray]:
+    """The speeds of the proximal-to-distal chain, rad/s [..., frames] each: the waist's rotation, the right
+    shoulder's (its three axes together) and the right elbow's extension, as docs/naturalness.md measures them."""
+    shoulder = np.sqrt(sum(frames(f"speed_shoulder_r_{axis}") ** 2 for axis in ("flexion", "rotation", "abduction")))
+    return [np.abs(frames("speed_waist_rotation")), np.asarray(shoulder), np.abs(frames("speed_elbow_r_extension"))]
 
 
 def running_peak_frame(values: np.ndarray) -> np.ndarray:
