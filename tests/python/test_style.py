@@ -137,6 +137,24 @@ def test_the_order_charges_a_punch_by_the_frames_its_peaks_break_the_order_at_co
     assert np.all(np.delete(charge, 8) == 0.0) and np.all(at_contact.whole_punch_cost(missed) == 0.0)
 
 
+def test_the_order_charge_is_nothing_exactly_when_the_naturalness_report_counts_the_punch_in_order() -> None:
+    """The charge trained with and the order measured (report/naturalness.py) read the same speeds to the same
+    contact, so a policy cannot be trained to one order and measured by another."""
+    from punch_trainer.report.naturalness import in_proximal_to_distal_order
+    from punch_trainer.sim.style import chain_speeds
+
+    order = Style("order", order_cost_per_frame=1.0)
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        contact = int(rng.integers(3, FRAMES))
+        punch = peaking_at(*rng.integers(0, 12, 3), contact=contact)
+        for name in ("speed_waist_rotation", "speed_shoulder_r_rotation", "speed_elbow_r_extension"):
+            punch[name] = punch[name] + rng.normal(0.0, 2.0, FRAMES)
+        waist, shoulder, elbow = (speed[:contact + 1] for speed in chain_speeds(frames_of(punch)))
+        charged = order.whole_punch_cost(frames_of(punch)).sum() > 0
+        assert charged != in_proximal_to_distal_order(waist, shoulder, elbow)
+
+
 def test_the_running_peak_frame_is_the_first_frame_of_the_largest_value_so_far() -> None:
     values = np.array([[0.0, 1.0, 1.0, 3.0, 2.0, 3.0, 5.0, -1.0]])
     np.testing.assert_array_equal(running_peak_frame(values), [[0, 1, 1, 3, 3, 3, 6, 6]])

@@ -18,6 +18,7 @@ import numpy as np
 
 from punch_trainer.report.mocap import CHARACTER_ARM_LENGTH_M, DEFAULT_BVH, joint_positions, read_bvh
 from punch_trainer.sim.rewards import first_right_contact
+from punch_trainer.sim.style import chain_speeds
 
 CAPTURE_REACH_FRAMES = (140, 317, 509, 695)
 """frames of the capture near which the right hand is at full reach (../shared/data/README.md)"""
@@ -146,8 +147,8 @@ def punch_naturalness(features: np.ndarray, names: list[str], physics_hz: float)
     fist, off, off_velocity = vector("fist_r_pos"), vector("fist_l_pos"), vector("fist_l_vel")
     fist_speed = np.linalg.norm(vector("fist_r_vel"), axis=1)
     off_speed = np.linalg.norm(off_velocity, axis=1)
-    shoulder = np.linalg.norm(f[:, [col("speed_shoulder_r_flexion"), col("speed_shoulder_r_rotation"),
-                                    col("speed_shoulder_r_abduction")]], axis=1)
+    # The chain's speeds as the order style reads them in training (sim/style.py), so the two cannot drift.
+    waist, shoulder, elbow = chain_speeds(lambda name: f[:, col(name)])
     return PunchNaturalness(
         path_over_chord=path_over_chord(fist[until]) if end > 0 else 1.0,
         chord_distance_m=largest_distance_from_chord(fist[until]),
@@ -158,8 +159,7 @@ def punch_naturalness(features: np.ndarray, names: list[str], physics_hz: float)
         trunk_flexion_deg=float(np.degrees(f[until, col("angle_waist_flexion")].max())),
         trunk_flexion_whole_deg=float(np.degrees(f[:, col("angle_waist_flexion")].max())),
         fist_peak_speed_mps=float(fist_speed[until].max()),
-        proximal_to_distal=in_proximal_to_distal_order(f[until, col("speed_waist_rotation")], shoulder[until],
-                                                        f[until, col("speed_elbow_r_extension")]),
+        proximal_to_distal=in_proximal_to_distal_order(waist[until], shoulder[until], elbow[until]),
         time_to_contact_s=(end + 1) / physics_hz if touched else None,
     )
 

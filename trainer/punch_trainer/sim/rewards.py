@@ -28,10 +28,7 @@ from punch_trainer.sim.reward_worker import Frames as Frames
 from punch_trainer.sim.reward_worker import IsolatedFunction, result_terms
 from punch_trainer.sim.reward_worker import RewardError as RewardError
 from punch_trainer.sim.reward_worker import Terms as Terms
-from punch_trainer.sim.style import Style
-
-CONTACT_IMPULSE_NS = 1e-3
-"""A right-fist impulse on the bag above this (N s) counts as contact."""
+from punch_trainer.sim.style import CONTACT_IMPULSE_NS, Style
 
 
 def first_right_contact(features: np.ndarray, names: list[str]) -> tuple[np.ndarray, np.ndarray]:

@@ -14,6 +14,9 @@ A style has two parts, chosen by measurement (docs/experiments.md, "A motion sty
    reward instead made the search settle on standing still, since every exploratory motion then scores below
    zero (docs/experiments.md, "A motion style"); subtracting even 2% of the cost as well made the punching
    arm wind up and missed a far target.
+   The order styles add a charge that takes the whole punch's earnings, for a punch whose waist, shoulder and
+   elbow do not peak in the proximal-to-distal order (`whole_punch_cost`; docs/style.md, "The proximal-to-distal
+   order").
 2. **A narrower search around the guard** for the degrees of freedom that a punch moves least: the trajectory
    search's sigma for the waist's flexion and the off arm starts small and never grows past it, so the
    search explores the punching arm and the trunk's turn, not the guard hand.
@@ -30,6 +33,9 @@ import numpy as np
 
 from punch_trainer.errors import PunchError
 from punch_trainer.sim.placement import SCENE_ARM_LENGTHS_M, SCENE_BAG_RADIUS_M
+
+CONTACT_IMPULSE_NS = 1e-3
+"""A right-fist impulse on the bag above this (N s) counts as contact."""
 
 FramesLike = Callable[[str], np.ndarray]
 """`frames[name]` of punch_trainer.sim.rewards.Frames: a feature's values [..., frames]"""
@@ -138,7 +144,7 @@ class Style:
         waist_flexion_rad = frames("angle_waist_flexion")
         to_bag = vector("bag_pos") - vector("fist_r_pos")
         to_bag_unit = to_bag / np.maximum(np.linalg.norm(to_bag, axis=-1, keepdims=True), 1e-6)
-        touching = np.linalg.norm(vector("fist_r_impulse"), axis=-1) > 1e-3
+        touching = fist_touching(frames)
         before_contact = np.cumsum(touching, axis=-1) == 0
         fist_back_mps = np.where(before_contact, -np.sum(fist_velocity * to_bag_unit, axis=-1), 0.0)
 
@@ -192,8 +198,7 @@ class Style:
         break the order; the peaks stop at the first contact. So the charges of a punch add up to its order as
         docs/naturalness.md measures it at contact, and a punch that never touches the bag is charged its peaks
         over the whole episode: stopping short does not escape it."""
-        touching = np.linalg.norm(np.stack([frames(f"fist_r_impulse_{axis}") for axis in "xyz"], axis=-1),
-                                  axis=-1) > 1e-3
+        touching = fist_touching(frames)
         if self.order_cost_per_frame <= 0.0:
             return np.zeros(touching.shape, dtype=np.float64)
         until_contact = np.cumsum(touching, axis=-1) - touching == 0  # up to and with the first contact frame
@@ -286,7 +291,7 @@ STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
 `boxing` asking for the proximal-to-distal order too, `boxing_fast`, `boxing_fast_arm`, `boxing_fast_near`,
 `boxing_fast_entry` and `boxing_fast_capped` for a boxer's landing speed (boxers' hooks land faster than their straights, ../shared/design/ANCHORS.md §3);
 `boxing_straight` is `boxing` whose punching fist is free only up to 6.5 m/s (lead straights peak at 6.32 m/s in
-junior boxers, 7.16 in elite ones, ANCHORS §3), the shipped straight's, so that the hook is the faster punch as a
+junior boxers, 7.16 in elite ones, ANCHORS §3), the straight's before the order, so that the hook is the faster punch as a
 boxer's is; `boxing_late`, `boxing_late_chain` and `boxing_late_lead` ask a punch to land no sooner than a captured
 one, for the order; the `_order` styles charge a punch out of proximal-to-distal order on the whole of what it
 earned, at its first contact (the first form), `boxing_ordered` and `boxing_straight_ordered` over the punch so that
@@ -299,6 +304,13 @@ MAX_WEIGHT = 100.0
 def first_frame(mask: np.ndarray) -> np.ndarray:
     """Only the first True frame of each episode of `mask` [..., frames]."""
     return np.asarray(mask & (np.cumsum(mask, axis=-1) == 1))
+
+
+def fist_touching(frames: FramesLike) -> np.ndarray:
+    """Whether the punching fist touches the bag in each frame, [..., frames] (as `rewards.first_right_contact`
+    reads contact)."""
+    impulse = np.stack([frames(f"fist_r_impulse_{axis}") for axis in "xyz"], axis=-1)
+    return np.asarray(np.linalg.norm(impulse, axis=-1) > CONTACT_IMPULSE_NS)
 
 
 def chain_speeds(frames: FramesLike) -> list[np.ndarray]:
