@@ -172,6 +172,28 @@ def test_the_order_charge_takes_what_the_punch_earned_before_it_too() -> None:
     assert out_of_order == pytest.approx(8.0 * np.exp(-5 * order.order_cost_per_frame))
 
 
+def test_a_punch_that_has_not_touched_the_bag_by_the_deadline_is_charged_each_frame_until_it_does() -> None:
+    """`boxing_ordered_reach`: a reward that pays near the bag without a touch cannot keep the order by stopping
+    short; the charge runs from the deadline to the first contact and takes the whole punch's earnings."""
+    reach = style_named("boxing_ordered_reach")
+    assert reach is not None and reach.miss_after_frames > 0
+    deadline, cost = reach.miss_after_frames, reach.miss_cost_per_frame
+    ordered = style_named("boxing_ordered")  # the same charge for the order, nothing for a late touch
+    assert ordered is not None
+
+    def late_charge(contact: int) -> np.ndarray:
+        punch = frames_of(peaking_at(1, 2, 5, contact=contact))
+        return reach.whole_punch_cost(punch) - ordered.whole_punch_cost(punch)
+
+    assert np.all(late_charge(deadline) == 0.0)
+    frame = np.arange(FRAMES)
+    np.testing.assert_allclose(late_charge(deadline + 4), np.where((frame >= deadline) & (frame < deadline + 4), cost, 0.0))
+    np.testing.assert_allclose(late_charge(FRAMES).sum(), cost * (FRAMES - deadline))
+    earned = {"forward": np.ones(FRAMES)}
+    stopped_short = reach.apply(earned, frames_of(peaking_at(1, 2, 5, contact=FRAMES)))["forward"].sum()
+    assert stopped_short < 0.1 * reach.apply(earned, frames_of(peaking_at(1, 2, 5, contact=10)))["forward"].sum()
+
+
 def landing(**columns: np.ndarray) -> dict[str, np.ndarray]:
     """A punch whose fist closes on the bag's centre from 0.6 to 0.2 m, within 0.3 m (landing) from frame 38."""
     return features(**{"fist_r_bag_distance": np.linspace(0.6, 0.2, FRAMES), "speed_waist_rotation": np.zeros(FRAMES),

@@ -55,3 +55,21 @@ def pretrain(model: ActorCritic, data: dict[str, np.ndarray], args: PretrainArgs
         if epoch % 50 == 0 or epoch == args.epochs:
             history.append({"epoch": epoch, "actor_mse": actor_loss.item(), "critic_mse": critic_loss.item()})
     return history
+
+
+def fit_critic(model: ActorCritic, data: dict[str, np.ndarray], epochs: int = 500, learning_rate: float = 3e-3,
+               progress: bool = True) -> list[dict[str, Any]]:
+    """Fits the critic alone to the datasets' returns-to-go, leaving the actor and the normalisation as they are:
+    for a warm start from a policy file, which holds no critic (learn/warm_start.py)."""
+    obs = torch.as_tensor(data["observations"])
+    targets = torch.as_tensor(data["returns_to_go"])
+    optimizer = torch.optim.Adam(model.critic.parameters(), lr=learning_rate)
+    history = []
+    for epoch in tqdm(range(1, epochs + 1), desc="fit critic", unit="epoch", disable=not progress):
+        critic_loss = torch.mean((model.value(obs) - targets) ** 2)
+        optimizer.zero_grad()
+        critic_loss.backward()
+        optimizer.step()
+        if epoch % 50 == 0 or epoch == epochs:
+            history.append({"epoch": epoch, "critic_mse": critic_loss.item()})
+    return history

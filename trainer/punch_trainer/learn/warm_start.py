@@ -1,16 +1,21 @@
 """Warm start (`punch train --init-from RUN`): A2C starts from an earlier run's best policy (or one of its
-snapshots, RUN/a2c/snapshots/update_<N>) instead of from a pretraining on this run's search: to train a policy
+snapshots, RUN/a2c/snapshots/update_<N>, or an exported policy file such as the addon's own
+addons/punch_controller/policies/hook.onnx) instead of from a pretraining on this run's search: to train a policy
 further, and when the observation has only gained entries since (a policy contract that added inputs, such as
 version 3's arm lengths). Every input the earlier policy had keeps its weights and its
 normalisation; every new one gets zero weights, so the policy first acts exactly as the earlier one did, and the
-normalisation of this run's episodes, so A2C can learn what the new input says."""
+normalisation of this run's episodes, so A2C can learn what the new input says. A policy file holds the actor
+alone: the critic then keeps this run's fresh weights, and the caller fits it (`pretrain.fit_critic`)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
+import onnx
 import torch
+from google.protobuf.message import DecodeError  # type: ignore[import-untyped]  # protobuf ships no stubs here
+from onnx import numpy_helper
 
 from punch_trainer.errors import PunchError
 from punch_trainer.learn.checkpoint import CHECKPOINT_FILE, CheckpointError, read_checkpoint
@@ -49,12 +54,41 @@ def earlier_parameters(source: Path) -> tuple[dict[str, torch.Tensor], Path]:
         raise WarmStartError(f"cannot start from {source}: {error}") from None
 
 
-def warm_start(model: ActorCritic, source: Path, names: list[str], statistics: np.ndarray) -> list[str]:
-    """Loads the policy `source` names (a run's best, or a snapshot: `earlier_parameters`) into `model`, whose
-    observation is `names`; `statistics` [n, len(names)] are observations of this run's episodes, for the new
-    inputs' normalisation. Returns the names of the new inputs."""
-    earlier, run_dir = earlier_parameters(source)
-    earlier_names = earlier_observation_names(run_dir)
+def policy_file_parameters(path: Path, names: list[str], spec_hash: str) -> dict[str, torch.Tensor]:
+    """The actor's parameters in an exported policy file (learn/export.py names them `model.<parameter>`), whose
+    observation must be this run's: the same spec (its `punch_spec_hash`) and so the same `names`."""
+    try:
+        policy = onnx.load(str(path))
+    except (OSError, ValueError, DecodeError) as error:
+        raise WarmStartError(f"cannot start from {path}: not a readable policy file ({error})") from None
+    metadata = {entry.key: entry.value for entry in policy.metadata_props}
+    if metadata.get("punch_spec_hash") != spec_hash or metadata.get("punch_observation_size") != str(len(names)):
+        raise WarmStartError(f"cannot start from {path}: its observation spec ({metadata.get('punch_spec_hash')}, "
+                             f"{metadata.get('punch_observation_size')} inputs) is not this run's ({spec_hash}, "
+                             f"{len(names)} inputs)")
+    prefix = "model."
+    parameters = {tensor.name.removeprefix(prefix): torch.as_tensor(numpy_helper.to_array(tensor).copy())
+                  for tensor in policy.graph.initializer if tensor.name.startswith(prefix)}
+    # The exporter leaves out a bias of zeros (its layer then has no bias input).
+    for weight in [key for key in parameters if key.endswith(".weight")]:
+        bias = weight.removesuffix(".weight") + ".bias"
+        parameters.setdefault(bias, torch.zeros(parameters[weight].shape[0]))
+    return parameters
+
+
+def warm_start(model: ActorCritic, source: Path, names: list[str], statistics: np.ndarray, spec_hash: str) -> list[str]:
+    """Loads the policy `source` names (a run's best, a snapshot: `earlier_parameters`, or a policy file:
+    `policy_file_parameters`) into `model`, whose observation is `names` (spec `spec_hash`); `statistics`
+    [n, len(names)] are observations of this run's episodes, for the new inputs' normalisation. Returns the
+    names of the new inputs."""
+    if source.suffix == ".onnx":
+        earlier = policy_file_parameters(source, names, spec_hash)
+        earlier_names = names
+        # The file holds no critic: it keeps this run's fresh weights, to be fitted by the caller.
+        earlier.update({key: value for key, value in model.state_dict().items() if key.startswith("critic.")})
+    else:
+        earlier, run_dir = earlier_parameters(source)
+        earlier_names = earlier_observation_names(run_dir)
     lost = [name for name in earlier_names if name not in names]
     if lost:
         raise WarmStartError(f"cannot start from {source}: its policy observes {', '.join(lost)}, which this run's "

@@ -24,7 +24,7 @@ from punch_trainer.learn.checkpoint import CONFIG_FILE, CheckpointError, default
 from punch_trainer.learn.dataset import load_datasets, record_datasets
 from punch_trainer.learn.export import export_policy
 from punch_trainer.learn.policy import ActorCritic
-from punch_trainer.learn.pretrain import PretrainArgs, pretrain
+from punch_trainer.learn.pretrain import PretrainArgs, fit_critic, pretrain
 from punch_trainer.learn.reach import ReachVolume
 from punch_trainer.learn.search import SearchArgs, SearchResult, placement_search
 from punch_trainer.learn.volume import ArmRange, EpisodeConditions, MotionRange, VolumeArgs, distribution_observations, validate
@@ -131,8 +131,9 @@ class TrainArgs:
     within what `size_arms` accepts: narrow it to the characters of a game"""
     init_from: Path | None = None
     """an earlier `punch train` run (its folder) whose best policy A2C starts from instead of a pretraining on this
-    run's search, or one of its snapshots (RUN/a2c/snapshots/update_<N>): to train a policy further, or for a policy
-    contract that added inputs (they start at zero weight; learn/warm_start.py)"""
+    run's search, one of its snapshots (RUN/a2c/snapshots/update_<N>), or a policy file of this observation spec
+    (such as addons/punch_controller/policies/hook.onnx; its critic is fitted to this run's search): to train a
+    policy further, or for a policy contract that added inputs (they start at zero weight; learn/warm_start.py)"""
     processes: int = SearchArgs.processes
     """Godot processes (with --ray: Ray workers, docs/cluster.md) of 64 characters for the searches"""
 
@@ -253,8 +254,10 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
                           if conditions is not None else None)
             if args.init_from is not None:
                 added = warm_start(model, args.init_from, env.info.observation_names,
-                                   data["observations"] if statistics is None else statistics)
+                                   data["observations"] if statistics is None else statistics, env.info.spec_hash)
                 pretrain_history = [{"warm_start": str(args.init_from), "new_inputs": added}]
+                if args.init_from.suffix == ".onnx":  # a policy file holds no critic
+                    pretrain_history += fit_critic(model, data, progress=progress)
             else:
                 pretrain_args = PretrainArgs(epochs=args.pretrain_epochs, seed=args.seed,
                                              initial_sigma=defaults.pretrain_initial_sigma)

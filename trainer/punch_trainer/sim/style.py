@@ -118,6 +118,13 @@ class Style:
     """the order's charge all at once on the first contact frame, so that a punch which never touches the bag
     escapes it (the first form, in the `boxing_order` styles before `boxing_ordered`: a policy trained with it
     stopped short of targets that its short arms reached only out of order, docs/experiments.md)"""
+    miss_after_frames: int = 0
+    """the frame from which a punch that has not yet touched the bag is charged `miss_cost_per_frame` a frame"""
+    miss_cost_per_frame: float = 0.0
+    """cost, taking the whole punch's earnings as the order's does, of each frame from `miss_after_frames` on
+    before the fist first touches the bag: a reward that pays near the bag without a touch (the hook's, the
+    swing's) otherwise lets a punch keep its order by stopping short of a target it reaches only out of order
+    (0: none; docs/experiments.md)"""
     later_cost_share: float = 0.1
     """how much of the cost after a frame still discounts what that frame earned (0: only the cost before it;
     1: all of it, the whole punch's)"""
@@ -193,22 +200,25 @@ class Style:
 
     def whole_punch_cost(self, frames: FramesLike) -> np.ndarray:
         """Each frame's cost that takes all that the punch has earned, before the frame as after, [..., frames]:
-        the proximal-to-distal order's (0 without `order_cost_per_frame`). Frame t is charged the change, since
-        frame t - 1, of how far the peaks of the waist's rotation, the shoulder's and the elbow's speeds up to t
-        break the order; the peaks stop at the first contact. So the charges of a punch add up to its order as
-        docs/naturalness.md measures it at contact, and a punch that never touches the bag is charged its peaks
-        over the whole episode: stopping short does not escape it."""
+        the proximal-to-distal order's (0 without `order_cost_per_frame`) and a late touch's (0 without
+        `miss_cost_per_frame`). For the order, frame t is charged the change, since frame t - 1, of how far the
+        peaks of the waist's rotation, the shoulder's and the elbow's speeds up to t break the order; the peaks
+        stop at the first contact. So the charges of a punch add up to its order as docs/naturalness.md measures
+        it at contact, and a punch that never touches the bag is charged its peaks over the whole episode."""
         touching = fist_touching(frames)
-        if self.order_cost_per_frame <= 0.0:
-            return np.zeros(touching.shape, dtype=np.float64)
         until_contact = np.cumsum(touching, axis=-1) - touching == 0  # up to and with the first contact frame
+        not_yet = until_contact & ~touching
+        late = not_yet & (np.arange(touching.shape[-1]) >= self.miss_after_frames)
+        miss = self.miss_cost_per_frame * late
+        if self.order_cost_per_frame <= 0.0:
+            return np.asarray(self.weight * miss, dtype=np.float64)
         peaks = [running_peak_frame(np.where(until_contact, speed, -1.0)) for speed in chain_speeds(frames)]
         margin = self.order_margin_frames
         out_of_order = np.maximum(0, peaks[0] - peaks[1] + margin) + np.maximum(0, peaks[1] - peaks[2] + margin)
         change = np.diff(out_of_order, axis=-1, prepend=0)
         if self.order_charged_at_contact:
             change = np.where(first_frame(touching), out_of_order, 0)
-        return np.asarray(self.weight * self.order_cost_per_frame * change, dtype=np.float64)
+        return np.asarray(self.weight * (self.order_cost_per_frame * change + miss), dtype=np.float64)
 
     def apply(self, terms: Mapping[str, np.ndarray], frames: FramesLike) -> dict[str, np.ndarray]:
         """The reward's terms with the style. A frame's positive value is discounted by exp(-the cost up to it),
@@ -274,6 +284,8 @@ STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
                                                                        fist_cost_per_mps2=1.0, order_cost_per_frame=1.0,
                                                                        order_margin_frames=1),
                                    "boxing_ordered": Style("boxing_ordered", order_cost_per_frame=1.0, order_margin_frames=1),
+                                   "boxing_ordered_reach": Style("boxing_ordered_reach", order_cost_per_frame=1.0, order_margin_frames=1,
+                                                                 miss_after_frames=24, miss_cost_per_frame=0.5),
                                    "boxing_straight_ordered": Style("boxing_straight_ordered", fist_free_mps=6.3,
                                                                     fist_cost_per_mps2=0.5, order_cost_per_frame=1.0,
                                                                     order_margin_frames=1),
@@ -295,7 +307,8 @@ junior boxers, 7.16 in elite ones, ANCHORS §3), the straight's before the order
 boxer's is; `boxing_late`, `boxing_late_chain` and `boxing_late_lead` ask a punch to land no sooner than a captured
 one, for the order; the `_order` styles charge a punch out of proximal-to-distal order on the whole of what it
 earned, at its first contact (the first form), `boxing_ordered` and `boxing_straight_ordered` over the punch so that
-stopping short does not escape it (docs/style.md, "The proximal-to-distal order"), and `boxing_straight_ordered_floor`,
+stopping short does not escape it (docs/style.md, "The proximal-to-distal order"), `boxing_ordered_reach` charging a
+punch that has not touched the bag by 0.2 s as well, and `boxing_straight_ordered_floor`,
 the shipped straight's, asks its landing fist for 6.2 m/s as well; experiments: docs/experiments.md"""
 DEFAULT_STYLE = "boxing"
 MAX_WEIGHT = 100.0
