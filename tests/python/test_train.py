@@ -69,6 +69,27 @@ def test_small_training_run_exports_a_policy_that_repeats_its_punch(tmp_path, st
     assert first == pytest.approx(float(score(reward, features_a, env.feature_names)), rel=1e-9, abs=1e-9)
 
 
+def test_a_run_warm_started_from_the_addons_policy_file_punches_as_it_did(tmp_path):
+    """`--init-from addons/punch_controller/policies/hook.onnx`: the file's actor, a critic fitted here, then A2C."""
+    from pathlib import Path
+
+    import numpy as np
+    import onnxruntime
+
+    shipped = Path(__file__).resolve().parents[2] / "addons" / "punch_controller" / "policies" / "hook.onnx"
+    args = TrainArgs(reward="hook", out=tmp_path / "run", search_iterations=2, search_rollouts=16, a2c_updates=1,
+                     a2c_characters=4, a2c_time_budget_s=0, reach="spot", init_from=shipped)
+    out = run_train(args, progress=False)
+    report = (out / "report.md").read_text()
+    assert f"warm start from {shipped}" in report and "new inputs, at zero weight: none" in report
+    sessions = [onnxruntime.InferenceSession(str(path)) for path in (shipped, out / "policy.onnx")]
+    observations = np.random.default_rng(0).normal(size=(8, sessions[0].get_inputs()[0].shape[1])).astype(np.float32)
+    before, after = (session.run(None, {"obs": observations}) for session in sessions)
+    # One small update away from the file's actor (a fresh network's means are near 0, the hook's are not).
+    assert np.abs(before[0]).mean() > 0.2
+    assert np.abs(after[0] - before[0]).mean() < 0.1 * np.abs(before[0]).mean()
+
+
 def test_fig6_experiment_runs_every_method_with_honest_axes(tmp_path):
     from punch_trainer.pipelines.experiments import METHODS, Fig6Args, fig6
 

@@ -314,7 +314,7 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
         (f"- after pretraining ({args.pretrain_epochs} epochs, final actor MSE {pretrain_history[-1]['actor_mse']:.2e}): "
          f"noise-free return {pretrained_return:.4f}" if args.init_from is None else
          f"- warm start from {args.init_from} (its best policy, or the snapshot; new inputs, at zero weight: "
-         f"{', '.join(pretrain_history[-1]['new_inputs']) or 'none'}): noise-free return {pretrained_return:.4f}"),
+         f"{', '.join(pretrain_history[0]['new_inputs']) or 'none'}): noise-free return {pretrained_return:.4f}"),
         f"- after A2C ({len(a2c_history) - 1} updates x {processes * args.a2c_characters} episodes, advantage '{args.advantage}', "
         f"sigma at least {a2c_args.sigma_floor}): "
         f"best noise-free return {max(h['eval_return'] for h in a2c_history):.4f}",
