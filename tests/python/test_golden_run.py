@@ -5,7 +5,9 @@ The search's best return and every array of its dataset must match bitwise. Thos
 and match bitwise on Intel and AMD machines alike. The network's side (pretraining, A2C) runs in torch, whose
 CPU kernels round differently from one processor family to another (the recorded weights were reproduced on
 an Intel Xeon, not on an AMD EPYC: 2026-11-23), so there the run must repeat bitwise on the machine it runs
-on, and land near the recorded returns. The figures were recorded at commit 6b8202b, held until the policy
+on, and land near the returns recorded for its processor family (`network`, by /proc/cpuinfo's vendor_id: on
+2026-11-26 an AMD EPYC's pretrained return was 15% below an Intel Xeon's, its exported return 14% above). A family
+with no record of its own is held to the recorded ones within CROSS_FAMILY_REL. The figures were recorded at commit 6b8202b, held until the policy
 contract's version 2 (punching on the move: a kinematic pelvis, 60 features) and were recorded again then, and
 again at version 3 (the arms' lengths observed, 63 features, and A2C over arm sizes); the
 full `punch search --reward straight --seed 0` was once compared the same way (best return
@@ -15,11 +17,14 @@ Re-recording, after a change that is meant to change the simulation or the train
 
     PUNCH_RECORD_GOLDEN=1 .venv/bin/pytest tests/python/test_golden_run.py
 
-runs the same training twice, checks that it repeats bitwise, and writes its figures into the fixture."""
+runs the same training twice, checks that it repeats bitwise, and writes its figures into the fixture: the
+simulation's, and the network's for this machine's processor family (the other families' are dropped when the
+simulation's figures changed, since they no longer belong to this run; record them again on such a machine)."""
 
 import hashlib
 import json
 import os
+from pathlib import Path
 
 import numpy as np
 import onnx
@@ -32,6 +37,22 @@ from punch_trainer.pipelines.train import TrainArgs, run_train
 pytestmark = [pytest.mark.godot, pytest.mark.expensive]
 RECORDED = FIXTURES / "golden_run.json"
 RECORD_VARIABLE = "PUNCH_RECORD_GOLDEN"
+SIMULATED = ("search_best_return", "dataset")
+"""figures from Godot and Jolt, bitwise on every processor"""
+CROSS_FAMILY_REL = 0.2
+"""how far a processor family with no record of its own may land from a recorded family's returns (measured:
+15%)"""
+
+
+def processor_family(cpuinfo: Path = Path("/proc/cpuinfo")) -> str:
+    """The processor's vendor (GenuineIntel, AuthenticAMD, ...), whose CPU kernels torch's rounding follows."""
+    try:
+        for line in cpuinfo.read_text().splitlines():
+            if line.startswith("vendor_id"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return "unknown"
 
 
 def digest(*arrays: np.ndarray) -> str:
@@ -58,13 +79,30 @@ def train_figures(out) -> dict:
 
 def test_a_seeded_training_run_reproduces_its_recorded_figures(tmp_path):
     figures, again = train_figures(tmp_path / "run"), train_figures(tmp_path / "again")
+    family = processor_family()
+    network = {k: v for k, v in figures.items() if k not in SIMULATED}
     if os.environ.get(RECORD_VARIABLE) == "1":
         assert figures == again, "a run that does not repeat bitwise on this machine cannot be recorded"
-        RECORDED.write_text(json.dumps(figures, indent=1) + "\n")
-        print(f"recorded the golden run's figures in {RECORDED}")
+        earlier = json.loads(RECORDED.read_text()) if RECORDED.exists() else {}
+        same_simulation = all(earlier.get(k) == figures[k] for k in SIMULATED)
+        families = earlier.get("network", {}) if same_simulation else {}
+        RECORDED.write_text(json.dumps({**{k: figures[k] for k in SIMULATED},
+                                        "network": {**families, family: network}}, indent=1) + "\n")
+        print(f"recorded the golden run's figures ({family}) in {RECORDED}")
     recorded = json.loads(RECORDED.read_text())
-    simulated = ("search_best_return", "dataset")
-    assert {k: figures[k] for k in simulated} == {k: recorded[k] for k in simulated}
+    assert {k: figures[k] for k in SIMULATED} == {k: recorded[k] for k in SIMULATED}
     assert figures == again, "the same seeded run on the same machine should repeat bitwise"
-    assert float(figures["pretrained_return"]) == pytest.approx(float(recorded["pretrained_return"]), rel=0.01)
-    assert float(figures["exported_return"]) == pytest.approx(float(recorded["exported_return"]), rel=0.15)
+    if family in recorded["network"]:
+        expected, pretrained_rel, exported_rel = recorded["network"][family], 0.01, 0.15
+    else:
+        expected = next(iter(recorded["network"].values()))
+        pretrained_rel = exported_rel = CROSS_FAMILY_REL
+    assert float(network["pretrained_return"]) == pytest.approx(float(expected["pretrained_return"]), rel=pretrained_rel)
+    assert float(network["exported_return"]) == pytest.approx(float(expected["exported_return"]), rel=exported_rel)
+
+
+def test_the_processor_family_is_read_from_cpuinfo(tmp_path):
+    cpuinfo = tmp_path / "cpuinfo"
+    cpuinfo.write_text("processor\t: 0\nvendor_id\t: AuthenticAMD\nmodel name\t: AMD EPYC\n")
+    assert processor_family(cpuinfo) == "AuthenticAMD"
+    assert processor_family(tmp_path / "nowhere") == "unknown"
