@@ -289,6 +289,9 @@ STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
                                    "boxing_ordered_reach_soft": Style("boxing_ordered_reach_soft", order_cost_per_frame=0.3,
                                                                       order_margin_frames=1, miss_after_frames=24,
                                                                       miss_cost_per_frame=0.5),
+                                   "boxing_hook_ordered": Style("boxing_hook_ordered", order_cost_per_frame=0.3, order_margin_frames=1,
+                                                                miss_after_frames=24, miss_cost_per_frame=0.5,
+                                                                landing_free_mps=6.8, landing_cost_per_mps2=1.0),
                                    "boxing_straight_ordered": Style("boxing_straight_ordered", fist_free_mps=6.3,
                                                                     fist_cost_per_mps2=0.5, order_cost_per_frame=1.0,
                                                                     order_margin_frames=1),
@@ -311,7 +314,8 @@ boxer's is; `boxing_late`, `boxing_late_chain` and `boxing_late_lead` ask a punc
 one, for the order; the `_order` styles charge a punch out of proximal-to-distal order on the whole of what it
 earned, at its first contact (the first form), `boxing_ordered` and `boxing_straight_ordered` over the punch so that
 stopping short does not escape it (docs/style.md, "The proximal-to-distal order"), `boxing_ordered_reach` charging a
-punch that has not touched the bag by 0.2 s as well (`_soft`: 0.3 a frame out of order), and `boxing_straight_ordered_floor`,
+punch that has not touched the bag by 0.2 s as well (`_soft`: 0.3 a frame out of order; `boxing_hook_ordered`:
+`_soft` whose landing fist is asked for 6.8 m/s, above the straight's), and `boxing_straight_ordered_floor`,
 the shipped straight's, asks its landing fist for 6.2 m/s as well; experiments: docs/experiments.md"""
 DEFAULT_STYLE = "boxing"
 MAX_WEIGHT = 100.0
