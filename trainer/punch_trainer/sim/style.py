@@ -122,9 +122,9 @@ class Style:
     """the frame from which a punch that has not yet touched the bag is charged `miss_cost_per_frame` a frame"""
     miss_cost_per_frame: float = 0.0
     """cost, taking the whole punch's earnings as the order's does, of each frame from `miss_after_frames` on
-    before the fist first touches the bag: a reward that pays near the bag without a touch (the hook's, the
-    swing's) otherwise lets a punch keep its order by stopping short of a target it reaches only out of order
-    (0: none; docs/experiments.md)"""
+    before the fist first touches the bag, so that with a reward that pays near the bag without a touch (the
+    hook's, the swing's) stopping short is not a way out of the order's charge (0: none; tried on the hook: it did
+    not keep short arms' hits, docs/experiments.md)"""
     later_cost_share: float = 0.1
     """how much of the cost after a frame still discounts what that frame earned (0: only the cost before it;
     1: all of it, the whole punch's)"""
@@ -207,8 +207,7 @@ class Style:
         it at contact, and a punch that never touches the bag is charged its peaks over the whole episode."""
         touching = fist_touching(frames)
         until_contact = np.cumsum(touching, axis=-1) - touching == 0  # up to and with the first contact frame
-        not_yet = until_contact & ~touching
-        late = not_yet & (np.arange(touching.shape[-1]) >= self.miss_after_frames)
+        late = until_contact & ~touching & (np.arange(touching.shape[-1]) >= self.miss_after_frames)
         miss = self.miss_cost_per_frame * late
         if self.order_cost_per_frame <= 0.0:
             return np.asarray(self.weight * miss, dtype=np.float64)
