@@ -7,9 +7,9 @@ CPU kernels round differently from one processor family to another (the recorded
 an Intel Xeon, not on an AMD EPYC: 2026-11-23), so there the run must repeat bitwise on the machine it runs
 on, and land near the returns recorded for its processor family (`network`, by /proc/cpuinfo's vendor_id: on
 2026-11-26 an AMD EPYC's pretrained return was 15% below an Intel Xeon's, its exported return 14% above). A family
-with no record of its own is held to the recorded ones within CROSS_FAMILY_REL. The figures were recorded at commit 6b8202b, held until the policy
-contract's version 2 (punching on the move: a kinematic pelvis, 60 features) and were recorded again then, and
-again at version 3 (the arms' lengths observed, 63 features, and A2C over arm sizes); the
+with no record of its own is held to the recorded ones within CROSS_FAMILY_REL. The figures were recorded at
+commit 6b8202b, held until the policy contract's version 2 (punching on the move: a kinematic pelvis, 60
+features) and were recorded again then, and again at version 3 (the arms' lengths observed, 63 features, and A2C over arm sizes); the
 full `punch search --reward straight --seed 0` was once compared the same way (best return
 5.473997661378235 after 150 iterations, peak fist speed 7.47 m/s, identical dataset arrays).
 

@@ -313,7 +313,8 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
         f"- trajectory search: best return {search.best_return:.4f} ({search_args.iterations} iterations of {search_args.rollouts} rollouts)",
         (f"- after pretraining ({args.pretrain_epochs} epochs, final actor MSE {pretrain_history[-1]['actor_mse']:.2e}): "
          f"noise-free return {pretrained_return:.4f}" if args.init_from is None else
-         f"- warm start from {args.init_from} (its best policy, the snapshot, or the file's actor with a critic fitted here; new inputs, at zero weight: "
+         f"- warm start from {args.init_from} (its best policy, the snapshot, or the file's actor with a critic "
+         f"fitted here; new inputs, at zero weight: "
          f"{', '.join(pretrain_history[0]['new_inputs']) or 'none'}): noise-free return {pretrained_return:.4f}"),
         f"- after A2C ({len(a2c_history) - 1} updates x {processes * args.a2c_characters} episodes, advantage '{args.advantage}', "
         f"sigma at least {a2c_args.sigma_floor}): "

@@ -206,6 +206,8 @@ class Style:
         stop at the first contact. So the charges of a punch add up to its order as docs/naturalness.md measures
         it at contact, and a punch that never touches the bag is charged its peaks over the whole episode."""
         touching = fist_touching(frames)
+        if self.order_cost_per_frame <= 0.0 and self.miss_cost_per_frame <= 0.0:  # every style but the order's
+            return np.zeros(touching.shape, dtype=np.float64)
         until_contact = np.cumsum(touching, axis=-1) - touching == 0  # up to and with the first contact frame
         late = until_contact & ~touching & (np.arange(touching.shape[-1]) >= self.miss_after_frames)
         miss = self.miss_cost_per_frame * late
