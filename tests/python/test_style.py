@@ -194,6 +194,20 @@ def test_a_punch_that_has_not_touched_the_bag_by_the_deadline_is_charged_each_fr
     assert stopped_short < 0.1 * reach.apply(earned, frames_of(peaking_at(1, 2, 5, contact=10)))["forward"].sum()
 
 
+def test_a_capped_order_charge_leaves_a_punch_out_of_order_more_than_a_miss() -> None:
+    """`boxing_ordered_capped`: the order's charge stops at its cap, so a short arm that reaches the bag only out of
+    order still earns more by landing than by stopping short, and a punch in order earns the most."""
+    capped = style_named("boxing_ordered_capped")
+    assert capped is not None and np.isfinite(capped.order_cost_cap)
+    far_out = frames_of(peaking_at(6, 2, 3, contact=8))
+    np.testing.assert_allclose(capped.whole_punch_cost(far_out).sum(), capped.order_cost_cap)
+    earned = {"forward": np.ones(FRAMES)}
+    landed_in_order = capped.apply(earned, frames_of(peaking_at(1, 2, 5, contact=8)))["forward"].sum()
+    landed_out_of_order = capped.apply(earned, far_out)["forward"].sum()
+    missed = capped.apply(earned, frames_of(peaking_at(6, 2, 3, contact=FRAMES)))["forward"].sum()
+    assert landed_in_order > landed_out_of_order > 5 * missed
+
+
 def landing(**columns: np.ndarray) -> dict[str, np.ndarray]:
     """A punch whose fist closes on the bag's centre from 0.6 to 0.2 m, within 0.3 m (landing) from frame 38."""
     return features(**{"fist_r_bag_distance": np.linspace(0.6, 0.2, FRAMES), "speed_waist_rotation": np.zeros(FRAMES),

@@ -114,6 +114,9 @@ class Style:
     order_margin_frames: int = 0
     """how many frames before the next joint's a joint's peak must come to escape the order's charge (0: a tie is in
     order, as the measure counts it; 1: a tie costs a frame, so that noise does not break a punch held at a tie)"""
+    order_cost_cap: float = float("inf")
+    """the most the order's charge takes in all (exp(-cap) of the punch's earnings stays), so that a punch that can
+    reach the bag only out of order (a short arm's) still earns more by landing than by missing"""
     order_charged_at_contact: bool = False
     """the order's charge all at once on the first contact frame, so that a punch which never touches the bag
     escapes it (the first form, in the `boxing_order` styles before `boxing_ordered`: a policy trained with it
@@ -216,10 +219,11 @@ class Style:
         peaks = [running_peak_frame(np.where(until_contact, speed, -1.0)) for speed in chain_speeds(frames)]
         margin = self.order_margin_frames
         out_of_order = np.maximum(0, peaks[0] - peaks[1] + margin) + np.maximum(0, peaks[1] - peaks[2] + margin)
-        change = np.diff(out_of_order, axis=-1, prepend=0)
+        order_cost = np.minimum(self.order_cost_per_frame * out_of_order, self.order_cost_cap)
+        change = np.diff(order_cost, axis=-1, prepend=0)
         if self.order_charged_at_contact:
-            change = np.where(first_frame(touching), out_of_order, 0)
-        return np.asarray(self.weight * (self.order_cost_per_frame * change + miss), dtype=np.float64)
+            change = np.where(first_frame(touching), order_cost, 0)
+        return np.asarray(self.weight * (change + miss), dtype=np.float64)
 
     def apply(self, terms: Mapping[str, np.ndarray], frames: FramesLike) -> dict[str, np.ndarray]:
         """The reward's terms with the style. A frame's positive value is discounted by exp(-the cost up to it),
@@ -290,9 +294,20 @@ STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
                                    "boxing_ordered_reach_soft": Style("boxing_ordered_reach_soft", order_cost_per_frame=0.3,
                                                                       order_margin_frames=1, miss_after_frames=24,
                                                                       miss_cost_per_frame=0.5),
+                                   "boxing_ordered_capped": Style("boxing_ordered_capped", order_cost_per_frame=1.0,
+                                                                  order_margin_frames=1, order_cost_cap=1.0,
+                                                                  miss_after_frames=24, miss_cost_per_frame=0.5),
                                    "boxing_hook_ordered": Style("boxing_hook_ordered", order_cost_per_frame=0.3, order_margin_frames=1,
                                                                 miss_after_frames=24, miss_cost_per_frame=0.5,
                                                                 landing_free_mps=6.8, landing_cost_per_mps2=1.0),
+                                   "boxing_hook_ordered_firm": Style("boxing_hook_ordered_firm", order_cost_per_frame=1.0,
+                                                                     order_margin_frames=1, miss_after_frames=24,
+                                                                     miss_cost_per_frame=0.5, landing_free_mps=6.4,
+                                                                     landing_cost_per_mps2=0.3),
+                                   "boxing_hook_ordered_touch": Style("boxing_hook_ordered_touch", order_cost_per_frame=1.0,
+                                                                      order_margin_frames=1, miss_after_frames=16,
+                                                                      miss_cost_per_frame=1.0, landing_free_mps=6.4,
+                                                                      landing_cost_per_mps2=0.3),
                                    "boxing_straight_ordered": Style("boxing_straight_ordered", fist_free_mps=6.3,
                                                                     fist_cost_per_mps2=0.5, order_cost_per_frame=1.0,
                                                                     order_margin_frames=1),
@@ -315,8 +330,10 @@ boxer's is; `boxing_late`, `boxing_late_chain` and `boxing_late_lead` ask a punc
 one, for the order; the `_order` styles charge a punch out of proximal-to-distal order on the whole of what it
 earned, at its first contact (the first form), `boxing_ordered` and `boxing_straight_ordered` over the punch so that
 stopping short does not escape it (docs/style.md, "The proximal-to-distal order"), `boxing_ordered_reach` charging a
-punch that has not touched the bag by 0.2 s as well (`_soft`: 0.3 a frame out of order; `boxing_hook_ordered`:
-`_soft` whose landing fist is asked for 6.8 m/s, above the straight's), and `boxing_straight_ordered_floor`,
+punch that has not touched the bag by 0.2 s as well (`_soft`: 0.3 a frame out of order; `boxing_ordered_capped`: the
+order's charge at most 1 in all, so that landing out of order beats missing; `boxing_hook_ordered`:
+`_soft` whose landing fist is asked for 6.8 m/s, above the straight's; `boxing_hook_ordered_firm`: the order at 1 a
+frame and a gentler floor, 0.3 per (m/s)² under 6.4 m/s; `_touch`: its late touch charged 1 a frame from frame 16), and `boxing_straight_ordered_floor`,
 the shipped straight's, asks its landing fist for 6.2 m/s as well; experiments: docs/experiments.md"""
 DEFAULT_STYLE = "boxing"
 MAX_WEIGHT = 100.0
