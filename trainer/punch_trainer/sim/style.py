@@ -297,6 +297,9 @@ STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
                                    "boxing_ordered_capped": Style("boxing_ordered_capped", order_cost_per_frame=1.0,
                                                                   order_margin_frames=1, order_cost_cap=1.0,
                                                                   miss_after_frames=24, miss_cost_per_frame=0.5),
+                                   "boxing_ordered_capped2": Style("boxing_ordered_capped2", order_cost_per_frame=1.0,
+                                                                   order_margin_frames=1, order_cost_cap=2.0,
+                                                                   miss_after_frames=24, miss_cost_per_frame=0.5),
                                    "boxing_hook_ordered": Style("boxing_hook_ordered", order_cost_per_frame=0.3, order_margin_frames=1,
                                                                 miss_after_frames=24, miss_cost_per_frame=0.5,
                                                                 landing_free_mps=6.8, landing_cost_per_mps2=1.0),
@@ -331,7 +334,7 @@ one, for the order; the `_order` styles charge a punch out of proximal-to-distal
 earned, at its first contact (the first form), `boxing_ordered` and `boxing_straight_ordered` over the punch so that
 stopping short does not escape it (docs/style.md, "The proximal-to-distal order"), `boxing_ordered_reach` charging a
 punch that has not touched the bag by 0.2 s as well (`_soft`: 0.3 a frame out of order; `boxing_ordered_capped`: the
-order's charge at most 1 in all, so that landing out of order beats missing; `boxing_hook_ordered`:
+order's charge at most 1 in all (`_capped2`: 2), so that landing out of order beats missing; `boxing_hook_ordered`:
 `_soft` whose landing fist is asked for 6.8 m/s, above the straight's; `boxing_hook_ordered_firm`: the order at 1 a
 frame and a gentler floor, 0.3 per (m/s)² under 6.4 m/s; `_touch`: its late touch charged 1 a frame from frame 16), and `boxing_straight_ordered_floor`,
 the shipped straight's, asks its landing fist for 6.2 m/s as well; experiments: docs/experiments.md"""
