@@ -27,7 +27,7 @@ A style has two parts, chosen by measurement (docs/experiments.md, "A motion sty
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -259,6 +259,11 @@ class Style:
         return asdict(self)
 
 
+ORDERED_REACH = Style("boxing_ordered_reach", order_cost_per_frame=1.0, order_margin_frames=1, miss_after_frames=24,
+                      miss_cost_per_frame=0.5)
+"""`boxing_ordered` charging a punch that has not touched the bag by frame 24 (0.2 s) as well: the base of the
+order's later styles, each named in STYLES by what it changes"""
+
 STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
                                    "boxing_chain": Style("boxing_chain", chain_cost=4.0),
                                    "boxing_drive": Style("boxing_drive", drive_cost=4.0),
@@ -289,28 +294,18 @@ STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
                                                                        fist_cost_per_mps2=1.0, order_cost_per_frame=1.0,
                                                                        order_margin_frames=1),
                                    "boxing_ordered": Style("boxing_ordered", order_cost_per_frame=1.0, order_margin_frames=1),
-                                   "boxing_ordered_reach": Style("boxing_ordered_reach", order_cost_per_frame=1.0, order_margin_frames=1,
-                                                                 miss_after_frames=24, miss_cost_per_frame=0.5),
-                                   "boxing_ordered_reach_soft": Style("boxing_ordered_reach_soft", order_cost_per_frame=0.3,
-                                                                      order_margin_frames=1, miss_after_frames=24,
-                                                                      miss_cost_per_frame=0.5),
-                                   "boxing_ordered_capped": Style("boxing_ordered_capped", order_cost_per_frame=1.0,
-                                                                  order_margin_frames=1, order_cost_cap=1.0,
-                                                                  miss_after_frames=24, miss_cost_per_frame=0.5),
-                                   "boxing_ordered_capped2": Style("boxing_ordered_capped2", order_cost_per_frame=1.0,
-                                                                   order_margin_frames=1, order_cost_cap=2.0,
-                                                                   miss_after_frames=24, miss_cost_per_frame=0.5),
-                                   "boxing_hook_ordered": Style("boxing_hook_ordered", order_cost_per_frame=0.3, order_margin_frames=1,
-                                                                miss_after_frames=24, miss_cost_per_frame=0.5,
-                                                                landing_free_mps=6.8, landing_cost_per_mps2=1.0),
-                                   "boxing_hook_ordered_firm": Style("boxing_hook_ordered_firm", order_cost_per_frame=1.0,
-                                                                     order_margin_frames=1, miss_after_frames=24,
-                                                                     miss_cost_per_frame=0.5, landing_free_mps=6.4,
-                                                                     landing_cost_per_mps2=0.3),
-                                   "boxing_hook_ordered_touch": Style("boxing_hook_ordered_touch", order_cost_per_frame=1.0,
-                                                                      order_margin_frames=1, miss_after_frames=16,
-                                                                      miss_cost_per_frame=1.0, landing_free_mps=6.4,
-                                                                      landing_cost_per_mps2=0.3),
+                                   "boxing_ordered_reach": ORDERED_REACH,
+                                   "boxing_ordered_reach_soft": replace(ORDERED_REACH, name="boxing_ordered_reach_soft",
+                                                                        order_cost_per_frame=0.3),
+                                   "boxing_ordered_capped": replace(ORDERED_REACH, name="boxing_ordered_capped", order_cost_cap=1.0),
+                                   "boxing_ordered_capped2": replace(ORDERED_REACH, name="boxing_ordered_capped2", order_cost_cap=2.0),
+                                   "boxing_hook_ordered": replace(ORDERED_REACH, name="boxing_hook_ordered", order_cost_per_frame=0.3,
+                                                                  landing_free_mps=6.8, landing_cost_per_mps2=1.0),
+                                   "boxing_hook_ordered_firm": replace(ORDERED_REACH, name="boxing_hook_ordered_firm",
+                                                                       landing_free_mps=6.4, landing_cost_per_mps2=0.3),
+                                   "boxing_hook_ordered_touch": replace(ORDERED_REACH, name="boxing_hook_ordered_touch",
+                                                                        miss_after_frames=16, miss_cost_per_frame=1.0,
+                                                                        landing_free_mps=6.4, landing_cost_per_mps2=0.3),
                                    "boxing_straight_ordered": Style("boxing_straight_ordered", fist_free_mps=6.3,
                                                                     fist_cost_per_mps2=0.5, order_cost_per_frame=1.0,
                                                                     order_margin_frames=1),
