@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from punch_trainer.sim.placement import SCENE_ARM_LENGTHS_M, SCENE_BAG_RADIUS_M
-from punch_trainer.sim.style import Style, StyleError, running_peak_frame, style_from_label, style_label, style_named
+from punch_trainer.sim.style import Style, StyleError, reach_share, running_peak_frame, style_from_label, style_label, style_named
 
 FRAMES = 50
 NAMES = [f"{stem}_{axis}" for stem in ("fist_l_pos", "fist_l_vel", "fist_r_vel", "fist_r_pos", "fist_r_impulse", "bag_pos",
@@ -206,6 +206,18 @@ def test_a_capped_order_charge_leaves_a_punch_out_of_order_more_than_a_miss() ->
     landed_out_of_order = capped.apply(earned, far_out)["forward"].sum()
     missed = capped.apply(earned, frames_of(peaking_at(6, 2, 3, contact=FRAMES)))["forward"].sum()
     assert landed_in_order > landed_out_of_order > 5 * missed
+
+
+def test_the_near_order_charge_leaves_a_target_beyond_the_arms_stretch_to_land_out_of_order() -> None:
+    """`boxing_ordered_capped2_near`: a punch out of order is charged where the bag starts within 1.25 arm's lengths
+    of the shoulder and not beyond, where only a short arm's full stretch with the trunk's lean reaches it."""
+    near = style_named("boxing_ordered_capped2_near")
+    assert near is not None and near.order_reach_share == 1.25
+    arm_m = SCENE_ARM_LENGTHS_M[0] + SCENE_ARM_LENGTHS_M[1]
+    for distance_m, charged in ((0.6, near.order_cost_cap), (1.0, 0.0)):
+        out_of_order = frames_of({**peaking_at(6, 2, 3, contact=8), **WITHIN_REACH, "bag_pos_z": np.full(FRAMES, distance_m)})
+        assert (reach_share(out_of_order)[0] <= near.order_reach_share) == (charged > 0.0), distance_m / arm_m
+        np.testing.assert_allclose(near.whole_punch_cost(out_of_order).sum(), charged)
 
 
 def landing(**columns: np.ndarray) -> dict[str, np.ndarray]:

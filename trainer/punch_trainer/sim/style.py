@@ -117,6 +117,10 @@ class Style:
     order_cost_cap: float = float("inf")
     """the most the order's charge takes in all (exp(-cap) of the punch's earnings stays), so that a punch that can
     reach the bag only out of order (a short arm's) still earns more by landing than by missing"""
+    order_reach_share: float = float("inf")
+    """the order is charged only where the bag's near side starts within this share of the arm's length from the
+    shoulder (`reach_share`); a farther target, which a short arm reaches only at full stretch with the trunk's
+    lean, is left to land out of order"""
     order_charged_at_contact: bool = False
     """the order's charge all at once on the first contact frame, so that a punch which never touches the bag
     escapes it (the first form, in the `boxing_order` styles before `boxing_ordered`: a policy trained with it
@@ -220,6 +224,8 @@ class Style:
         margin = self.order_margin_frames
         out_of_order = np.maximum(0, peaks[0] - peaks[1] + margin) + np.maximum(0, peaks[1] - peaks[2] + margin)
         order_cost = np.minimum(self.order_cost_per_frame * out_of_order, self.order_cost_cap)
+        if np.isfinite(self.order_reach_share):
+            order_cost = np.where(reach_share(frames) <= self.order_reach_share, order_cost, 0.0)
         change = np.diff(order_cost, axis=-1, prepend=0)
         if self.order_charged_at_contact:
             change = np.where(first_frame(touching), order_cost, 0)
@@ -299,6 +305,8 @@ STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
                                                                         order_cost_per_frame=0.3),
                                    "boxing_ordered_capped": replace(ORDERED_REACH, name="boxing_ordered_capped", order_cost_cap=1.0),
                                    "boxing_ordered_capped2": replace(ORDERED_REACH, name="boxing_ordered_capped2", order_cost_cap=2.0),
+                                   "boxing_ordered_capped2_near": replace(ORDERED_REACH, name="boxing_ordered_capped2_near",
+                                                                          order_cost_cap=2.0, order_reach_share=1.25),
                                    "boxing_hook_ordered": replace(ORDERED_REACH, name="boxing_hook_ordered", order_cost_per_frame=0.3,
                                                                   landing_free_mps=6.8, landing_cost_per_mps2=1.0),
                                    "boxing_hook_ordered_firm": replace(ORDERED_REACH, name="boxing_hook_ordered_firm",
@@ -329,7 +337,8 @@ one, for the order; the `_order` styles charge a punch out of proximal-to-distal
 earned, at its first contact (the first form), `boxing_ordered` and `boxing_straight_ordered` over the punch so that
 stopping short does not escape it (docs/style.md, "The proximal-to-distal order"), `boxing_ordered_reach` charging a
 punch that has not touched the bag by 0.2 s as well (`_soft`: 0.3 a frame out of order; `boxing_ordered_capped`: the
-order's charge at most 1 in all (`_capped2`: 2), so that landing out of order beats missing; `boxing_hook_ordered`:
+order's charge at most 1 in all (`_capped2`: 2), so that landing out of order beats missing; `_capped2_near`: and no
+order charged where the bag starts beyond 1.25 arm's lengths, which only short arms meet; `boxing_hook_ordered`:
 `_soft` whose landing fist is asked for 6.8 m/s, above the straight's; `boxing_hook_ordered_firm`: the order at 1 a
 frame and a gentler floor, 0.3 per (m/s)² under 6.4 m/s; `_touch`: its late touch charged 1 a frame from frame 16), and `boxing_straight_ordered_floor`,
 the shipped straight's, asks its landing fist for 6.2 m/s as well; experiments: docs/experiments.md"""
