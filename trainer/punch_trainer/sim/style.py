@@ -117,10 +117,10 @@ class Style:
     order_cost_cap: float = float("inf")
     """the most the order's charge takes in all (exp(-cap) of the punch's earnings stays), so that a punch that can
     reach the bag only out of order (a short arm's) still earns more by landing than by missing"""
-    order_reach_share: float = float("inf")
+    order_reach_share: float = 0.0
     """the order is charged only where the bag's near side starts within this share of the arm's length from the
-    shoulder (`reach_share`); a farther target, which a short arm reaches only at full stretch with the trunk's
-    lean, is left to land out of order"""
+    shoulder (`reach_share`, as `landing_reach_share`); a farther target, which a short arm reaches only at full
+    stretch with the trunk's lean, is left to land out of order (0: the order counts everywhere)"""
     order_charged_at_contact: bool = False
     """the order's charge all at once on the first contact frame, so that a punch which never touches the bag
     escapes it (the first form, in the `boxing_order` styles before `boxing_ordered`: a policy trained with it
@@ -224,7 +224,7 @@ class Style:
         margin = self.order_margin_frames
         out_of_order = np.maximum(0, peaks[0] - peaks[1] + margin) + np.maximum(0, peaks[1] - peaks[2] + margin)
         order_cost = np.minimum(self.order_cost_per_frame * out_of_order, self.order_cost_cap)
-        if np.isfinite(self.order_reach_share):
+        if self.order_reach_share > 0.0:
             order_cost = np.where(reach_share(frames) <= self.order_reach_share, order_cost, 0.0)
         change = np.diff(order_cost, axis=-1, prepend=0)
         if self.order_charged_at_contact:
