@@ -92,6 +92,7 @@ def run_condition(policy: Path, bags: list[BagPlacement], sigmas: list[float], r
     """Punches through PunchController in Godot at every placement of `bags` (`episodes_per_bag` each) for each
     sigma; per sigma: returns, success, the placement of every episode, the analysis of `punch replay` and every
     punch's naturalness figures (`keep_features`: also the features [episodes, frames, F] and their names)."""
+    refuse_unreplayable(bags)
     physics_hz = float(policy_metadata(policy).get("punch_physics_hz", 120))
     with tempfile.TemporaryDirectory(prefix="punch_eval_") as directory:
         frames_dir = Path(directory)
@@ -116,6 +117,17 @@ def run_condition(policy: Path, bags: list[BagPlacement], sigmas: list[float], r
                 result["actions"] = actions
             results.append(result)
         return results
+
+
+def refuse_unreplayable(bags: list[BagPlacement]) -> None:
+    """ReplayError for a placement with more than tools/replay.gd plays (the bag's place and its swing): sized
+    arms, a moving body, a gliding or riding bag would otherwise run silently as the scene's standing character."""
+    for index, bag in enumerate(bags):
+        replayed = BagPlacement(bag.distance_m, bag.height_m, bag.side_m, bag.velocity_side_mps, bag.velocity_forward_mps)
+        if bag != replayed:
+            extra = {name: value for name, value in bag.to_wire().items() if value != replayed.to_wire()[name]}
+            raise ReplayError(f"placement {index} sets {extra}, which a replay does not play (it places and swings the "
+                              "bag only): sized arms are `punch eval-sizes`'s, a moving body or target `punch eval-moving`'s")
 
 
 def _condition_from_bytes(policy_bytes: bytes, **kwargs: Any) -> list[dict[str, Any]]:
