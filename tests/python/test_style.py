@@ -11,8 +11,8 @@ from punch_trainer.sim.placement import SCENE_ARM_LENGTHS_M, SCENE_BAG_RADIUS_M
 from punch_trainer.sim.style import Style, StyleError, reach_share, running_peak_frame, style_from_label, style_label, style_named
 
 FRAMES = 50
-NAMES = [f"{stem}_{axis}" for stem in ("fist_l_pos", "fist_l_vel", "fist_r_vel", "fist_r_pos", "fist_r_impulse", "bag_pos",
-                                        "root_vel", "root_spin")
+NAMES = [f"{stem}_{axis}" for stem in ("fist_l_pos", "fist_l_vel", "fist_r_vel", "fist_r_pos", "fist_r_impulse",
+                                        "character_impulse", "bag_pos", "root_vel", "root_spin")
          for axis in "xyz"] + ["angle_waist_flexion"]
 """every feature the style reads"""
 
@@ -217,6 +217,30 @@ def test_the_near_order_charge_leaves_a_target_beyond_the_arms_stretch_to_land_o
         out_of_order = frames_of({**peaking_at(6, 2, 3, contact=8), **WITHIN_REACH, "bag_pos_z": np.full(FRAMES, distance_m)})
         assert (reach_share(out_of_order)[0] <= near.order_reach_share) == (charged > 0.0)
         np.testing.assert_allclose(near.whole_punch_cost(out_of_order).sum(), charged)
+
+
+def test_the_clean_straight_charges_a_bag_touched_elsewhere_before_the_fist_once_and_nothing_else() -> None:
+    """`boxing_straight_ordered_clean`: the forearm (the whole character's impulse, less the punching fist's)
+    touching the bag before the fist is charged once, on its first frame; touching with the fist first, or with
+    the forearm beside the fist from then on, is not; the order's charge is the floor style's."""
+    clean, floor = style_named("boxing_straight_ordered_clean"), style_named("boxing_straight_ordered_floor")
+    assert clean is not None and floor is not None and clean.arm_first_cost > 0.0
+    fist_at_20 = {**peaking_at(6, 2, 10, contact=20), "fist_r_bag_distance": np.full(FRAMES, 1.0)}
+    forearm_at_14 = {"character_impulse_z": np.where(np.arange(FRAMES) >= 14, 1.0, 0.0) + fist_at_20["fist_r_impulse_z"]}
+
+    def arm_first_charge(contacts: dict[str, np.ndarray]) -> np.ndarray:
+        punch = frames_of({**fist_at_20, **contacts})
+        return np.asarray(clean.whole_punch_cost(punch) - floor.whole_punch_cost(punch))
+
+    charge = arm_first_charge(forearm_at_14)
+    np.testing.assert_allclose(charge[14], clean.arm_first_cost)
+    assert np.all(np.delete(charge, 14) == 0.0)
+    fist_only = {"character_impulse_z": fist_at_20["fist_r_impulse_z"]}
+    beside = {"character_impulse_z": 2.0 * fist_at_20["fist_r_impulse_z"]}  # fist and forearm from the same frame
+    assert np.all(arm_first_charge(fist_only) == 0.0) and np.all(arm_first_charge(beside) == 0.0)
+    earned = {"forward": np.ones(FRAMES)}
+    kept = [clean.apply(earned, frames_of({**fist_at_20, **contacts}))["forward"].sum() for contacts in (fist_only, forearm_at_14)]
+    assert kept[1] < 0.2 * kept[0]  # the forearm's push keeps little of what the punch earned
 
 
 def landing(**columns: np.ndarray) -> dict[str, np.ndarray]:

@@ -132,6 +132,11 @@ class Style:
     before the fist first touches the bag, so that with a reward that pays near the bag without a touch (the
     hook's, the swing's) stopping short is not a way out of the order's charge (0: none; tried on the hook: it did
     not keep short arms' hits, docs/experiments.md)"""
+    arm_first_cost: float = 0.0
+    """cost, taking the whole punch's earnings as the order's does, on the first frame on which the character
+    touches the bag elsewhere than with its punching fist (the forearm, the elbow, the other fist) before that
+    fist has: a bag pushed by the forearm is no hit in a game (`punch eval`'s success, the controller's `hit`),
+    and under noise the ordered straight's forearm met near bags first (0: none; docs/experiments.md)"""
     later_cost_share: float = 0.1
     """how much of the cost after a frame still discounts what that frame earned (0: only the cost before it;
     1: all of it, the whole punch's)"""
@@ -207,17 +212,19 @@ class Style:
 
     def whole_punch_cost(self, frames: FramesLike) -> np.ndarray:
         """Each frame's cost that takes all that the punch has earned, before the frame as after, [..., frames]:
-        the proximal-to-distal order's (0 without `order_cost_per_frame`) and a late touch's (0 without
-        `miss_cost_per_frame`). For the order, frame t is charged the change, since frame t - 1, of how far the
+        the proximal-to-distal order's (0 without `order_cost_per_frame`), a late touch's (0 without
+        `miss_cost_per_frame`) and a touch elsewhere before the fist's (0 without `arm_first_cost`). For the order, frame t is charged the change, since frame t - 1, of how far the
         peaks of the waist's rotation, the shoulder's and the elbow's speeds up to t break the order; the peaks
         stop at the first contact. So the charges of a punch add up to its order as docs/naturalness.md measures
         it at contact, and a punch that never touches the bag is charged its peaks over the whole episode."""
         touching = fist_touching(frames)
-        if self.order_cost_per_frame <= 0.0 and self.miss_cost_per_frame <= 0.0:  # every style but the order's
-            return np.zeros(touching.shape, dtype=np.float64)
+        if self.order_cost_per_frame <= 0.0 and self.miss_cost_per_frame <= 0.0 and self.arm_first_cost <= 0.0:
+            return np.zeros(touching.shape, dtype=np.float64)  # every style but the order's
         until_contact = np.cumsum(touching, axis=-1) - touching == 0  # up to and with the first contact frame
         late = until_contact & ~touching & (np.arange(touching.shape[-1]) >= self.miss_after_frames)
         miss = self.miss_cost_per_frame * late
+        if self.arm_first_cost > 0.0:
+            miss = miss + self.arm_first_cost * first_frame(elsewhere_touching(frames) & until_contact & ~touching)
         if self.order_cost_per_frame <= 0.0:
             return np.asarray(self.weight * miss, dtype=np.float64)
         peaks = [running_peak_frame(np.where(until_contact, speed, -1.0)) for speed in chain_speeds(frames)]
@@ -321,6 +328,10 @@ STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
                                                                           fist_cost_per_mps2=0.5, order_cost_per_frame=1.0,
                                                                           order_margin_frames=1, landing_free_mps=6.2,
                                                                           landing_cost_per_mps2=1.0),
+                                   "boxing_straight_ordered_clean": Style("boxing_straight_ordered_clean", fist_free_mps=6.3,
+                                                                          fist_cost_per_mps2=0.5, order_cost_per_frame=1.0,
+                                                                          order_margin_frames=1, landing_free_mps=6.2,
+                                                                          landing_cost_per_mps2=1.0, arm_first_cost=3.0),
                                    "boxing_late": Style("boxing_late", contact_not_before_frames=16,
                                                         early_contact_cost_per_frame=0.2),
                                    "boxing_late_chain": Style("boxing_late_chain", contact_not_before_frames=16,
@@ -341,7 +352,8 @@ order's charge at most 1 in all (`_capped2`: 2), so that landing out of order be
 order charged where the bag starts beyond 1.25 arm's lengths, which only short arms meet; `boxing_hook_ordered`:
 `_soft` whose landing fist is asked for 6.8 m/s, above the straight's; `boxing_hook_ordered_firm`: the order at 1 a
 frame and a gentler floor, 0.3 per (m/s)² under 6.4 m/s; `_touch`: its late touch charged 1 a frame from frame 16), and `boxing_straight_ordered_floor`,
-the shipped straight's, asks its landing fist for 6.2 m/s as well; experiments: docs/experiments.md"""
+the shipped straight's, asks its landing fist for 6.2 m/s as well (`_clean`: and charges a bag touched elsewhere before
+the fist, 3 on the whole punch); experiments: docs/experiments.md"""
 DEFAULT_STYLE = "boxing"
 MAX_WEIGHT = 100.0
 
@@ -355,6 +367,13 @@ def fist_touching(frames: FramesLike) -> np.ndarray:
     """Whether the punching fist touches the bag in each frame, [..., frames] (as `rewards.first_right_contact`
     reads contact)."""
     impulse = np.stack([frames(f"fist_r_impulse_{axis}") for axis in "xyz"], axis=-1)
+    return np.asarray(np.linalg.norm(impulse, axis=-1) > CONTACT_IMPULSE_NS)
+
+
+def elsewhere_touching(frames: FramesLike) -> np.ndarray:
+    """Whether the character touches the bag elsewhere than with its punching fist in each frame, [..., frames]:
+    the whole character's contact impulse less that fist's."""
+    impulse = np.stack([frames(f"character_impulse_{axis}") - frames(f"fist_r_impulse_{axis}") for axis in "xyz"], axis=-1)
     return np.asarray(np.linalg.norm(impulse, axis=-1) > CONTACT_IMPULSE_NS)
 
 
