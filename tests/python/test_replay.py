@@ -17,7 +17,7 @@ from punch_trainer.learn.export import export_policy
 from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.pretrain import PretrainArgs, pretrain
 from punch_trainer.learn.search import SearchArgs
-from punch_trainer.pipelines.evaluate import run_condition
+from punch_trainer.pipelines.evaluate import run_condition, success_interval
 from punch_trainer.pipelines.replay import ReplayArgs, ReplayError, parse_sigmas, policy_metadata, replay_frames, run_replay
 from punch_trainer.pipelines.search import run_search
 from punch_trainer.sim.env import PunchVectorEnv
@@ -224,3 +224,14 @@ def test_a_placement_a_replay_cannot_play_is_refused_not_run_at_the_scenes_stand
     standing = BagPlacement(0.55, 1.3, 0.0, velocity_side_mps=0.4)
     with pytest.raises(ReplayError, match=next(iter(extra))):
         run_condition(SHIPPED_POLICY, [standing, standing.over(extra)], [0.0], load_reward("straight"))
+
+
+def test_the_success_interval_is_wilsons_and_narrows_with_more_punches():
+    low, high = success_interval(124, 128)
+    assert low < 124 / 128 < high and (round(100 * low, 1), round(100 * high, 1)) == (92.2, 98.8)
+    assert success_interval(128, 128)[1] == pytest.approx(1.0) and success_interval(0, 128)[0] == pytest.approx(0.0)
+    mirrored = success_interval(4, 128)
+    np.testing.assert_allclose(mirrored, (1 - high, 1 - low))
+    wide, narrow = success_interval(31, 32), success_interval(496, 512)
+    assert narrow[1] - narrow[0] < (wide[1] - wide[0]) / 3
+    assert success_interval(0, 0) == (0.0, 1.0)
