@@ -17,7 +17,8 @@ from punch_trainer.learn.export import export_policy
 from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.pretrain import PretrainArgs, pretrain
 from punch_trainer.learn.search import SearchArgs
-from punch_trainer.pipelines.evaluate import run_condition, success_interval
+from punch_trainer.learn.volume import success_interval
+from punch_trainer.pipelines.evaluate import run_condition
 from punch_trainer.pipelines.replay import ReplayArgs, ReplayError, parse_sigmas, policy_metadata, replay_frames, run_replay
 from punch_trainer.pipelines.search import run_search
 from punch_trainer.sim.env import PunchVectorEnv

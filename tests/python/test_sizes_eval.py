@@ -16,6 +16,7 @@ from punch_trainer.pipelines.sizes_eval import (
     SCENE_ARM_LENGTHS_M,
     SizesEvalArgs,
     SizesEvalError,
+    hits_cell,
     parse_proportions,
     run_sized_hits,
     run_sizes_eval,
@@ -54,6 +55,12 @@ def test_eval_sizes_reports_every_scale_and_sigma_and_counts_hits(tmp_path):
                  "| 0.7x0.85 | 0.197 | 0.286 | 0.360 |"):
         assert line in run.stdout, run.stdout
     assert (tmp_path / "report.md").read_text().count("\n| ") == 2 + len(SCALES)  # header rule and one row a size
+
+
+def test_each_count_carries_its_95_percent_interval():
+    assert hits_cell(1931, 2048) == "1931/2048 (94%; 93-95%)"
+    assert hits_cell(30, 32) == "30/32 (94%; 80-98%)"
+    assert hits_cell(0, 0) == "0/0 (0%; 0-100%)"
 
 
 @pytest.mark.parametrize("scales", ["0.5", "1,1.3", "nan"])

@@ -217,6 +217,18 @@ def success(returns: np.ndarray, features: np.ndarray, names: list[str]) -> np.n
     return result
 
 
+def success_interval(successes: int, punches: int, z: float = 1.96) -> tuple[float, float]:
+    """Wilson's score interval (95% at the default z) of a success rate from `successes` of `punches`: how far
+    the rate of another set of placements could lie. At 128 punches a rate of 97% spans about 92-99%, so two
+    policies a few points apart there are not yet measured apart; more placements narrow it (`punch eval`, `punch eval-sizes`)."""
+    if punches <= 0:
+        return (0.0, 1.0)
+    rate = successes / punches
+    centre = (rate + z * z / (2 * punches)) / (1 + z * z / punches)
+    half = z * np.sqrt(rate * (1 - rate) / punches + z * z / (4 * punches * punches)) / (1 + z * z / punches)
+    return (float(max(0.0, centre - half)), float(min(1.0, centre + half)))
+
+
 def run_policy(model: ActorCritic, env: PunchVectorEnv, reward: Reward,
                options: EpisodeStart | None = None) -> tuple[np.ndarray, np.ndarray]:
     """One episode on every character with the policy's mean actions: returns [N] and features [N, frames, F]."""

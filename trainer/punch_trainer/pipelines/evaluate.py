@@ -36,7 +36,7 @@ import numpy as np
 
 from punch_trainer.learn.reach import HELD_OUT_SEED, ReachVolume
 from punch_trainer.learn.search import SearchArgs, placement_search
-from punch_trainer.learn.volume import success
+from punch_trainer.learn.volume import success, success_interval
 from punch_trainer.options import bounds
 from punch_trainer.pipelines.replay import ReplayArgs, ReplayError, analyse_sigma, policy_metadata, run_godot_replay
 from punch_trainer.report.mocap import DEFAULT_BVH
@@ -75,18 +75,6 @@ class EvalArgs:
     """iterations of the per-placement search (0: no search; fractions of the best are then left out)"""
     out: Path | None = None
     """output directory (default: next to the policy, eval_<time>)"""
-
-
-def success_interval(successes: int, punches: int, z: float = 1.96) -> tuple[float, float]:
-    """Wilson's score interval (95% at the default z) of a success rate from `successes` of `punches`: how far
-    the rate of another set of placements could lie. At 128 punches a rate of 97% spans about 92-99%, so two
-    policies a few points apart there are not yet measured apart; more placements (`--placements`) narrow it."""
-    if punches <= 0:
-        return (0.0, 1.0)
-    rate = successes / punches
-    centre = (rate + z * z / (2 * punches)) / (1 + z * z / punches)
-    half = z * np.sqrt(rate * (1 - rate) / punches + z * z / (4 * punches * punches)) / (1 + z * z / punches)
-    return (float(max(0.0, centre - half)), float(min(1.0, centre + half)))
 
 
 def held_out_placements(reach: ReachVolume, count: int, seed: int) -> tuple[list[BagPlacement], list[BagPlacement]]:

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from punch_trainer.learn.volume import success_interval
 from punch_trainer.options import bounds, check_options
 from punch_trainer.pipelines.replay import ReplayError, held_out_placements
 from punch_trainer.sim.godot import run_godot_tool
@@ -155,15 +156,21 @@ def tally(rows: list[list[Any]], sizes: list[tuple[float, float]], sigmas: list[
     return result
 
 
+def hits_cell(hits: int, punches: int) -> str:
+    """hits/punches (%; its 95% interval)."""
+    low, high = success_interval(hits, punches)
+    return f"{hits}/{punches} ({100 * hits / max(punches, 1):.0f}%; {100 * low:.0f}-{100 * high:.0f}%)"
+
+
 def markdown_table(report: dict[str, Any]) -> list[str]:
     """Rows: arm scales (UPPERxFOREARM for other proportions), with the arm lengths Godot reported; columns: sigma,
-    each hits/punches (%)."""
+    each hits/punches (%; its 95% interval, `success_interval`)."""
     sigmas = report["sigmas"]
     header = ["arm scale", "upper arm (m)", "forearm (m)", "shoulders (m)"] + [f"σ {sigma:g}" for sigma in sigmas]
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for size in report["sizes"]:
-        cells = [f"{s['hits']}/{s['punches']} ({100 * s['hits'] / max(s['punches'], 1):.0f}%)"
-                 + (f", {s['out_of_reach']} out of reach" if s["out_of_reach"] else "") for s in size["per_sigma"]]
+        cells = [hits_cell(s["hits"], s["punches"]) + (f", {s['out_of_reach']} out of reach" if s["out_of_reach"] else "")
+                 for s in size["per_sigma"]]
         lines.append(f"| {size['scale']} | {size['upper_arm_m']:.3f} | {size['forearm_m']:.3f} | "
                      f"{size['shoulder_width_m']:.3f} | " + " | ".join(cells) + " |")
     return lines
@@ -196,7 +203,8 @@ def run_sizes_eval(args: SizesEvalArgs, progress: bool = True) -> tuple[Path, di
              f"placement, arm scale and sigma (noise on every decision), through PunchController in headless Godot "
              f"({report['wall_s']:.0f} s in all). Each character's upper arm and forearm are both times the scale "
              "(`PunchCharacter.size_arms`), or by the two scales of UPPERxFOREARM, the shoulders as they are; the lengths are those `arm_lengths()` "
-             "reports. A hit: the controller's `hit` signal on the target during the punch.", "",
+             "reports. A hit: the controller's `hit` signal on the target during the punch; after each rate, its 95% interval "
+             "(Wilson's), where the rate at other placements could lie.", "",
              *markdown_table(report)]
     (out / "report.md").write_text("\n".join(lines) + "\n")
     return out, report
