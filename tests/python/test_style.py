@@ -243,6 +243,20 @@ def test_the_clean_straight_charges_a_bag_touched_elsewhere_before_the_fist_once
     assert kept[1] < 0.2 * kept[0]  # the forearm's push keeps little of what the punch earned
 
 
+def test_the_near_clean_straight_leaves_a_bag_beyond_the_arms_length_to_whatever_touches_it_first() -> None:
+    """`boxing_straight_ordered_clean_near`: the forearm first is charged where the bag starts within the arm's
+    length of the shoulder, and not beyond, where a short arm leans in and its trunk may meet the bag first."""
+    near = style_named("boxing_straight_ordered_clean_near")
+    assert near is not None and near.arm_first_reach_share == 1.0
+    frame = np.arange(FRAMES)
+    fist_at_20 = {**peaking_at(6, 2, 10, contact=20), **WITHIN_REACH, "fist_r_bag_distance": np.full(FRAMES, 1.0)}
+    trunk_at_14 = {"character_impulse_z": np.where(frame >= 14, 1.0, 0.0) + fist_at_20["fist_r_impulse_z"]}
+    for distance_m, charged in ((0.6, near.arm_first_cost), (1.0, 0.0)):  # 0.69 and 1.33 arm's lengths
+        punch = frames_of({**fist_at_20, **trunk_at_14, "bag_pos_z": np.full(FRAMES, distance_m)})
+        without = frames_of({**fist_at_20, "character_impulse_z": fist_at_20["fist_r_impulse_z"], "bag_pos_z": np.full(FRAMES, distance_m)})
+        np.testing.assert_allclose((near.whole_punch_cost(punch) - near.whole_punch_cost(without)).sum(), charged)
+
+
 def landing(**columns: np.ndarray) -> dict[str, np.ndarray]:
     """A punch whose fist closes on the bag's centre from 0.6 to 0.2 m, within 0.3 m (landing) from frame 38."""
     return features(**{"fist_r_bag_distance": np.linspace(0.6, 0.2, FRAMES), "speed_waist_rotation": np.zeros(FRAMES),

@@ -137,6 +137,10 @@ class Style:
     touches the bag elsewhere than with its punching fist (the forearm, the elbow, the other fist) before that
     fist has: a bag pushed by the forearm is no hit in a game (`punch eval`'s success, the controller's `hit`),
     and under noise the ordered straight's forearm met near bags first (0: none; docs/experiments.md)"""
+    arm_first_reach_share: float = 0.0
+    """`arm_first_cost` only where the bag's near side starts within this share of the arm's length from the
+    shoulder (`reach_share`, as `order_reach_share`): a short arm at a far bag leans in, and its trunk may meet the
+    bag before its fist (0: everywhere)"""
     later_cost_share: float = 0.1
     """how much of the cost after a frame still discounts what that frame earned (0: only the cost before it;
     1: all of it, the whole punch's)"""
@@ -224,7 +228,10 @@ class Style:
         late = until_contact & ~touching & (np.arange(touching.shape[-1]) >= self.miss_after_frames)
         miss = self.miss_cost_per_frame * late
         if self.arm_first_cost > 0.0:
-            miss = miss + self.arm_first_cost * first_frame(elsewhere_touching(frames) & until_contact & ~touching)
+            arm_first = first_frame(elsewhere_touching(frames) & until_contact & ~touching)
+            if self.arm_first_reach_share > 0.0:
+                arm_first = arm_first & (reach_share(frames) <= self.arm_first_reach_share)
+            miss = miss + self.arm_first_cost * arm_first
         if self.order_cost_per_frame <= 0.0:
             return np.asarray(self.weight * miss, dtype=np.float64)
         peaks = [running_peak_frame(np.where(until_contact, speed, -1.0)) for speed in chain_speeds(frames)]
@@ -332,6 +339,11 @@ STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
                                                                           fist_cost_per_mps2=0.5, order_cost_per_frame=1.0,
                                                                           order_margin_frames=1, landing_free_mps=6.2,
                                                                           landing_cost_per_mps2=1.0, arm_first_cost=3.0),
+                                   "boxing_straight_ordered_clean_near": Style("boxing_straight_ordered_clean_near", fist_free_mps=6.3,
+                                                                               fist_cost_per_mps2=0.5, order_cost_per_frame=1.0,
+                                                                               order_margin_frames=1, landing_free_mps=6.2,
+                                                                               landing_cost_per_mps2=1.0, arm_first_cost=3.0,
+                                                                               arm_first_reach_share=1.0),
                                    "boxing_late": Style("boxing_late", contact_not_before_frames=16,
                                                         early_contact_cost_per_frame=0.2),
                                    "boxing_late_chain": Style("boxing_late_chain", contact_not_before_frames=16,
@@ -353,7 +365,7 @@ order charged where the bag starts beyond 1.25 arm's lengths, which only short a
 `_soft` whose landing fist is asked for 6.8 m/s, above the straight's; `boxing_hook_ordered_firm`: the order at 1 a
 frame and a gentler floor, 0.3 per (m/s)² under 6.4 m/s; `_touch`: its late touch charged 1 a frame from frame 16), and `boxing_straight_ordered_floor`,
 the shipped straight's, asks its landing fist for 6.2 m/s as well (`_clean`: and charges a bag touched elsewhere before
-the fist, 3 on the whole punch); experiments: docs/experiments.md"""
+the fist, 3 on the whole punch; `_clean_near`: only where the bag starts within the arm's length); experiments: docs/experiments.md"""
 DEFAULT_STYLE = "boxing"
 MAX_WEIGHT = 100.0
 
