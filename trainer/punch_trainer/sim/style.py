@@ -217,8 +217,8 @@ class Style:
     def whole_punch_cost(self, frames: FramesLike) -> np.ndarray:
         """Each frame's cost that takes all that the punch has earned, before the frame as after, [..., frames]:
         the proximal-to-distal order's (0 without `order_cost_per_frame`), a late touch's (0 without
-        `miss_cost_per_frame`) and a touch elsewhere before the fist's (0 without `arm_first_cost`). For the order, frame t is charged the change, since frame t - 1, of how far the
-        peaks of the waist's rotation, the shoulder's and the elbow's speeds up to t break the order; the peaks
+        `miss_cost_per_frame`) and a touch elsewhere before the fist's (0 without `arm_first_cost`). For the order,
+        frame t is charged the change, since frame t - 1, of how far the peaks of the waist's rotation, the shoulder's and the elbow's speeds up to t break the order; the peaks
         stop at the first contact. So the charges of a punch add up to its order as docs/naturalness.md measures
         it at contact, and a punch that never touches the bag is charged its peaks over the whole episode."""
         touching = fist_touching(frames)
@@ -226,14 +226,14 @@ class Style:
             return np.zeros(touching.shape, dtype=np.float64)  # every style but the order's
         until_contact = np.cumsum(touching, axis=-1) - touching == 0  # up to and with the first contact frame
         late = until_contact & ~touching & (np.arange(touching.shape[-1]) >= self.miss_after_frames)
-        miss = self.miss_cost_per_frame * late
+        touch_cost = self.miss_cost_per_frame * late
         if self.arm_first_cost > 0.0:
             arm_first = first_frame(elsewhere_touching(frames) & until_contact & ~touching)
             if self.arm_first_reach_share > 0.0:
                 arm_first = arm_first & (reach_share(frames) <= self.arm_first_reach_share)
-            miss = miss + self.arm_first_cost * arm_first
+            touch_cost = touch_cost + self.arm_first_cost * arm_first
         if self.order_cost_per_frame <= 0.0:
-            return np.asarray(self.weight * miss, dtype=np.float64)
+            return np.asarray(self.weight * touch_cost, dtype=np.float64)
         peaks = [running_peak_frame(np.where(until_contact, speed, -1.0)) for speed in chain_speeds(frames)]
         margin = self.order_margin_frames
         out_of_order = np.maximum(0, peaks[0] - peaks[1] + margin) + np.maximum(0, peaks[1] - peaks[2] + margin)
@@ -243,7 +243,7 @@ class Style:
         change = np.diff(order_cost, axis=-1, prepend=0)
         if self.order_charged_at_contact:
             change = np.where(first_frame(touching), order_cost, 0)
-        return np.asarray(self.weight * (change + miss), dtype=np.float64)
+        return np.asarray(self.weight * (change + touch_cost), dtype=np.float64)
 
     def apply(self, terms: Mapping[str, np.ndarray], frames: FramesLike) -> dict[str, np.ndarray]:
         """The reward's terms with the style. A frame's positive value is discounted by exp(-the cost up to it),
@@ -283,6 +283,11 @@ ORDERED_REACH = Style("boxing_ordered_reach", order_cost_per_frame=1.0, order_ma
                       miss_cost_per_frame=0.5)
 """`boxing_ordered` charging a punch that has not touched the bag by frame 24 (0.2 s) as well: the base of the
 order's later styles, each named in STYLES by what it changes"""
+
+STRAIGHT_ORDERED_FLOOR = Style("boxing_straight_ordered_floor", fist_free_mps=6.3, fist_cost_per_mps2=0.5,
+                               order_cost_per_frame=1.0, order_margin_frames=1, landing_free_mps=6.2,
+                               landing_cost_per_mps2=1.0)
+"""the shipped straight's style, and the base of the `_clean` styles tried on it"""
 
 STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
                                    "boxing_chain": Style("boxing_chain", chain_cost=4.0),
@@ -331,19 +336,12 @@ STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
                                    "boxing_straight_ordered": Style("boxing_straight_ordered", fist_free_mps=6.3,
                                                                     fist_cost_per_mps2=0.5, order_cost_per_frame=1.0,
                                                                     order_margin_frames=1),
-                                   "boxing_straight_ordered_floor": Style("boxing_straight_ordered_floor", fist_free_mps=6.3,
-                                                                          fist_cost_per_mps2=0.5, order_cost_per_frame=1.0,
-                                                                          order_margin_frames=1, landing_free_mps=6.2,
-                                                                          landing_cost_per_mps2=1.0),
-                                   "boxing_straight_ordered_clean": Style("boxing_straight_ordered_clean", fist_free_mps=6.3,
-                                                                          fist_cost_per_mps2=0.5, order_cost_per_frame=1.0,
-                                                                          order_margin_frames=1, landing_free_mps=6.2,
-                                                                          landing_cost_per_mps2=1.0, arm_first_cost=3.0),
-                                   "boxing_straight_ordered_clean_near": Style("boxing_straight_ordered_clean_near", fist_free_mps=6.3,
-                                                                               fist_cost_per_mps2=0.5, order_cost_per_frame=1.0,
-                                                                               order_margin_frames=1, landing_free_mps=6.2,
-                                                                               landing_cost_per_mps2=1.0, arm_first_cost=3.0,
-                                                                               arm_first_reach_share=1.0),
+                                   "boxing_straight_ordered_floor": STRAIGHT_ORDERED_FLOOR,
+                                   "boxing_straight_ordered_clean": replace(STRAIGHT_ORDERED_FLOOR, name="boxing_straight_ordered_clean",
+                                                                            arm_first_cost=3.0),
+                                   "boxing_straight_ordered_clean_near": replace(STRAIGHT_ORDERED_FLOOR,
+                                                                                 name="boxing_straight_ordered_clean_near",
+                                                                                 arm_first_cost=3.0, arm_first_reach_share=1.0),
                                    "boxing_late": Style("boxing_late", contact_not_before_frames=16,
                                                         early_contact_cost_per_frame=0.2),
                                    "boxing_late_chain": Style("boxing_late_chain", contact_not_before_frames=16,
