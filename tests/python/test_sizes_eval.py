@@ -10,7 +10,7 @@ import pytest
 
 from punch_trainer.cli import main as cli_main
 from punch_trainer.errors import GodotRunError
-from punch_trainer.pipelines.replay import held_out_placements
+from punch_trainer.pipelines.replay import policy_placements
 from punch_trainer.pipelines.sizes_eval import (
     ARM_SCALE_RANGE,
     SCENE_ARM_LENGTHS_M,
@@ -92,7 +92,7 @@ def test_scales_that_are_no_numbers_are_a_usage_error(capsys):
 def test_godot_refuses_a_scale_outside_the_range_with_its_reason_and_does_not_crash():
     """The check in Godot itself (a caller of `run_sized_hits` past the command's own check): size_arms's error
     names the range, the script stops with exit code 2, not a crash."""
-    bags = held_out_placements(POLICY, 1, 4242)
+    bags = policy_placements(POLICY, 1, 4242)
     with pytest.raises(GodotRunError, match="exit code 2") as error:
         run_sized_hits(POLICY, bags, [(0.5, 0.5)], [0.0], 4242, timeout_s=60)
     assert "outside 0.75..1.25" in error.value.log, error.value.log
@@ -102,6 +102,6 @@ def test_godot_refuses_a_scale_outside_the_range_with_its_reason_and_does_not_cr
 @pytest.mark.godot
 def test_a_godot_past_its_deadline_is_stopped_with_the_commands_error():
     """The shared loop (`sim.godot.run_godot_tool`, eval-moving's too) keeps the deadline by the clock."""
-    bags = held_out_placements(POLICY, 1, 4242)
+    bags = policy_placements(POLICY, 1, 4242)
     with pytest.raises(SizesEvalError, match="the sized punches did not finish within 0 s"):
         run_sized_hits(POLICY, bags, [(1.0, 1.0)], [0.0], 4242, timeout_s=0.01)

@@ -77,8 +77,8 @@ class EvalArgs:
     """output directory (default: next to the policy, eval_<time>)"""
 
 
-def held_out_placements(reach: ReachVolume, count: int, seed: int) -> tuple[list[BagPlacement], list[BagPlacement]]:
-    """`count` placements at rest, and the same places with the bag swinging, from `seed`."""
+def still_and_swinging_placements(reach: ReachVolume, count: int, seed: int) -> tuple[list[BagPlacement], list[BagPlacement]]:
+    """`count` held-out placements at rest, and the same places with the bag swinging, from `seed`."""
     rng = np.random.default_rng(seed)
     still = reach.sample(rng, count)
     moving = reach.sample(rng, count, moving=1.0)
@@ -220,7 +220,7 @@ def run_eval(args: EvalArgs, progress: bool = True, *, backend: Backend = LOCAL)
     started = time.perf_counter()
     with RolloutPool(1, 1, backend=backend) as pool:
         reach = ReachVolume.from_json(pool.info.reach_volume)
-    still, moving = held_out_placements(reach, args.placements, args.seed)
+    still, moving = still_and_swinging_placements(reach, args.placements, args.seed)
     out = Path(args.out or Path(args.policy).parent / f"eval_{int(time.time())}")
     out.mkdir(parents=True, exist_ok=True)
     policies = [Path(args.policy)] + ([Path(args.baseline)] if args.baseline else [])

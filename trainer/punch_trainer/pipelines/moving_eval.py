@@ -28,7 +28,7 @@ from tqdm import tqdm
 
 from punch_trainer.learn.reach import HELD_OUT_SEED
 from punch_trainer.options import bounds
-from punch_trainer.pipelines.replay import ReplayError, held_out_placements
+from punch_trainer.pipelines.replay import ReplayError, policy_placements
 from punch_trainer.pipelines.sizes_eval import size_label
 from punch_trainer.sim.godot import run_godot_tool
 from punch_trainer.sim.placement import SEGMENT_SCALE_RANGE, BagPlacement
@@ -204,7 +204,7 @@ def run_moving_eval(args: MovingEvalArgs, progress: bool = True) -> tuple[Path, 
     started = time.perf_counter()
     cases = select_cases(args.cases)
     policies = [Path(args.policy)] + ([Path(args.baseline)] if args.baseline else [])
-    bags = held_out_placements(policies[0], args.placements, args.seed)
+    bags = policy_placements(policies[0], args.placements, args.seed)
     out = Path(args.out or Path(args.policy).parent / f"eval_moving_{int(time.time())}")
     out.mkdir(parents=True, exist_ok=True)
     per_policy = len(bags) * len(cases) * len(args.sigmas)

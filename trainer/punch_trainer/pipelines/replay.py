@@ -119,8 +119,8 @@ def policy_metadata(path: Path) -> dict[str, str]:
     return {p.key: p.value for p in model.metadata_props}
 
 
-def held_out_placements(policy: Path, count: int, seed: int) -> list[BagPlacement]:
-    """`count` placements at rest from the policy's reach volume (its metadata's), drawn by `ReachVolume.sample`
+def policy_placements(policy: Path, count: int, seed: int) -> list[BagPlacement]:
+    """`count` held-out placements at rest from the policy's reach volume (its metadata's), drawn by `ReachVolume.sample`
     as `punch eval` draws its held-out ones, from `seed`."""
     metadata = policy_metadata(policy)
     if METADATA_KEY not in metadata:

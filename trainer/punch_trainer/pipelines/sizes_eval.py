@@ -27,7 +27,7 @@ from tqdm import tqdm
 
 from punch_trainer.learn.volume import success_interval
 from punch_trainer.options import bounds, check_options
-from punch_trainer.pipelines.replay import ReplayError, held_out_placements
+from punch_trainer.pipelines.replay import ReplayError, policy_placements
 from punch_trainer.sim.godot import run_godot_tool
 from punch_trainer.sim.placement import (
     ARM_SCALE_RANGE,
@@ -183,7 +183,7 @@ def run_sizes_eval(args: SizesEvalArgs, progress: bool = True) -> tuple[Path, di
     check_proportions(args.proportions)
     check_options(args)
     sizes = [(scale, scale) for scale in args.scales] + list(args.proportions)
-    bags = held_out_placements(Path(args.policy), args.placements, args.seed)
+    bags = policy_placements(Path(args.policy), args.placements, args.seed)
     out = Path(args.out or Path(args.policy).parent / f"eval_sizes_{int(time.time())}")
     out.mkdir(parents=True, exist_ok=True)
     total = len(bags) * len(sizes) * len(args.sigmas)
