@@ -298,6 +298,14 @@ def _pretrain(args: argparse.Namespace) -> int:
     return 0
 
 
+def _soup(args: argparse.Namespace) -> int:
+    from punch_trainer.learn.soup import soup
+
+    out = soup(args.policies, args.out)
+    print(f"averaged the weights of {len(args.policies)} policies; exported and verified: {out}")
+    return 0
+
+
 def _replay(args: argparse.Namespace) -> int:
     from punch_trainer.pipelines.replay import run_replay
 
@@ -348,6 +356,13 @@ def build_parser() -> argparse.ArgumentParser:
     pre.add_argument("--out", type=Path, default=Path("pretrained.onnx"), help="the policy file to write (default: pretrained.onnx)")
     add_dataclass_arguments(pre, PretrainArgs)
     pre.set_defaults(run=_pretrain)
+
+    soup = commands.add_parser("soup", help="one policy whose weights are the mean of several fine-tuned from one parent "
+                                            "(a weight-space ensemble; docs/experiments.md)")
+    soup.add_argument("policies", type=Path, nargs="+", help="policy files of one lineage (one contract, reward, noise "
+                                                             "scale and observation normalisation)")
+    soup.add_argument("--out", type=Path, required=True, help="the policy file to write")
+    soup.set_defaults(run=_soup)
 
     evaluation = commands.add_parser("eval", help="success and quality of a policy on held-out target placements, with noise, "
                                                   "through PunchController in Godot")

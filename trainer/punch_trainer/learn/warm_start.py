@@ -66,6 +66,12 @@ def policy_file_parameters(path: Path, names: list[str], spec_hash: str) -> dict
         raise WarmStartError(f"cannot start from {path}: its observation spec ({metadata.get('punch_spec_hash')}, "
                              f"{metadata.get('punch_observation_size')} inputs) is not this run's ({spec_hash}, "
                              f"{len(names)} inputs)")
+    return actor_parameters(policy)
+
+
+def actor_parameters(policy: onnx.ModelProto) -> dict[str, torch.Tensor]:
+    """The actor's parameters in a loaded policy file, by their names in `ActorCritic` (learn/export.py names
+    them `model.<parameter>`)."""
     prefix = "model."
     parameters = {tensor.name.removeprefix(prefix): torch.as_tensor(numpy_helper.to_array(tensor).copy())
                   for tensor in policy.graph.initializer if tensor.name.startswith(prefix)}
