@@ -79,10 +79,17 @@ def test_policies_not_of_one_lineage_are_refused_and_nothing_is_written(tmp_path
     other_reward, _ = fine_tuned(tmp_path, "other_spec", 3, contract={**CONTRACT, "punch_decision_period": "4"})
     garbage = tmp_path / "garbage.onnx"
     garbage.write_bytes(b"not a policy")
+    broken_model = ActorCritic(OBSERVATIONS, ACTIONS, seed=4)
+    broken_model.set_normalization(NORMALISATION)
+    with torch.no_grad():
+        broken_model.mean_head.weight[0, 0] = float("nan")
+    broken = export_policy(broken_model, tmp_path / "broken.onnx", contract=CONTRACT, reward="straight", summary={},
+                           verify=False)
     out = tmp_path / "soup.onnx"
     for policies, message in (([a, other_parent], "normalises its observation otherwise"),
                               ([a, other_reward], "differs from .* in punch_decision_period"),
                               ([a, garbage], "not a readable policy file"),
+                              ([a, broken], "mean_head.weight are not all finite"),
                               ([a], "at least two policies")):
         with pytest.raises(SoupError, match=message):
             soup(policies, out)

@@ -40,6 +40,8 @@ class SoupError(PunchError):
 
 @dataclass(frozen=True)
 class Ingredient:
+    """One policy file of a soup, as read."""
+
     path: Path
     metadata: dict[str, str]
     parameters: dict[str, torch.Tensor]
@@ -60,6 +62,9 @@ def read_ingredient(path: Path) -> Ingredient:
     parameters = actor_parameters(policy)
     if not parameters:
         raise SoupError(f"{path}: it holds no actor parameters (model.*)")
+    broken = sorted(key for key, value in parameters.items() if not torch.isfinite(value).all())
+    if broken:
+        raise SoupError(f"{path}: its weights {', '.join(broken)} are not all finite numbers")
     return Ingredient(Path(path), metadata, parameters, hashlib.sha256(content).hexdigest())
 
 
