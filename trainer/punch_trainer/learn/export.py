@@ -38,7 +38,8 @@ def export_policy(model: ActorCritic, path: Path, *, contract: dict[str, str], r
                   style: Style | None = None, verify: bool = True) -> Path:
     """Writes the actor of `model` as a policy file: input `obs` [B, O], outputs `mean` and `sigma` [B, A],
     metadata = the policy `contract` (as announced by the training server for the episodes the policy learned
-    from) + `punch_reward`, `punch_style` (the motion style it was trained with: `none` or NAME@WEIGHT),
+    from) + `punch_reward`, `punch_style` (the motion style it was trained with: `none` or NAME@WEIGHT; a soup's joins its
+    ingredients', learn/soup.py),
     `punch_trainer_version` and `punch_training_summary` (JSON); with a style, `punch_noise_scale` too (JSON,
     per degree of freedom: the share of a game's runtime noise sigma it gets, the style's search cap, so
     that noise varies the punch and not the guard the style keeps). Which keys the

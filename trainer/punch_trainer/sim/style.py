@@ -376,15 +376,19 @@ def first_frame(mask: np.ndarray) -> np.ndarray:
 def fist_touching(frames: FramesLike) -> np.ndarray:
     """Whether the punching fist touches the bag in each frame, [..., frames] (as `rewards.first_right_contact`
     reads contact)."""
-    impulse = np.stack([frames(f"fist_r_impulse_{axis}") for axis in "xyz"], axis=-1)
-    return np.asarray(np.linalg.norm(impulse, axis=-1) > CONTACT_IMPULSE_NS)
+    return np.asarray(np.linalg.norm(contact_impulse(frames, "fist_r"), axis=-1) > CONTACT_IMPULSE_NS)
 
 
 def elsewhere_touching(frames: FramesLike) -> np.ndarray:
     """Whether the character touches the bag elsewhere than with its punching fist in each frame, [..., frames]:
     the whole character's contact impulse less that fist's."""
-    impulse = np.stack([frames(f"character_impulse_{axis}") - frames(f"fist_r_impulse_{axis}") for axis in "xyz"], axis=-1)
+    impulse = contact_impulse(frames, "character") - contact_impulse(frames, "fist_r")
     return np.asarray(np.linalg.norm(impulse, axis=-1) > CONTACT_IMPULSE_NS)
+
+
+def contact_impulse(frames: FramesLike, body: str) -> np.ndarray:
+    """The contact impulse on `body` (a feature prefix: `fist_r`, `character`) in each frame, N s [..., frames, 3]."""
+    return np.stack([frames(f"{body}_impulse_{axis}") for axis in "xyz"], axis=-1)
 
 
 def chain_speeds(frames: FramesLike) -> list[np.ndarray]:
