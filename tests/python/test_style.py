@@ -243,6 +243,22 @@ def test_the_clean_straight_charges_a_bag_touched_elsewhere_before_the_fist_once
     assert kept[1] < 0.2 * kept[0]  # the forearm's push keeps little of what the punch earned
 
 
+def test_the_capped_straight_keeps_part_of_what_a_landing_out_of_order_earned() -> None:
+    """`boxing_straight_ordered_capped`: `_clean` with the order's charge stopping at its cap, so a punch thrown out
+    of order (by a designer's noise) keeps exp(-cap) of what it earned, where `_clean` keeps next to nothing; in
+    order it costs what `_clean` does."""
+    capped, clean = style_named("boxing_straight_ordered_capped"), style_named("boxing_straight_ordered_clean")
+    assert capped is not None and clean is not None and capped.order_cost_cap == 1.0
+    assert capped.arm_first_cost == clean.arm_first_cost
+    far_out = frames_of({**peaking_at(9, 2, 1, contact=12), "fist_r_bag_distance": np.full(FRAMES, 1.0)})
+    np.testing.assert_allclose(capped.whole_punch_cost(far_out).sum(), capped.order_cost_cap)
+    assert clean.whole_punch_cost(far_out).sum() > capped.order_cost_cap
+    in_order = frames_of(peaking_at(1, 2, 5, contact=8))
+    np.testing.assert_allclose([capped.whole_punch_cost(in_order).sum(), clean.whole_punch_cost(in_order).sum()], 0.0, atol=1e-12)
+    earned = {"forward": np.ones(FRAMES)}
+    assert capped.apply(earned, far_out)["forward"].sum() > 5 * clean.apply(earned, far_out)["forward"].sum()
+
+
 def test_the_near_clean_straight_leaves_a_bag_beyond_the_arms_length_to_whatever_touches_it_first() -> None:
     """`boxing_straight_ordered_clean_near`: the forearm first is charged where the bag starts within the arm's
     length of the shoulder, and not beyond, where a short arm leans in and its trunk may meet the bag first."""

@@ -342,6 +342,8 @@ STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
                                    "boxing_straight_ordered_clean_near": replace(STRAIGHT_ORDERED_FLOOR,
                                                                                  name="boxing_straight_ordered_clean_near",
                                                                                  arm_first_cost=3.0, arm_first_reach_share=1.0),
+                                   "boxing_straight_ordered_capped": replace(STRAIGHT_ORDERED_FLOOR, name="boxing_straight_ordered_capped",
+                                                                             arm_first_cost=3.0, order_cost_cap=1.0),
                                    "boxing_late": Style("boxing_late", contact_not_before_frames=16,
                                                         early_contact_cost_per_frame=0.2),
                                    "boxing_late_chain": Style("boxing_late_chain", contact_not_before_frames=16,
@@ -363,7 +365,9 @@ order charged where the bag starts beyond 1.25 arm's lengths, which only short a
 `_soft` whose landing fist is asked for 6.8 m/s, above the straight's; `boxing_hook_ordered_firm`: the order at 1 a
 frame and a gentler floor, 0.3 per (m/s)² under 6.4 m/s; `_touch`: its late touch charged 1 a frame from frame 16), and `boxing_straight_ordered_floor`,
 the shipped straight's, asks its landing fist for 6.2 m/s as well (`_clean`: and charges a bag touched elsewhere before
-the fist, 3 on the whole punch; `_clean_near`: only where the bag starts within the arm's length); experiments: docs/experiments.md"""
+the fist, 3 on the whole punch; `_clean_near`: only where the bag starts within the arm's length; `_capped`: `_clean`
+with the order's charge at most 1 in all, as the hook's and the swing's are capped, so that under noise a punch
+that can no longer land in order still earns more by landing); experiments: docs/experiments.md"""
 DEFAULT_STYLE = "boxing"
 MAX_WEIGHT = 100.0
 
