@@ -19,7 +19,7 @@ FIXTURES = PROJECT_ROOT / "tests" / "fixtures"
 
 @pytest.fixture(scope="module")
 def policy(tmp_path_factory):
-    out = run_train(TrainArgs(reward="straight", out=tmp_path_factory.mktemp("game") / "run", search_iterations=30,
+    out = run_train(TrainArgs(reward="straight", style="none", out=tmp_path_factory.mktemp("game") / "run", search_iterations=30,
                               search_rollouts=64, pretrain_epochs=800, a2c_updates=1, a2c_characters=4,
                               a2c_time_budget_s=0, reach="spot"), progress=False)
     return out / "policy.onnx"

@@ -63,7 +63,7 @@ def digest(*arrays: np.ndarray) -> str:
 
 
 def train_figures(out) -> dict:
-    out = run_train(TrainArgs(reward="straight", out=out, seed=0, search_iterations=6, search_rollouts=16,
+    out = run_train(TrainArgs(reward="straight", style="none", out=out, seed=0, search_iterations=6, search_rollouts=16,
                               pretrain_epochs=200, a2c_updates=2, a2c_characters=4, a2c_time_budget_s=0, reach="spot"), progress=False)
     dataset = np.load(out / "search" / "dataset.npz")
     weights = sorted((i.name, numpy_helper.to_array(i)) for i in onnx.load(str(out / "policy.onnx")).graph.initializer)

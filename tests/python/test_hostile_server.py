@@ -124,7 +124,7 @@ def test_a_phase_longer_than_the_servers_idle_timeout_fails_nothing(monkeypatch,
         return history
 
     monkeypatch.setattr(train_pipeline, "pretrain", long_pretraining)
-    args = train_pipeline.TrainArgs(reward="straight", out=tmp_path / "run", search_iterations=2, search_rollouts=16,
+    args = train_pipeline.TrainArgs(reward="straight", style="none", out=tmp_path / "run", search_iterations=2, search_rollouts=16,
                                     pretrain_epochs=20, a2c_updates=1, a2c_characters=2, a2c_time_budget_s=0, reach="spot")
     out = train_pipeline.run_train(args, progress=False)
     assert (out / "policy.onnx").is_file()
@@ -148,7 +148,7 @@ def test_a_godot_killed_in_each_train_phase_outside_a2c_is_restarted_and_the_run
     """The evaluation after pretraining and the exported policy's run are under the restart rule: a Godot killed
     (SIGKILL) as each starts is restarted, the phase runs again, and the run ends with the same returns."""
     def train(out):
-        args = train_pipeline.TrainArgs(reward="straight", out=out, search_iterations=2, search_rollouts=16,
+        args = train_pipeline.TrainArgs(reward="straight", style="none", out=out, search_iterations=2, search_rollouts=16,
                                         pretrain_epochs=20, a2c_updates=1, a2c_characters=2, a2c_time_budget_s=0, reach="spot")
         return json.loads((train_pipeline.run_train(args, progress=False) / "summary.json").read_text())
 

@@ -127,7 +127,7 @@ def policy_weights(path: Path) -> list[np.ndarray]:
 @pytest.mark.godot
 @pytest.mark.expensive
 def test_punch_train_with_ray_gives_bitwise_the_local_dataset_and_policy(cluster, tmp_path):
-    options = dict(reward="straight", seed=0, search_iterations=4, search_rollouts=16, processes=2, pretrain_epochs=100, a2c_updates=2,
+    options = dict(reward="straight", style="none", seed=0, search_iterations=4, search_rollouts=16, processes=2, pretrain_epochs=100, a2c_updates=2,
                    a2c_characters=4, a2c_time_budget_s=0, reach="spot")
     local = run_train(TrainArgs(out=tmp_path / "local", **options), progress=False)  # type: ignore[arg-type]
     arguments = [f"--{key.replace('_', '-')}={value}" for key, value in options.items()]

@@ -8,7 +8,17 @@ import numpy as np
 import pytest
 
 from punch_trainer.sim.placement import SCENE_ARM_LENGTHS_M, SCENE_BAG_RADIUS_M
-from punch_trainer.sim.style import Style, StyleError, reach_share, running_peak_frame, style_from_label, style_label, style_named
+from punch_trainer.sim.style import (
+    STYLES,
+    Style,
+    StyleError,
+    load_style_file,
+    reach_share,
+    running_peak_frame,
+    style_from_label,
+    style_label,
+    style_named,
+)
 
 FRAMES = 50
 NAMES = [f"{stem}_{axis}" for stem in ("fist_l_pos", "fist_l_vel", "fist_r_vel", "fist_r_pos", "fist_r_impulse",
@@ -89,7 +99,7 @@ def test_the_chain_style_charges_a_joint_that_leads_the_one_before_it_and_boxing
     speeds = {"speed_waist_rotation": 3.0 * ramp(0), "speed_shoulder_r_flexion": 10.0 * ramp(2),
               "speed_shoulder_r_rotation": np.zeros(FRAMES), "speed_shoulder_r_abduction": np.zeros(FRAMES),
               "speed_elbow_r_extension": 18.0 * ramp(4)}
-    chain = style_named("boxing_chain")
+    chain = Style("chain", chain_cost=4.0)
     assert chain is not None and chain.chain_cost > 0
     assert np.all(chain.cost(frames_of(features(**speeds))) == 0.0)
     elbow_first = {**speeds, "speed_elbow_r_extension": 18.0 * ramp(-5)}
@@ -124,13 +134,13 @@ def test_the_order_charges_a_punch_by_the_frames_its_peaks_break_the_order_at_co
         assert np.all(Style("boxing").whole_punch_cost(punch) == 0.0)
     missed = frames_of(peaking_at(20, 2, 3, contact=FRAMES))
     np.testing.assert_allclose(order.whole_punch_cost(missed).sum(), 0.3 * 18)  # stopping short does not escape it
-    ordered = style_named("boxing_ordered")  # each joint a frame before the next
+    ordered = Style("ordered", order_cost_per_frame=1.0, order_margin_frames=1)  # each joint a frame before the next
     assert ordered is not None and ordered.order_margin_frames == 1 and not ordered.order_charged_at_contact
     for peaks, frames_out in (((1, 2, 3), 0), ((2, 2, 5), 1), ((2, 2, 2), 2), ((6, 2, 3), 5)):
         charge = ordered.whole_punch_cost(frames_of(peaking_at(*peaks, contact=8)))
         np.testing.assert_allclose(charge.sum(), ordered.order_cost_per_frame * frames_out, err_msg=str(peaks))
     # The first form charges all on the contact frame, and a miss nothing.
-    at_contact = style_named("boxing_order")
+    at_contact = Style("order", order_cost_per_frame=0.3, order_charged_at_contact=True)
     assert at_contact is not None and at_contact.order_charged_at_contact
     charge = at_contact.whole_punch_cost(frames_of(peaking_at(6, 2, 3, contact=8)))
     np.testing.assert_allclose(charge[8], at_contact.order_cost_per_frame * 4)
@@ -163,7 +173,7 @@ def test_the_running_peak_frame_is_the_first_frame_of_the_largest_value_so_far()
 def test_the_order_charge_takes_what_the_punch_earned_before_it_too() -> None:
     """Unlike the other costs (a tenth of them reaches back), the order's charge discounts the whole punch: a punch
     cannot earn before it lands and escape the charge by landing early."""
-    order = style_named("boxing_ordered")
+    order = Style("ordered", order_cost_per_frame=1.0, order_margin_frames=1)
     assert order is not None
     earned = {"forward": np.where(np.arange(FRAMES) < 8, 1.0, 0.0)}
     in_order = order.apply(earned, frames_of(peaking_at(1, 2, 5, contact=8)))["forward"].sum()
@@ -175,10 +185,10 @@ def test_the_order_charge_takes_what_the_punch_earned_before_it_too() -> None:
 def test_a_punch_that_has_not_touched_the_bag_by_the_deadline_is_charged_each_frame_until_it_does() -> None:
     """`boxing_ordered_reach`: a reward that pays near the bag without a touch cannot keep the order by stopping
     short; the charge runs from the deadline to the first contact and takes the whole punch's earnings."""
-    reach = style_named("boxing_ordered_reach")
+    reach = recipe_style("boxing_ordered_reach")
     assert reach is not None and reach.miss_after_frames > 0
     deadline, cost = reach.miss_after_frames, reach.miss_cost_per_frame
-    ordered = style_named("boxing_ordered")  # the same charge for the order, nothing for a late touch
+    ordered = Style("ordered", order_cost_per_frame=1.0, order_margin_frames=1)  # the same charge for the order, nothing for a late touch
     assert ordered is not None
 
     def late_charge(contact: int) -> np.ndarray:
@@ -197,7 +207,7 @@ def test_a_punch_that_has_not_touched_the_bag_by_the_deadline_is_charged_each_fr
 def test_a_capped_order_charge_leaves_a_punch_out_of_order_more_than_a_miss() -> None:
     """`boxing_ordered_capped`: the order's charge stops at its cap, so a short arm that reaches the bag only out of
     order still earns more by landing than by stopping short, and a punch in order earns the most."""
-    capped = style_named("boxing_ordered_capped")
+    capped = Style("ordered_capped", order_cost_per_frame=1.0, order_margin_frames=1, order_cost_cap=1.0, miss_after_frames=24, miss_cost_per_frame=0.5)
     assert capped is not None and np.isfinite(capped.order_cost_cap)
     far_out = frames_of(peaking_at(6, 2, 3, contact=8))
     np.testing.assert_allclose(capped.whole_punch_cost(far_out).sum(), capped.order_cost_cap)
@@ -211,7 +221,7 @@ def test_a_capped_order_charge_leaves_a_punch_out_of_order_more_than_a_miss() ->
 def test_the_near_order_charge_leaves_a_target_beyond_the_arms_stretch_to_land_out_of_order() -> None:
     """`boxing_ordered_capped2_near`: a punch out of order is charged where the bag starts within 1.25 arm's lengths
     of the shoulder and not beyond, where only a short arm's full stretch with the trunk's lean reaches it."""
-    near = style_named("boxing_ordered_capped2_near")
+    near = recipe_style("boxing_ordered_capped2_near")
     assert near is not None and near.order_reach_share == 1.25
     for distance_m, charged in ((0.6, near.order_cost_cap), (1.0, 0.0)):  # 0.73 and 1.36 arm's lengths
         out_of_order = frames_of({**peaking_at(6, 2, 3, contact=8), **WITHIN_REACH, "bag_pos_z": np.full(FRAMES, distance_m)})
@@ -223,7 +233,7 @@ def test_the_clean_straight_charges_a_bag_touched_elsewhere_before_the_fist_once
     """`boxing_straight_ordered_clean`: the forearm (the whole character's impulse, less the punching fist's)
     touching the bag before the fist is charged once, on its first frame; touching with the fist first, or with
     the forearm beside the fist from then on, is not; the order's charge is the floor style's."""
-    clean, floor = style_named("boxing_straight_ordered_clean"), style_named("boxing_straight_ordered_floor")
+    clean, floor = recipe_style("boxing_straight_ordered_clean"), recipe_style("boxing_straight_ordered_floor")
     assert clean is not None and floor is not None and clean.arm_first_cost > 0.0
     fist_at_20 = {**peaking_at(6, 2, 10, contact=20), "fist_r_bag_distance": np.full(FRAMES, 1.0)}
     forearm_at_14 = {"character_impulse_z": np.where(np.arange(FRAMES) >= 14, 1.0, 0.0) + fist_at_20["fist_r_impulse_z"]}
@@ -247,7 +257,7 @@ def test_the_capped_straight_keeps_part_of_what_a_landing_out_of_order_earned() 
     """`boxing_straight_ordered_capped`: `_clean` with the order's charge stopping at its cap, so a punch thrown out
     of order (by a designer's noise) keeps exp(-cap) of what it earned, where `_clean` keeps next to nothing; in
     order it costs what `_clean` does."""
-    capped, clean = style_named("boxing_straight_ordered_capped"), style_named("boxing_straight_ordered_clean")
+    capped, clean = Style("straight_ordered_capped", fist_free_mps=6.3, fist_cost_per_mps2=0.5, landing_free_mps=6.2, landing_cost_per_mps2=1.0, order_cost_per_frame=1.0, order_margin_frames=1, order_cost_cap=1.0, arm_first_cost=3.0), recipe_style("boxing_straight_ordered_clean")
     assert capped is not None and clean is not None and capped.order_cost_cap == 1.0
     assert capped.arm_first_cost == clean.arm_first_cost
     far_out = frames_of({**peaking_at(9, 2, 1, contact=12), "fist_r_bag_distance": np.full(FRAMES, 1.0)})
@@ -262,7 +272,7 @@ def test_the_capped_straight_keeps_part_of_what_a_landing_out_of_order_earned() 
 def test_the_near_clean_straight_leaves_a_bag_beyond_the_arms_length_to_whatever_touches_it_first() -> None:
     """`boxing_straight_ordered_clean_near`: the forearm first is charged where the bag starts within the arm's
     length of the shoulder, and not beyond, where a short arm leans in and its trunk may meet the bag first."""
-    near = style_named("boxing_straight_ordered_clean_near")
+    near = Style("straight_ordered_clean_near", fist_free_mps=6.3, fist_cost_per_mps2=0.5, landing_free_mps=6.2, landing_cost_per_mps2=1.0, order_cost_per_frame=1.0, order_margin_frames=1, arm_first_cost=3.0, arm_first_reach_share=1.0)
     assert near is not None and near.arm_first_reach_share == 1.0
     frame = np.arange(FRAMES)
     fist_at_20 = {**peaking_at(6, 2, 10, contact=20), **WITHIN_REACH, "fist_r_bag_distance": np.full(FRAMES, 1.0)}
@@ -287,7 +297,7 @@ WITHIN_REACH = {"body_upper_arm_m": np.full(FRAMES, SCENE_ARM_LENGTHS_M[0]), "bo
 def test_the_fast_style_charges_a_slow_landing_and_nothing_else() -> None:
     """`boxing_fast`: the fist landing slower than a boxer's 8.5 m/s costs, only inside the landing zone and
     before contact; a fast landing, or a slow fist far from the bag, costs nothing, and `boxing` never charges it."""
-    fast = style_named("boxing_fast")
+    fast = Style("fast", landing_free_mps=8.5, landing_cost_per_mps2=0.2)
     assert fast is not None and fast.landing_cost_per_mps2 > 0
     zone = np.linspace(0.6, 0.2, FRAMES) < fast.landing_zone_m
     slow = fast.cost(frames_of(landing(fist_r_vel_z=np.full(FRAMES, 6.0))))
@@ -303,7 +313,7 @@ def test_the_fast_style_charges_a_slow_landing_and_nothing_else() -> None:
 def test_the_straight_style_charges_a_fist_faster_than_a_boxers_straight_where_boxing_does_not() -> None:
     """`boxing_straight`: the punching fist beyond 6.5 m/s costs with the square of the excess, as `boxing`'s beyond
     9 m/s; a fist at 8 m/s is free with `boxing` and charged with it."""
-    straight = style_named("boxing_straight")
+    straight = recipe_style("boxing_straight")
     assert straight is not None and straight.fist_free_mps < Style("boxing").fist_free_mps
     at_8_mps = frames_of(features(fist_r_vel_z=np.full(FRAMES, 8.0)))
     np.testing.assert_allclose(straight.cost(at_8_mps), straight.fist_cost_per_mps2 * (8.0 - straight.fist_free_mps) ** 2)
@@ -314,7 +324,7 @@ def test_the_straight_style_charges_a_fist_faster_than_a_boxers_straight_where_b
 def test_the_late_style_charges_a_first_contact_before_its_frame_once_and_a_later_one_nothing() -> None:
     """`boxing_late`: the first contact frame, if it comes before `contact_not_before_frames`, costs per frame early,
     on that frame only; a later first contact, and any contact with `boxing`, costs nothing."""
-    late = style_named("boxing_late")
+    late = Style("late", contact_not_before_frames=16, early_contact_cost_per_frame=0.2)
     assert late is not None and late.early_contact_cost_per_frame > 0 and late.contact_not_before_frames == 16
     for first, expected in ((10, late.early_contact_cost_per_frame * 6), (20, 0.0)):
         touched = frames_of(features(fist_r_impulse_z=np.where(np.arange(FRAMES) >= first, 1.0, 0.0)))
@@ -327,7 +337,7 @@ def test_the_late_style_charges_a_first_contact_before_its_frame_once_and_a_late
 def test_the_arm_style_asks_a_shorter_arm_for_a_slower_landing() -> None:
     """`boxing_fast_arm`: the floor is 8.5 m/s with the scene's arms and scales with the arm's length, so 7 m/s
     lands free with arms 0.75 times as long (floor 6.4 m/s) and costs with the scene's."""
-    arm = style_named("boxing_fast_arm")
+    arm = Style("fast_arm", landing_free_mps=8.5, landing_cost_per_mps2=0.2, landing_floor_with_arm=True)
     assert arm is not None and arm.landing_floor_with_arm
     upper_m, forearm_m, _ = SCENE_ARM_LENGTHS_M
 
@@ -344,7 +354,7 @@ def test_the_near_style_leaves_a_target_beyond_the_arm_to_a_slower_punch() -> No
     """`boxing_fast_near`: the floor counts only where the bag's near side starts within 1.1 arm lengths of the
     shoulder (across the ground): a target 0.75 m ahead is near for the scene's arm (0.96 of it) and far for an
     arm 0.75 times as long (1.28), and the same slow landing costs only the first."""
-    near = style_named("boxing_fast_near")
+    near = Style("fast_near", landing_free_mps=8.5, landing_cost_per_mps2=0.2, landing_reach_share=1.1)
     assert near is not None and near.landing_reach_share == 1.1
     upper_m, forearm_m, width_m = SCENE_ARM_LENGTHS_M
 
@@ -370,7 +380,7 @@ def test_the_near_style_leaves_a_target_beyond_the_arm_to_a_slower_punch() -> No
 def test_the_entry_style_charges_a_slow_landing_once_and_at_most_its_cap() -> None:
     """`boxing_fast_entry`: the shortfall is charged on the first landing frame only, and at most 1.5 m/s of it, so a
     punch landing at 2 m/s (one recovering from a knock) keeps part of what it earns; one at 8 m/s pays a little."""
-    entry = style_named("boxing_fast_entry")
+    entry = Style("fast_entry", landing_free_mps=8.5, landing_cost_per_mps2=0.4, landing_reach_share=1.1, landing_at_entry=True, landing_shortfall_cap_mps=1.5)
     assert entry is not None and entry.landing_at_entry
     first = int(np.argmax(np.linspace(0.6, 0.2, FRAMES) < entry.landing_zone_m))
     for speed_mps, shortfall_mps in ((2.0, 1.5), (8.0, 0.5), (9.0, 0.0)):
@@ -381,7 +391,7 @@ def test_the_entry_style_charges_a_slow_landing_once_and_at_most_its_cap() -> No
 
 def test_the_capped_style_charges_every_landing_frame_at_most_its_cap() -> None:
     """`boxing_fast_capped`: `boxing_fast_near`'s charge on every landing frame, of at most 1.5 m/s of shortfall."""
-    capped = style_named("boxing_fast_capped")
+    capped = Style("fast_capped", landing_free_mps=8.5, landing_cost_per_mps2=0.2, landing_reach_share=1.1, landing_shortfall_cap_mps=1.5)
     assert capped is not None and not capped.landing_at_entry
     zone = np.linspace(0.6, 0.2, FRAMES) < capped.landing_zone_m
     for speed_mps, shortfall_mps in ((2.0, 1.5), (8.0, 0.5)):
@@ -393,7 +403,7 @@ def test_the_capped_style_charges_every_landing_frame_at_most_its_cap() -> None:
 def test_the_lead_style_charges_a_waist_still_speeding_up_as_the_punch_lands() -> None:
     """`boxing_lead`: the waist's turn peaking before the fist is landing costs nothing; still speeding up
     inside the landing zone (the break in the shipped punches' proximal-to-distal order) costs."""
-    lead = style_named("boxing_lead")
+    lead = Style("lead", waist_lead_cost=0.5)
     assert lead is not None and lead.waist_lead_cost > 0
     frame = np.arange(FRAMES)
     peaked_before = lead.cost(frames_of(landing(speed_waist_rotation=np.minimum(frame, 60 - frame) / 5.0)))
@@ -416,6 +426,17 @@ def test_flailing_after_the_punch_has_landed_costs_what_it_earned() -> None:
     assert calm_return == pytest.approx(20.0)
     assert 0.0 < after_return < 0.9 * calm_return
     assert Style("boxing", later_cost_share=0.0).apply({"forward": landed}, frames_of(after))["forward"].sum() == pytest.approx(20.0)
+
+
+ROOT = Path(__file__).resolve().parents[2]
+RECIPE_STYLES = ROOT / "recipes" / "styles.toml"
+
+
+def recipe_style(name: str) -> Style:
+    """A style of the shipped policies' recipes (recipes/styles.toml)."""
+    style = style_named(f"{RECIPE_STYLES}:{name}")
+    assert style is not None
+    return style
 
 
 def test_the_weight_scales_the_cost() -> None:
@@ -492,10 +513,13 @@ def test_an_episode_scored_decision_by_decision_adds_up_to_its_return_with_and_w
     values[..., names.index("body_upper_arm_m")], values[..., names.index("body_forearm_m")] = 0.25, 0.3
     values[..., names.index("body_shoulder_width_m")], values[..., names.index("bag_pos_z")] = 0.36, 0.6  # within reach
     plain = load_reward("straight")
-    for reward in (plain, *[replace(plain, style=style_named(name)) for name in ("boxing", "boxing_fast", "boxing_fast_arm",
-                                                                                 "boxing_fast_near", "boxing_fast_entry",
-                                                                                 "boxing_fast_capped", "boxing_lead",
-                                                                                 "boxing_order", "boxing_ordered", "boxing_straight_ordered_floor")]):
+    tried = [Style("fast", landing_free_mps=8.5, landing_cost_per_mps2=0.2),
+             Style("fast_arm", landing_free_mps=8.5, landing_cost_per_mps2=0.2, landing_floor_with_arm=True),
+             Style("fast_entry", landing_free_mps=8.5, landing_cost_per_mps2=0.4, landing_reach_share=1.1,
+                   landing_at_entry=True, landing_shortfall_cap_mps=1.5),
+             Style("lead", waist_lead_cost=0.5), Style("order", order_cost_per_frame=0.3, order_charged_at_contact=True),
+             recipe_style("boxing_straight_ordered_floor"), recipe_style("boxing_ordered_capped2_near")]
+    for reward in (plain, replace(plain, style=style_named("boxing")), *[replace(plain, style=style) for style in tried]):
         per_decision = decision_rewards(reward, values, names, 5)
         assert per_decision.shape == (3, FRAMES // 5)
         np.testing.assert_allclose(per_decision.sum(axis=-1), score(reward, values, names), rtol=1e-9, atol=1e-9)
@@ -528,3 +552,35 @@ def test_a_search_with_the_boxing_style_keeps_the_guard_hand_and_the_trunk_in(tm
     calm, plain = figures["boxing"], figures["none"]
     assert calm.off_fist_from_guard_m < plain.off_fist_from_guard_m
     assert calm.trunk_flexion_whole_deg < plain.trunk_flexion_whole_deg
+
+
+def test_the_product_holds_boxing_and_none_and_every_other_style_is_a_file_s() -> None:
+    assert set(STYLES) == {"none", "boxing"}
+    recipe_styles, tried = load_style_file(RECIPE_STYLES), load_style_file(ROOT / "experiments" / "styles.toml")
+    assert not recipe_styles.keys() & tried.keys()
+    used = {line.split("=")[1].strip().strip('"') for recipe in (ROOT / "recipes").glob("*.toml")
+            for line in recipe.read_text().splitlines() if line.startswith("style =")}
+    assert used - {"boxing", "none"} == set(recipe_styles), "recipes/styles.toml holds the styles the recipes use, only those"
+    labelled = style_named(f"{RECIPE_STYLES}:boxing_ordered_capped2", 0.5)
+    assert labelled is not None and style_label(labelled) == "boxing_ordered_capped2@0.5"
+
+
+@pytest.mark.parametrize("text, complaint", [
+    ("[a]\nchain_cost = 'high'\n", "wrong kind"),
+    ("[a]\nfrobnicate = 1.0\n", "sets frobnicate"),
+    ("[a]\nname = 'b'\n", "sets name"),
+    ("[a]\nbase = 'later'\n[later]\n", "no earlier style"),
+    ("[a\n", "not a readable style file"),
+])
+def test_a_style_file_that_does_not_hold_styles_is_refused(tmp_path: Path, text: str, complaint: str) -> None:
+    path = tmp_path / "styles.toml"
+    path.write_text(text)
+    with pytest.raises(StyleError, match=complaint):
+        style_named(f"{path}:a")
+
+
+def test_a_style_file_s_table_changes_its_base() -> None:
+    styles = load_style_file(ROOT / "experiments" / "styles.toml")
+    assert styles["boxing_chain"].chain_cost == 4.0 and styles["boxing_chain"].fist_free_mps == Style("boxing").fist_free_mps
+    with pytest.raises(StyleError, match="has no style 'gangnam'"):
+        style_named(f"{RECIPE_STYLES}:gangnam")

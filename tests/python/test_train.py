@@ -77,7 +77,7 @@ def test_a_run_warm_started_from_the_addons_policy_file_punches_as_it_did(tmp_pa
     import onnxruntime
 
     shipped = Path(__file__).resolve().parents[2] / "addons" / "punch_controller" / "policies" / "hook.onnx"
-    args = TrainArgs(reward="hook", out=tmp_path / "run", search_iterations=2, search_rollouts=16, a2c_updates=1,
+    args = TrainArgs(reward="hook", style="none", out=tmp_path / "run", search_iterations=2, search_rollouts=16, a2c_updates=1,
                      a2c_characters=4, a2c_time_budget_s=0, reach="spot", init_from=shipped)
     out = run_train(args, progress=False)
     report = (out / "report.md").read_text()

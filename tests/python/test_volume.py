@@ -38,9 +38,9 @@ def test_the_spec_announces_the_reach_volume():
 @pytest.mark.godot
 @pytest.mark.expensive
 def test_a_volume_policy_beats_a_single_spot_policy_on_held_out_placements(tmp_path):
-    volume = run_train(TrainArgs(out=tmp_path / "volume", reach="volume", grid="2,3,3", volume_search_iterations=12,
+    volume = run_train(TrainArgs(out=tmp_path / "volume", style="none", reach="volume", grid="2,3,3", volume_search_iterations=12,
                                  **BUDGET), progress=False)
-    spot = run_train(TrainArgs(out=tmp_path / "spot", reach="spot", **BUDGET), progress=False)
+    spot = run_train(TrainArgs(out=tmp_path / "spot", style="none", reach="spot", **BUDGET), progress=False)
     with TrainingServer(1) as server:
         announced = ReachVolume.from_json(server.info.reach_volume)
     assert ReachVolume.from_json(policy_metadata(volume / "policy.onnx")[METADATA_KEY]) == announced

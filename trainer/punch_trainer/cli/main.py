@@ -306,6 +306,30 @@ def _soup(args: argparse.Namespace) -> int:
     return 0
 
 
+def _recipe(args: argparse.Namespace) -> int:
+    import shutil
+
+    from punch_trainer.pipelines.recipe import RecipeError, load_recipe, run_recipe
+
+    recipe = load_recipe(args.recipe)
+    use = {}
+    for entry in args.use:
+        stage, separator, file = entry.partition("=")
+        if not separator:
+            raise RecipeError(f"--use takes STAGE=FILE, not {entry!r}")
+        use[stage] = Path(file)
+    out = args.out or Path("runs") / f"recipe_{recipe.name}"
+    with backend_for(args.ray) as backend:
+        run_recipe(recipe, out, use=use, until=args.until, dry_run=args.dry_run, backend=backend)
+    if args.dry_run or args.until is not None:
+        return 0
+    print((out / "report.md").read_text())
+    if args.install:
+        shutil.copyfile(out / "policy.onnx", recipe.policy)
+        print(f"installed as {recipe.policy}")
+    return 0
+
+
 def _replay(args: argparse.Namespace) -> int:
     from punch_trainer.pipelines.replay import run_replay
 
@@ -363,6 +387,20 @@ def build_parser() -> argparse.ArgumentParser:
                                                              "scale and observation normalisation)")
     soup.add_argument("--out", type=Path, required=True, help="the policy file to write")
     soup.set_defaults(run=_soup)
+
+    recipe = commands.add_parser("recipe", help="make a shipped policy again from its recipe (recipes/*.toml): every "
+                                 "training stage and soup, in order, resumable")
+    recipe.add_argument("recipe", type=Path, help="the recipe file, e.g. recipes/straight.toml")
+    recipe.add_argument("--out", type=Path, help="the run directory, one folder a stage (default runs/recipe_<name>); "
+                                                 "stages already made there with the same options are kept")
+    recipe.add_argument("--dry-run", action="store_true", help="print each stage's command, run nothing")
+    recipe.add_argument("--until", metavar="STAGE", help="stop after this stage")
+    recipe.add_argument("--use", action="append", default=[], metavar="STAGE=FILE",
+                        help="take FILE as that stage's policy instead of making it (a stage made before); repeatable")
+    recipe.add_argument("--install", action="store_true", help="copy the policy over the file the recipe names "
+                                                               "(the addon's policies/)")
+    add_ray_option(recipe)
+    recipe.set_defaults(run=_recipe)
 
     evaluation = commands.add_parser("eval", help="success and quality of a policy on held-out target placements, with noise, "
                                                   "through PunchController in Godot")

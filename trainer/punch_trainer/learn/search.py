@@ -45,8 +45,8 @@ class SearchArgs:
     reward: str = "straight"
     """a preset (straight, straight100, hook, swing) or FILE.py:FUNCTION"""
     style: str = "none"
-    """the motion style added to the reward (docs/style.md): boxing, none for the reward alone, or
-    one of the styles experiments compare (sim/style.py: boxing_fast, boxing_lead, ...)"""
+    """the motion style added to the reward (docs/style.md): none, the reward alone (the paper's search); boxing, a
+    human's punch (`punch train`'s default); or FILE.toml:NAME, a style of a file (recipes/styles.toml)"""
     style_weight: float = field(default=1.0, metadata=bounds(0.0, MAX_STYLE_WEIGHT))
     """how strongly the style holds (1: as measured in docs/style.md)"""
     frames: int | None = None

@@ -75,9 +75,9 @@ def reach_default_notes() -> dict[str, str]:
 class TrainArgs:
     reward: str = SearchArgs.reward
     """a preset (straight, straight100, hook, swing) or FILE.py:FUNCTION"""
-    style: str = SearchArgs.style
-    """the motion style added to the reward in every stage (docs/style.md): boxing, none for the reward alone, or
-    one of the styles experiments compare (sim/style.py: boxing_fast, boxing_lead, ...)"""
+    style: str = "boxing"
+    """the motion style added to the reward in every stage (docs/style.md): boxing, a human's punch; none, the reward
+    alone (the paper's); or FILE.toml:NAME, a style of a file (recipes/styles.toml: the shipped policies')"""
     style_weight: float = field(default=SearchArgs.style_weight, metadata=bounds(0.0, MAX_STYLE_WEIGHT))
     """how strongly the style holds (1: as measured in docs/style.md)"""
     frames: int | None = None

@@ -26,8 +26,11 @@ A style has two parts, chosen by measurement (docs/experiments.md, "A motion sty
 
 from __future__ import annotations
 
+import tomllib
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, fields, replace
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -279,95 +282,11 @@ class Style:
         return asdict(self)
 
 
-ORDERED_REACH = Style("boxing_ordered_reach", order_cost_per_frame=1.0, order_margin_frames=1, miss_after_frames=24,
-                      miss_cost_per_frame=0.5)
-"""`boxing_ordered` charging a punch that has not touched the bag by frame 24 (0.2 s) as well: the base of the
-order's later styles, each named in STYLES by what it changes"""
-
-STRAIGHT_ORDERED_FLOOR = Style("boxing_straight_ordered_floor", fist_free_mps=6.3, fist_cost_per_mps2=0.5,
-                               order_cost_per_frame=1.0, order_margin_frames=1, landing_free_mps=6.2,
-                               landing_cost_per_mps2=1.0)
-"""the shipped straight's style, and the base of the `_clean` styles tried on it"""
-
-STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing"),
-                                   "boxing_chain": Style("boxing_chain", chain_cost=4.0),
-                                   "boxing_drive": Style("boxing_drive", drive_cost=4.0),
-                                   "boxing_fast": Style("boxing_fast", landing_free_mps=8.5, landing_cost_per_mps2=0.2),
-                                   "boxing_fast_arm": Style("boxing_fast_arm", landing_free_mps=8.5, landing_cost_per_mps2=0.2,
-                                                            landing_floor_with_arm=True),
-                                   "boxing_fast_near": Style("boxing_fast_near", landing_free_mps=8.5,
-                                                             landing_cost_per_mps2=0.2, landing_reach_share=1.1),
-                                   "boxing_fast_entry": Style("boxing_fast_entry", landing_free_mps=8.5, landing_cost_per_mps2=0.4,
-                                                              landing_reach_share=1.1, landing_at_entry=True,
-                                                              landing_shortfall_cap_mps=1.5),
-                                   "boxing_fast_capped": Style("boxing_fast_capped", landing_free_mps=8.5,
-                                                               landing_cost_per_mps2=0.2, landing_reach_share=1.1,
-                                                               landing_shortfall_cap_mps=1.5),
-                                   "boxing_lead": Style("boxing_lead", waist_lead_cost=0.5),
-                                   "boxing_straight": Style("boxing_straight", fist_free_mps=6.5),
-                                   "boxing_order": Style("boxing_order", order_charged_at_contact=True, order_cost_per_frame=0.3),
-                                   "boxing_order_hard": Style("boxing_order_hard", order_charged_at_contact=True, order_cost_per_frame=1.0),
-                                   "boxing_order_margin": Style("boxing_order_margin", order_charged_at_contact=True, order_cost_per_frame=1.0,
-                                                                order_margin_frames=1),
-                                   "boxing_straight_order": Style("boxing_straight_order", order_charged_at_contact=True, fist_free_mps=6.5,
-                                                                  order_cost_per_frame=0.3),
-                                   "boxing_straight_order_hard": Style("boxing_straight_order_hard", order_charged_at_contact=True, fist_free_mps=6.5,
-                                                                       order_cost_per_frame=1.0),
-                                   "boxing_straight_order_margin": Style("boxing_straight_order_margin", order_charged_at_contact=True, fist_free_mps=6.5,
-                                                                         order_cost_per_frame=1.0, order_margin_frames=1),
-                                   "boxing_straight_order_slow": Style("boxing_straight_order_slow", order_charged_at_contact=True, fist_free_mps=6.3,
-                                                                       fist_cost_per_mps2=1.0, order_cost_per_frame=1.0,
-                                                                       order_margin_frames=1),
-                                   "boxing_ordered": Style("boxing_ordered", order_cost_per_frame=1.0, order_margin_frames=1),
-                                   "boxing_ordered_reach": ORDERED_REACH,
-                                   "boxing_ordered_reach_soft": replace(ORDERED_REACH, name="boxing_ordered_reach_soft",
-                                                                        order_cost_per_frame=0.3),
-                                   "boxing_ordered_capped": replace(ORDERED_REACH, name="boxing_ordered_capped", order_cost_cap=1.0),
-                                   "boxing_ordered_capped2": replace(ORDERED_REACH, name="boxing_ordered_capped2", order_cost_cap=2.0),
-                                   "boxing_ordered_capped2_near": replace(ORDERED_REACH, name="boxing_ordered_capped2_near",
-                                                                          order_cost_cap=2.0, order_reach_share=1.25),
-                                   "boxing_hook_ordered": replace(ORDERED_REACH, name="boxing_hook_ordered", order_cost_per_frame=0.3,
-                                                                  landing_free_mps=6.8, landing_cost_per_mps2=1.0),
-                                   "boxing_hook_ordered_firm": replace(ORDERED_REACH, name="boxing_hook_ordered_firm",
-                                                                       landing_free_mps=6.4, landing_cost_per_mps2=0.3),
-                                   "boxing_hook_ordered_touch": replace(ORDERED_REACH, name="boxing_hook_ordered_touch",
-                                                                        miss_after_frames=16, miss_cost_per_frame=1.0,
-                                                                        landing_free_mps=6.4, landing_cost_per_mps2=0.3),
-                                   "boxing_straight_ordered": Style("boxing_straight_ordered", fist_free_mps=6.3,
-                                                                    fist_cost_per_mps2=0.5, order_cost_per_frame=1.0,
-                                                                    order_margin_frames=1),
-                                   "boxing_straight_ordered_floor": STRAIGHT_ORDERED_FLOOR,
-                                   "boxing_straight_ordered_clean": replace(STRAIGHT_ORDERED_FLOOR, name="boxing_straight_ordered_clean",
-                                                                            arm_first_cost=3.0),
-                                   "boxing_straight_ordered_clean_near": replace(STRAIGHT_ORDERED_FLOOR,
-                                                                                 name="boxing_straight_ordered_clean_near",
-                                                                                 arm_first_cost=3.0, arm_first_reach_share=1.0),
-                                   "boxing_straight_ordered_capped": replace(STRAIGHT_ORDERED_FLOOR, name="boxing_straight_ordered_capped",
-                                                                             arm_first_cost=3.0, order_cost_cap=1.0),
-                                   "boxing_late": Style("boxing_late", contact_not_before_frames=16,
-                                                        early_contact_cost_per_frame=0.2),
-                                   "boxing_late_chain": Style("boxing_late_chain", contact_not_before_frames=16,
-                                                              early_contact_cost_per_frame=0.2, chain_cost=4.0),
-                                   "boxing_late_lead": Style("boxing_late_lead", contact_not_before_frames=16,
-                                                             early_contact_cost_per_frame=0.2, waist_lead_cost=0.5)}
-"""the styles by name; `none` is the paper's reward alone; `boxing_chain`, `boxing_drive` and `boxing_lead` are
-`boxing` asking for the proximal-to-distal order too, `boxing_fast`, `boxing_fast_arm`, `boxing_fast_near`,
-`boxing_fast_entry` and `boxing_fast_capped` for a boxer's landing speed (boxers' hooks land faster than their straights, ../shared/design/ANCHORS.md §3);
-`boxing_straight` is `boxing` whose punching fist is free only up to 6.5 m/s (lead straights peak at 6.32 m/s in
-junior boxers, 7.16 in elite ones, ANCHORS §3), the straight's before the order, so that the hook is the faster punch as a
-boxer's is; `boxing_late`, `boxing_late_chain` and `boxing_late_lead` ask a punch to land no sooner than a captured
-one, for the order; the `_order` styles charge a punch out of proximal-to-distal order on the whole of what it
-earned, at its first contact (the first form), `boxing_ordered` and `boxing_straight_ordered` over the punch so that
-stopping short does not escape it (docs/style.md, "The proximal-to-distal order"), `boxing_ordered_reach` charging a
-punch that has not touched the bag by 0.2 s as well (`_soft`: 0.3 a frame out of order; `boxing_ordered_capped`: the
-order's charge at most 1 in all (`_capped2`: 2), so that landing out of order beats missing; `_capped2_near`: and no
-order charged where the bag starts beyond 1.25 arm's lengths, which only short arms meet; `boxing_hook_ordered`:
-`_soft` whose landing fist is asked for 6.8 m/s, above the straight's; `boxing_hook_ordered_firm`: the order at 1 a
-frame and a gentler floor, 0.3 per (m/s)² under 6.4 m/s; `_touch`: its late touch charged 1 a frame from frame 16), and `boxing_straight_ordered_floor`,
-the shipped straight's, asks its landing fist for 6.2 m/s as well (`_clean`: and charges a bag touched elsewhere before
-the fist, 3 on the whole punch; `_clean_near`: only where the bag starts within the arm's length; `_capped`: `_clean`
-with the order's charge at most 1 in all, as the hook's and the swing's are capped, so that under noise a punch
-that can no longer land in order still earns more by landing); experiments: docs/experiments.md"""
+STYLES: dict[str, Style | None] = {"none": None, "boxing": Style("boxing")}
+"""the product's styles: `boxing`, measured on captured punches (docs/style.md), and `none`, the paper's reward
+alone. Every other style is data: a table of a style file (`load_style_file`), named `FILE.toml:NAME`. The styles
+the shipped policies' recipes use are in recipes/styles.toml; the ones experiments tried, in experiments/styles.toml."""
+STYLE_FILE_SUFFIX = ".toml"
 DEFAULT_STYLE = "boxing"
 MAX_WEIGHT = 100.0
 
@@ -421,15 +340,53 @@ def reach_share(frames: FramesLike) -> np.ndarray:
 
 
 def style_named(name: str, weight: float = 1.0) -> Style | None:
-    """The style `name` at `weight`; None for `none` (or a weight of 0)."""
-    if name not in STYLES:
-        raise StyleError(f"unknown style '{name}': use one of {', '.join(STYLES)}")
+    """The style `name` at `weight`: `none` (None, as is a weight of 0), `boxing`, or `FILE.toml:NAME`, the table
+    NAME of a style file."""
     if not np.isfinite(weight) or not 0.0 <= weight <= MAX_WEIGHT:
         raise StyleError(f"style weight {weight} must be a number from 0 to {MAX_WEIGHT:g}")
-    style = STYLES[name]
+    file, separator, table = name.rpartition(":")
+    if separator and file.endswith(STYLE_FILE_SUFFIX):
+        style: Style | None = load_style_file(Path(file)).get(table)
+        if style is None:
+            raise StyleError(f"{file} has no style '{table}' (it has {', '.join(load_style_file(Path(file))) or 'none'})")
+    elif name in STYLES:
+        style = STYLES[name]
+    else:
+        raise StyleError(f"unknown style '{name}': use {', '.join(STYLES)}, or FILE.toml:NAME for a style of a file "
+                         "(recipes/styles.toml, experiments/styles.toml)")
     if style is None or weight == 0.0:
         return None
-    return Style(**{**asdict(style), "weight": float(weight), "search_sigma": style.search_sigma})
+    return replace(style, weight=float(weight))
+
+
+def load_style_file(path: Path) -> dict[str, Style]:
+    """The styles of a style file: one TOML table a style, its keys `Style`'s fields (lists for the tuples), and
+    `base`, the name of an earlier table of the file (or `boxing`) whose values it changes."""
+    try:
+        tables = tomllib.loads(Path(path).read_text())
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as error:
+        raise StyleError(f"{path}: not a readable style file ({error})") from None
+    known = {field.name for field in fields(Style)}
+    styles: dict[str, Style] = {}
+    for name, table in tables.items():
+        if not isinstance(table, dict):
+            raise StyleError(f"{path}: '{name}' is not a table of a style's values")
+        values = dict(table)
+        base_name = values.pop("base", "boxing")
+        base = styles.get(base_name) if base_name != "boxing" else STYLES["boxing"]
+        if base is None:
+            raise StyleError(f"{path}: style '{name}' changes '{base_name}', which is no earlier style of the file")
+        unknown = sorted(set(values) - set(known) | ({"name", "weight"} & set(values)))
+        if unknown:
+            raise StyleError(f"{path}: style '{name}' sets {', '.join(unknown)}, which a style file cannot set "
+                             f"(its values: {', '.join(sorted(set(known) - {'name', 'weight'}))})")
+        try:
+            changed: dict[str, Any] = {key: tuple(float(v) for v in value) if isinstance(value, list) else type(getattr(base, key))(value)
+                       for key, value in values.items()}
+        except (TypeError, ValueError) as error:
+            raise StyleError(f"{path}: style '{name}': a value of the wrong kind ({error})") from None
+        styles[name] = replace(base, name=name, **changed)
+    return styles
 
 
 def style_label(style: Style | None) -> str:
