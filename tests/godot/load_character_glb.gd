@@ -4,7 +4,7 @@
 ## MeshInstance3D's skin, the mesh's height, and a posing check done on the CPU with Godot's own skinning
 ## formula (bone global pose * the skin's bind pose, weighted): at rest the skinned mesh must equal the mesh,
 ## and with the right arm turned to point forward, the vertices bound to the hand must follow the hand.
-## The bones' roles come from the file's `extras.punch_character.roles` (written by punch_trainer.characters).
+## The bones' roles come from the file's `extras.punch_character.roles` (written by tests/fixtures/characters).
 ##   godot --headless --path godot_project --script tests/godot/load_character_glb.gd -- a.glb b.glb
 ## Run by tests/python/test_characters.py. Exits 1 when a file does not load as a skinned character.
 extends SceneTree

@@ -7,6 +7,7 @@
 
 import os
 import shutil
+import sys
 import tempfile
 import time
 from collections.abc import Callable
@@ -19,6 +20,7 @@ from punch_trainer.sim.godot import run_godot
 
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
 FIXTURES = PROJECT_ROOT / "tests" / "fixtures"
+sys.path.insert(0, str(FIXTURES))  # the test characters' maker, `characters` (a fixture, not the trainer's)
 
 GODOT_STARTS_VARIABLE = "PUNCH_TEST_GODOT_STARTS"
 """names the file where the recording stand-in for $GODOT writes one line per Godot it starts"""

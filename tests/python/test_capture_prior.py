@@ -1,15 +1,14 @@
-"""The captured punches retargeted onto the character's joints (punch_trainer.report.capture_prior); skipped where
-../shared/data, which holds the capture, is not there."""
+"""The captured punches retargeted onto the character's joints (punch_trainer.capture.prior), from the capture
+shipped with the trainer (punch_trainer/data)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from punch_trainer.capture.prior import CapturePriorError, captured_actions, captured_joint_angles
+from punch_trainer.capture.punches import captured_punches
 from punch_trainer.learn.reach import placement
-from punch_trainer.report.capture_prior import CapturePriorError, captured_actions, captured_joint_angles
-from punch_trainer.report.mocap import DEFAULT_BVH
-from punch_trainer.report.naturalness import captured_punches
 from punch_trainer.sim.rewards import first_right_contact
 from punch_trainer.sim.rollouts import RolloutPool
 
@@ -18,10 +17,8 @@ NAMES = ["waist_flexion", "waist_rotation", "shoulder_r_flexion", "shoulder_r_ro
 LOWER_DEG = [-15, -45, -120, -60, -110, -25, -120, -80, -30, -25]
 UPPER_DEG = [30, 45, 90, 80, 30, 118, 90, 60, 110, 118]
 """the action table of docs/env.md"""
-needs_capture = pytest.mark.skipif(not DEFAULT_BVH.is_file(), reason=f"{DEFAULT_BVH} is not there")
 
 
-@needs_capture
 def test_every_captured_punch_is_a_straight_from_the_guard_in_the_characters_joints() -> None:
     """0 at movement onset; at full reach the trunk has turned left and barely leaned, the upper arm has swung
     forward (negative flexion) and the elbow has opened, as a straight does with the character's signs."""
@@ -33,7 +30,6 @@ def test_every_captured_punch_is_a_straight_from_the_guard_in_the_characters_joi
         assert -120.0 < shoulder_flexion < -70.0 and 80.0 < elbow < 135.0
 
 
-@needs_capture
 def test_the_actions_are_shares_of_each_range_and_the_guard_arm_holds() -> None:
     punch = captured_punches()[1]
     lower, upper = np.radians(LOWER_DEG).tolist(), np.radians(UPPER_DEG).tolist()
@@ -47,7 +43,6 @@ def test_the_actions_are_shares_of_each_range_and_the_guard_arm_holds() -> None:
         captured_actions(punch, NAMES[::-1], lower, upper, 10, 5, 120.0)
 
 
-@needs_capture
 @pytest.mark.godot
 def test_played_open_loop_most_captured_punches_reach_the_bag_and_the_guard_holds() -> None:
     """In the simulator, three of the four retargeted punches carry the right fist forward onto a bag in front at

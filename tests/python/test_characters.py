@@ -1,4 +1,4 @@
-"""The CC0 test characters (punch_trainer.characters): the converter writes small, well-formed skinned glTF files,
+"""The CC0 test characters (tests/fixtures/characters): the converter writes small, well-formed skinned glTF files,
 and a headless Godot loads every one at run time (GLTFDocument) as a Skeleton3D with the rig's bones, a skinned
 mesh of the requested height, bind poses that give back the mesh at rest, and a skin that follows a posed arm."""
 
@@ -10,8 +10,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from punch_trainer.characters import CHARACTERS, DEFAULT_OUT, make_characters
-from punch_trainer.characters.build import ROLES
+from characters import CHARACTERS, DEFAULT_OUT, make_characters
+from characters.build import ROLES
 from punch_trainer.sim.godot import GODOT_PROJECT, PROJECT_ROOT, run_godot
 
 LOADER = PROJECT_ROOT / "tests" / "godot" / "load_character_glb.gd"

@@ -1,7 +1,7 @@
-"""The trainer's layers: each subpackage imports only itself and those below it (characters <- sim <- learn <-
-report <- pipelines <- cli, where `characters`, the CC0 test characters, needs no other layer; `errors.py`,
-`options.py` and the package itself are shared), every import counted, at the top of a
-module or inside a function; and no modules import one another in a circle. That every Godot process is
+"""The trainer's layers: each subpackage imports only itself and those below it (capture <- sim <- learn <-
+report <- pipelines <- cli, where `capture`, the motion capture and its reading, needs no other layer;
+`errors.py`, `options.py`, `policy_file.py` and the package itself are shared), every import counted, at the top
+of a module or inside a function; and no modules import one another in a circle. That every Godot process is
 started in one place (sim/godot.py) is checked by test_godot_launcher.py."""
 
 import ast
@@ -11,7 +11,7 @@ from pathlib import Path
 from conftest import PROJECT_ROOT
 
 PACKAGE = PROJECT_ROOT / "trainer" / "punch_trainer"
-LAYERS = ["characters", "sim", "learn", "report", "pipelines", "cli"]
+LAYERS = ["capture", "sim", "learn", "report", "pipelines", "cli"]
 
 
 def module_name(path: Path, package: Path) -> str:

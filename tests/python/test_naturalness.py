@@ -1,5 +1,5 @@
 """The naturalness figures (docs/naturalness.md) on made-up punches with known answers, on the motion capture
-(skipped where ../shared/data is not there), and through the real `punch eval` on a shipped policy."""
+(shipped with the trainer, punch_trainer/data), and through the real `punch eval` on a shipped policy."""
 
 import json
 import math
@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from conftest import PROJECT_ROOT
-from punch_trainer.report.mocap import DEFAULT_BVH
+from punch_trainer.capture.bvh import DEFAULT_BVH
+from punch_trainer.capture.punches import captured_punches, speeds_from_positions
 from punch_trainer.report.naturalness import (
     FIGURES,
     in_proximal_to_distal_order,
@@ -17,7 +18,6 @@ from punch_trainer.report.naturalness import (
     naturalness_table,
     path_over_chord,
     punch_naturalness,
-    speeds_from_positions,
     summarise,
 )
 
@@ -27,7 +27,6 @@ NAMES += ["fist_r_bag_distance"]
 NAMES += [f"angle_{dof}" for dof in ("waist_flexion", "waist_rotation", "shoulder_r_flexion", "shoulder_r_rotation", "shoulder_r_abduction",
                                      "elbow_r_extension", "shoulder_l_flexion", "shoulder_l_rotation", "shoulder_l_abduction", "elbow_l_extension")]
 NAMES += [name.replace("angle_", "speed_") for name in NAMES if name.startswith("angle_")]
-needs_capture = pytest.mark.skipif(not DEFAULT_BVH.is_file(), reason=f"{DEFAULT_BVH} is not there")
 
 
 def made_up_punch(frames=40, contact=20, fist_speed=5.0, peaks=(5, 8, 12)):
@@ -137,13 +136,12 @@ def test_the_stick_figure_of_the_guard_is_the_rest_pose():
     assert shoulder == pytest.approx([0.18, 1.056 + 0.364 * np.cos(np.radians(30)), 0.364 * np.sin(np.radians(30))])
 
 
-@needs_capture
 def test_the_captured_punches_give_the_figures_of_the_data_readme():
     from punch_trainer.report.naturalness import capture_figures
 
     punches = capture_figures(DEFAULT_BVH)
     assert punches is not None and len(punches) == 4
-    # ../shared/data/README.md, "Figures of the four punches".
+    # punch_trainer/data/README.md, "Figures of the four punches".
     assert [round(p.path_over_chord, 2) for p in punches] == [1.03, 1.11, 1.07, 1.12]
     assert [round(100 * p.chord_distance_m, 1) for p in punches] == [4.7, 13.9, 9.2, 12.6]
     assert [round(p.fist_peak_speed_mps, 1) for p in punches] == [6.9, 8.4, 6.3, 7.1]
@@ -153,9 +151,7 @@ def test_the_captured_punches_give_the_figures_of_the_data_readme():
     assert all(12 <= p.trunk_flexion_deg <= p.trunk_flexion_whole_deg <= 17 for p in punches)
 
 
-@needs_capture
 def test_the_capture_plots_are_written(tmp_path):
-    from punch_trainer.report.naturalness import captured_punches
     from punch_trainer.report.naturalness_plots import plot_capture_comparison, plot_stick_strip
 
     capture = captured_punches(DEFAULT_BVH)
@@ -182,6 +178,5 @@ def test_punch_eval_reports_the_naturalness_of_a_shipped_policy(tmp_path):
     assert len(written["evaluations"][0]["naturalness_at_sigma0"]) == 3
     text = (out / "report.md").read_text()
     assert "| punching fist path length / chord |" in text and "| figure (median) | sigma 0 | sigma 0.3 |" in text
-    if DEFAULT_BVH.is_file():
-        assert (out / "naturalness_fig4.png").is_file() and (out / "naturalness_strip.png").is_file()
-        assert len(written["captured_naturalness"]) == 4
+    assert (out / "naturalness_fig4.png").is_file() and (out / "naturalness_strip.png").is_file()
+    assert len(written["captured_naturalness"]) == 4

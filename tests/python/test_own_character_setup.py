@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from punch_trainer.characters import DEFAULT_OUT, make_characters
+from characters import DEFAULT_OUT, make_characters
 from punch_trainer.sim.godot import GODOT_PROJECT, PROJECT_ROOT, run_godot
 
 pytestmark = pytest.mark.godot

@@ -55,10 +55,8 @@ def test_a_reward_written_from_scratch_drives_the_search(tmp_path):
 
 
 def test_capture_clip_reads_as_a_punch():
-    from punch_trainer.report.mocap import DEFAULT_BVH, captured_punch
+    from punch_trainer.capture.bvh import DEFAULT_BVH, captured_punch
 
-    if not DEFAULT_BVH.is_file():
-        pytest.skip(f"{DEFAULT_BVH} is not there")
     punch = captured_punch(DEFAULT_BVH)
     reach = punch["hand"][-1]
     assert reach[2] == pytest.approx(np.linalg.norm(reach), rel=0.05), "aligned: the reach points forward"

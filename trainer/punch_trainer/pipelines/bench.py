@@ -7,6 +7,8 @@ import json
 import os
 import platform
 import re
+import subprocess
+import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -387,16 +389,21 @@ IDLE_FRAMES = 120
 SKELETON_BENCH_CHARACTER = "mixamo_190"
 
 
-def skeleton_bench_rig() -> Path | None:
-    """The converted CC0 character's glb (made if it is not yet), or None when it cannot be made (then the rig
-    the test script builds at run time is measured)."""
-    from punch_trainer.characters import DEFAULT_OUT, make_characters
+CHARACTER_MAKER = PROJECT_ROOT / "tests" / "fixtures" / "characters"
+"""the tests' maker of the CC0 characters (a test fixture, as the bench's Godot script is a test script)"""
+CHARACTERS_DIR = PROJECT_ROOT / ".cache" / "characters"
 
+
+def skeleton_bench_rig() -> Path | None:
+    """The converted CC0 character's glb (made by the tests' `CHARACTER_MAKER` if it is not yet), or None when it
+    cannot be made (then the rig the test script builds at run time is measured)."""
+    command = [sys.executable, str(CHARACTER_MAKER), "--out", str(CHARACTERS_DIR), "--only", SKELETON_BENCH_CHARACTER]
     try:
-        manifest = make_characters(DEFAULT_OUT, only=[SKELETON_BENCH_CHARACTER])
-    except (PunchError, OSError):
+        made = subprocess.run(command, capture_output=True, text=True, timeout=600, check=False)
+        manifest = json.loads((CHARACTERS_DIR / "characters.json").read_text()) if made.returncode == 0 else {}
+    except (OSError, ValueError, subprocess.TimeoutExpired):
         return None
-    files = [DEFAULT_OUT / c["file"] for c in manifest["characters"] if c["name"] == SKELETON_BENCH_CHARACTER]
+    files = [CHARACTERS_DIR / c["file"] for c in manifest.get("characters", []) if c.get("name") == SKELETON_BENCH_CHARACTER]
     return files[0] if files and files[0].is_file() else None
 
 

@@ -34,16 +34,16 @@ from typing import Any
 
 import numpy as np
 
+from punch_trainer.capture.bvh import DEFAULT_BVH
+from punch_trainer.capture.punches import captured_punches
 from punch_trainer.learn.reach import HELD_OUT_SEED, ReachVolume
 from punch_trainer.learn.search import SearchArgs, placement_search
 from punch_trainer.learn.volume import success, success_interval
 from punch_trainer.options import bounds
 from punch_trainer.pipelines.replay import ReplayArgs, ReplayError, analyse_sigma, policy_metadata, run_godot_replay
-from punch_trainer.report.mocap import DEFAULT_BVH
 from punch_trainer.report.naturalness import (
     NaturalnessSummary,
     capture_figures,
-    captured_punches,
     naturalness_table,
     punches_naturalness,
     summarise,
@@ -201,11 +201,9 @@ def evaluate_policy(policy: Path, args: EvalArgs, still: list[BagPlacement], mov
 
 def plot_naturalness(out: Path, base: dict[str, Any], placements: list[BagPlacement], suffix: str = "") -> list[Path]:
     """Fig. 4 of a policy's noise-free punches (`base`, with features) against the capture, and the stick-figure
-    strip of its punch at the placement nearest the middle of `placements`; none when the capture is not there."""
+    strip of its punch at the placement nearest the middle of `placements`."""
     from punch_trainer.report.naturalness_plots import plot_capture_comparison, plot_stick_strip
 
-    if not DEFAULT_BVH.is_file():
-        return []
     capture = captured_punches(DEFAULT_BVH)
     points = np.array([[p.distance_m, p.height_m, p.side_m] for p in placements])
     spread = np.where(points.std(axis=0) > 0, points.std(axis=0), 1.0)

@@ -9,7 +9,8 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from punch_trainer.report.naturalness import CapturedPunch, contact_frame, trunk_lean_deg
+from punch_trainer.capture.punches import CapturedPunch
+from punch_trainer.report.naturalness import contact_frame, trunk_lean_deg
 
 plt.switch_backend("Agg")  # files only, no display
 

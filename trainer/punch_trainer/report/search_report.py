@@ -10,9 +10,10 @@ from typing import Any
 import numpy as np
 
 from punch_trainer import __version__
+from punch_trainer.capture.bvh import DEFAULT_BVH, captured_punch
 from punch_trainer.learn.checkpoint import write_config
 from punch_trainer.learn.search import SearchArgs, SearchResult
-from punch_trainer.report.mocap import DEFAULT_BVH, captured_punch, plot_against_capture
+from punch_trainer.report.mocap import plot_against_capture
 from punch_trainer.report.plots import plot_search
 from punch_trainer.sim.rewards import Reward
 from punch_trainer.sim.server import ServerInfo

@@ -1,23 +1,23 @@
 """The captured punches retargeted onto the character's joints: a prior from motion capture (docs/experiments.md,
 "The captured punches as the search's start, and tracked").
 
-A captured punch (report/naturalness.py: CMU 143/23, turned so that its reach points at +Z with +X the boxer's
+A captured punch (capture/punches.py: CMU 143/23, turned so that its reach points at +Z with +X the boxer's
 left, as the character's frame) becomes, for the trunk and the punching arm, each joint's rotation since the
 guard, taken as the capture's pose at movement onset, in its parent's frame: the trunk relative to the hips
 (flexion about X, turn about Y), the upper arm relative to the trunk (the rotation vector's X, Y and Z: flexion,
 rotation, abduction, from the upper arm's direction and the plane of the forearm) and the elbow's opening. These
 are the signs of the action table in docs/env.md (a forward flexion of the shoulder is negative, the trunk turning
 left positive). The guard arm stays at its guard. As actions, each angle is a share of the joint's range, so the
-action sequence can start a trajectory search (`placement_search(init_mu=...)`). The capture is the team's
-reference data (../shared/data, `report.mocap.DEFAULT_BVH`), not part of the project; this module sits with the
-capture's reading (report), above the search (learn) it can start."""
+action sequence can start a trajectory search (`placement_search(init_mu=...)`). The capture ships with the
+trainer (punch_trainer/data, `capture.bvh.DEFAULT_BVH`); this module sits with its reading (the `capture`
+layer), below the search (learn) it can start."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from punch_trainer.capture.punches import CapturedPunch, angle_between
 from punch_trainer.errors import PunchError
-from punch_trainer.report.naturalness import CapturedPunch, angle_between
 
 CAPTURED_JOINTS = ("waist_flexion", "waist_rotation", "shoulder_r_flexion", "shoulder_r_rotation",
                    "shoulder_r_abduction", "elbow_r_extension")
