@@ -243,13 +243,16 @@ def run_recipe(recipe: Recipe, run_dir: Path, *, use: Mapping[str, Path] | None 
         recipe.stage(name)
         if not Path(file).is_file():
             raise RecipeError(f"--use {name}={file}: no such policy file")
-    if until is not None:
-        recipe.stage(until)
+    target = recipe.stage(until) if until is not None else recipe.stages[-1]
+    needed = needed_stages(recipe, target.name, set(use))
     made: dict[str, Path] = {}
     results: list[StageResult] = []
     for index, stage in enumerate(recipe.stages, start=1):
         started = time.perf_counter()
         heading = f"[{index}/{len(recipe.stages)}] {stage.name}"
+        if stage.name not in needed:
+            say(f"{heading}: not needed (what it feeds was handed in, or comes after --until)")
+            continue
         if stage.name in use:
             made[stage.name] = Path(use[stage.name])
             results.append(StageResult(stage.name, f"(handed in: {use[stage.name]})", made[stage.name], 0.0, True))
@@ -288,6 +291,22 @@ def run_recipe(recipe: Recipe, run_dir: Path, *, use: Mapping[str, Path] | None 
         shutil.copyfile(final, run_dir / "policy.onnx")
         write_report(recipe, run_dir, results)
     return results
+
+
+def needed_stages(recipe: Recipe, target: str, handed_in: set[str]) -> set[str]:
+    """The stages `target` is made from (itself included), not looking past a stage that was handed in."""
+    needed, waiting = set(), [target]
+    while waiting:
+        name = waiting.pop()
+        if name in needed:
+            continue
+        needed.add(name)
+        if name in handed_in:
+            continue
+        stage = recipe.stage(name)
+        sources = stage.ingredients if isinstance(stage, SoupStage) else (stage.source,) if stage.source else ()
+        waiting += [source for source in sources if any(s.name == source for s in recipe.stages)]
+    return needed
 
 
 def policy_file(output: Path) -> Path:
