@@ -130,3 +130,16 @@ def test_a_recipe_runs_its_stages_in_order_and_a_second_run_keeps_them(tmp_path:
     recipe_path.write_text(SMALL.replace("seed = 1", "seed = 2"))
     with pytest.raises(RecipeError, match="made with other options \\(seed\\)"):
         run_recipe(load_recipe(recipe_path), out, progress=False, say=lambda _: None)
+
+
+def test_a_stage_handed_in_spares_the_stages_it_was_made_from(tmp_path: Path) -> None:
+    recipe = load_recipe(ROOT / "recipes" / "straight.toml")
+    handed_in = tmp_path / "in_order.onnx"
+    handed_in.write_bytes((SHIPPED / "straight.onnx").read_bytes())
+    lines: list[str] = []
+    results = run_recipe(recipe, tmp_path / "run", use={"ordered_floor": handed_in}, dry_run=True, say=lines.append)
+    run = [result.name for result in results]
+    assert run == ["ordered_floor", "clean", "blend", "clean_blend", "noise", "noise2", "noise3", "shipped"]
+    assert sum("not needed" in line for line in lines) == 7
+    with pytest.raises(RecipeError, match="no stage 'sloppy'"):
+        run_recipe(recipe, tmp_path / "run", use={"sloppy": handed_in}, dry_run=True, say=lines.append)
