@@ -30,7 +30,7 @@ class StyleExperimentArgs:
     reward: str = "straight"
     """the reward every style is added to"""
     styles: list[str] = field(default_factory=lambda: ["none", "boxing"])
-    """the styles to compare (sim/style.py)"""
+    """the styles to compare: none, boxing, or FILE.toml:NAME (experiments/styles.toml holds the ones tried)"""
     seeds: list[int] = field(default_factory=lambda: [0, 1], metadata=bounds(0, 2**32 - 1, max_items=16))
     """search seeds"""
     iterations: int = field(default=100, metadata=bounds(1, 10_000))
