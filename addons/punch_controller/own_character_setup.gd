@@ -4,8 +4,11 @@
 ## puts it), a sandbag in front of it where the policies are trained to find it, a PunchController wired to both
 ## with the straight policy, and a PunchSkeletonModifier under the rig's Skeleton3D pointing at the controller (its
 ## `size_to_rig` sizes the simulated arms to the rig's before the first punch). The rig's AnimationPlayers and
-## AnimationTrees are switched to physics process, as step 1 of the README asks. A skeleton whose bones the
-## modifier cannot map gets the modifier's own message, and nothing is added.
+## AnimationTrees are switched to physics process, as step 1 of the README asks. A skeleton inside an instanced
+## model (an imported .glb or a .tscn dropped into the scene) gets the model's Editable Children turned on in the
+## same action, as the editor's menu would: a node added under a model whose children are not editable is not
+## saved with the scene. A skeleton whose bones the modifier cannot map gets the modifier's own message, and
+## nothing is added.
 ## Used by the editor plugin (Project > Tools > "Make Selected Skeleton Punch"); tests call it with an UndoRedo.
 extends RefCounted
 
@@ -53,9 +56,10 @@ static func scene_problem(root: Node, skeleton: Skeleton3D) -> String:
 
 
 ## Sets up `skeleton` (in the scene under `root`) to punch, as one action of `undo` (the editor's
-## EditorUndoRedoManager or an UndoRedo). Returns {"ok": true, "controller", "character", "sandbag", "modifier"},
-## or {"ok": false, "message": why} with nothing added: a skeleton the modifier cannot map gets the modifier's
-## own words (the roles with no bone, and what was looked for).
+## EditorUndoRedoManager or an UndoRedo). Returns {"ok": true, "controller", "character", "sandbag", "modifier",
+## "made_editable": the instanced models whose Editable Children the action turned on}, or {"ok": false,
+## "message": why} with nothing added: a skeleton the modifier cannot map gets the modifier's own words (the roles
+## with no bone, and what was looked for).
 static func make_skeleton_punch(root: Node, skeleton: Skeleton3D, undo: Object) -> Dictionary:
 	var problem := scene_problem(root, skeleton)
 	if problem != "":
@@ -87,7 +91,10 @@ static func make_skeleton_punch(root: Node, skeleton: Skeleton3D, undo: Object) 
 	var offset: Vector3 = ClassDB.class_call_static("PunchSpec", "default_target_offset")
 	sandbag.transform = to_root * Transform3D(place.basis, place * offset)
 
+	var closed := closed_instances(root, skeleton)
 	undo.create_action(ACTION)
+	for instance in closed:
+		_call(undo, root, "set_editable_instance", [instance, true], [instance, false])
 	for node in [character, sandbag, controller]:
 		_add_child(undo, root, node, root)
 	_add_child(undo, skeleton, modifier, root)
@@ -100,7 +107,20 @@ static func make_skeleton_punch(root: Node, skeleton: Skeleton3D, undo: Object) 
 			undo.add_do_property(mixer, "callback_mode_process", physics)
 			undo.add_undo_property(mixer, "callback_mode_process", mixer.callback_mode_process)
 	undo.commit_action()
-	return {"ok": true, "controller": controller, "character": character, "sandbag": sandbag, "modifier": modifier}
+	return {"ok": true, "controller": controller, "character": character, "sandbag": sandbag, "modifier": modifier,
+		"made_editable": closed}
+
+
+## The instanced scenes between `root` and `skeleton` (their root nodes, outermost last) whose children are not
+## editable in `root`'s scene: a node added under one of them would be left out when the scene is saved.
+static func closed_instances(root: Node, skeleton: Node) -> Array[Node]:
+	var closed: Array[Node] = []
+	var node := skeleton
+	while node != null and node != root:
+		if node.scene_file_path != "" and not root.is_editable_instance(node):
+			closed.append(node)
+		node = node.get_parent()
+	return closed
 
 
 ## Where the PunchSkeletonModifier's `follow_rig` puts the simulated character (global): turned about +Y to face
@@ -130,6 +150,17 @@ static func _animation_mixers(root: Node, skeleton: Skeleton3D) -> Array[Node]:
 	if model is AnimationMixer:
 		mixers.push_front(model)
 	return mixers
+
+
+## Calls `object.method` with `arguments` as part of `undo`'s action, and with `undo_arguments` to undo it (an
+## EditorUndoRedoManager or an UndoRedo, as `_add_child`).
+static func _call(undo: Object, object: Object, method: String, arguments: Array, undo_arguments: Array) -> void:
+	if undo is UndoRedo:
+		undo.add_do_method(Callable(object, method).bindv(arguments))
+		undo.add_undo_method(Callable(object, method).bindv(undo_arguments))
+	else:
+		undo.callv("add_do_method", [object, method] + arguments)
+		undo.callv("add_undo_method", [object, method] + undo_arguments)
 
 
 ## Adds `node` under `parent`, owned by `owner` (so that the scene saves it), as part of `undo`'s action; takes

@@ -96,8 +96,9 @@ func add_punching_character() -> void:
 
 
 ## Makes the selected Skeleton3D (or the scene's only one) punch: a PunchSkeletonModifier under it, the simulated
-## character on the rig, a sandbag in front and a wired PunchController, as one undoable action. Says why in a
-## dialog (and the Output) when there is no such skeleton or it lacks bones the modifier needs.
+## character on the rig, a sandbag in front and a wired PunchController, as one undoable action (which turns on
+## Editable Children for an instanced model, saying so in the Output). Says why in a dialog (and the Output) when
+## there is no such skeleton or it lacks bones the modifier needs.
 func make_selected_skeleton_punch() -> void:
 	var root := EditorInterface.get_edited_scene_root()
 	var skeleton := OwnCharacterSetup.find_skeleton(root, EditorInterface.get_selection().get_selected_nodes())
@@ -113,6 +114,11 @@ func make_selected_skeleton_punch() -> void:
 		EditorInterface.get_base_control().add_child(dialog)
 		dialog.popup_centered()
 		return
+	for model in made.made_editable:
+		# Without Editable Children the modifier under the model's Skeleton3D would not be saved with the scene.
+		push_warning(("Punch Controller: turned on Editable Children for '%s' (an instanced model), so that the "
+			+ "PunchSkeletonModifier under its Skeleton3D is saved with the scene. Keep it on; undo removes both.")
+			% model.name)
 	EditorInterface.get_selection().clear()
 	EditorInterface.get_selection().add_node(made.controller)
 

@@ -81,12 +81,12 @@ func _physics_process(_delta: float) -> bool:
 		if _pending > 0:
 			return false
 		if _idle_frames_left < 0 and int(_options["idle-frames"]) > 0:
-			_controller_frame_usec.append(Engine.get_singleton("PunchInference").take_frame_cost_usec())
+			_controller_frame_usec.append(PunchProbe.take_frame_cost_usec())
 			_idle_frames_left = int(_options["idle-frames"]) + 1
 			_idle_frame_usec.append([])
 		if _idle_frames_left > 0:
 			# Frame by frame: a median is not moved by the rare frame the OS takes the thread away.
-			_idle_frame_usec[-1].append(Engine.get_singleton("PunchInference").take_frame_cost_usec())
+			_idle_frame_usec[-1].append(PunchProbe.take_frame_cost_usec())
 			_idle_frames_left -= 1
 			if _idle_frames_left > 0:
 				return false
@@ -128,7 +128,7 @@ func _start_batch() -> void:
 			velocity = Vector3(entry.get("velocity_side_mps", 0.0), 0.0, entry.get("velocity_forward_mps", 0.0))
 		var controller := PunchPair.add(arena, slot % per_world, Vector3.ZERO, offset,
 			_options.policy, _sigmas[_sigma_index], int(_options["noise-decisions"]), seed, velocity)
-		controller.set("record", true)
+		PunchProbe.set_recording(controller, true)
 		controller.set("auto_recover", false)  # each batch's scene is freed after its punches
 		var lead_punches := [1 if _options.start == "after_punch" else 0]
 		var bag_body: RigidBody3D = controller.get("target")
@@ -148,8 +148,8 @@ func _start_batch() -> void:
 				_pending -= 1)
 		_controllers.append(controller)
 	_pending = count
-	Engine.get_singleton("PunchInference").take_inference_counts()
-	Engine.get_singleton("PunchInference").take_frame_cost_usec()
+	PunchProbe.take_inference_counts()
+	PunchProbe.take_frame_cost_usec()
 	for controller in _controllers:
 		if not controller.call("punch"):
 			_fail("PunchController refused to punch (see the error above)")
@@ -157,16 +157,16 @@ func _start_batch() -> void:
 
 
 func _collect_batch() -> void:
-	var counts: Dictionary = Engine.get_singleton("PunchInference").take_inference_counts()
+	var counts: Dictionary = PunchProbe.take_inference_counts()
 	for key in _inference:
 		_inference[key] += counts[key]
 	if int(_options["idle-frames"]) == 0:  # else taken before the idle frames
-		_controller_frame_usec.append(Engine.get_singleton("PunchInference").take_frame_cost_usec())
+		_controller_frame_usec.append(PunchProbe.take_frame_cost_usec())
 	if _episodes_done == 0:
 		for kind in ["features", "observations", "mean_actions", "actions"]:
 			_files[kind] = FileAccess.open(_options.out.path_join("%s_%d.f32" % [kind, _sigma_index]), FileAccess.WRITE)
 	for controller in _controllers:
-		var record: Dictionary = controller.call("last_punch_record")
+		var record: Dictionary = PunchProbe.last_punch_record(controller)
 		_meta["frames"] = record.frames
 		_meta["decisions"] = record.decisions
 		for kind in _files:

@@ -59,10 +59,12 @@ func _bad_files() -> void:
 	for case in [["missing", "res://no/such/policy.onnx"], ["corrupt", _args.corrupt], ["incompatible", _args.tiny], ["empty", ""]]:
 		controller.set("policy", load(case[1]) if case[1] != "" else null)
 		refused[case[0]] = not controller.call("punch")
+	# A policy trained for another spec (its hash names another decision period or observation) is refused.
+	controller.set("policy", load(_args["other-spec"]))
+	refused["other_spec"] = not controller.call("punch")
 	controller.set("policy", load(_args.policy))
-	controller.set("decision_period", 4)
-	refused["wrong_decision_period"] = not controller.call("punch")
-	controller.set("decision_period", 5)
+	controller.set("decision_period", 4)  # read-only: it stays the policy's
+	refused["decision_period_read_only"] = controller.get("decision_period") == 5
 	refused["good_policy_afterwards_punches"] = controller.call("punch")
 	_report["refused"] = refused
 	if _args.has("incomplete"):

@@ -40,7 +40,7 @@ func _initialize() -> void:
 		controller.set("target", sandbag.get_node("Bag"))
 		_bag_starts[name] = sandbag.transform * sandbag.get_node("Bag").transform
 		controller.set("policy", load(STRAIGHT))
-		controller.set("record", true)
+		PunchProbe.set_recording(controller, true)
 		if name == "recover":
 			controller.set("auto_recover", false)
 		if name == "again_raw":
@@ -61,7 +61,7 @@ func _initialize() -> void:
 
 func _on_finished(name: String, controller: Node, metrics: Dictionary) -> void:
 	_report[name].finished.append(metrics)
-	var record: Dictionary = controller.call("last_punch_record")
+	var record: Dictionary = PunchProbe.last_punch_record(controller)
 	if name.begins_with("ready"):
 		_report[name].features = Array(record.features)
 	if name.begins_with("again"):

@@ -56,14 +56,14 @@ func _initialize() -> void:
 	_controller = ClassDB.instantiate("PunchController")
 	_controller.set("character", _character)
 	_controller.set("target", _target())
-	_controller.set("record", true)
+	PunchProbe.set_recording(_controller, true)
 	if policy != "":
 		_controller.set("policy", load(policy))
 	root.add_child(_controller)
 	_controller.connect("punch_started", func(): _report.started += 1)
 	_controller.connect("hit", func(_impulse, _hit_speed, _position, _body, _push): _report.hits += 1)
 	_controller.connect("punch_finished", func(metrics: Dictionary):
-		var record: Dictionary = _controller.call("last_punch_record")
+		var record: Dictionary = PunchProbe.last_punch_record(_controller)
 		var gap_column: int = Array(PunchSpec.feature_names()).find("joint_gap_max_m")
 		var features: PackedFloat32Array = record.features
 		var count: int = PunchSpec.feature_names().size()

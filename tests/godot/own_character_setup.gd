@@ -1,7 +1,8 @@
 ## The editor plugin's "Make Selected Skeleton Punch" (`own_character_setup.gd`), run headless with a plain
 ## UndoRedo in place of the editor's: a converted CC0 character (--glb=PATH, loaded with GLTFDocument as a game's
 ## imported model, turned and moved, with an AnimationPlayer) in a level scene gets its modifier, simulated
-## character, sandbag and controller as one action, which undoes, redoes and saves (PackedScene.pack); a skeleton
+## character, sandbag and controller as one action, which undoes, redoes and saves (PackedScene.pack), also when
+## the model is instanced from a scene file without Editable Children (the action turns them on); a skeleton
 ## with meaningless bone names gets the modifier's message and nothing added; two skeletons and none are refused.
 ## Then the character punches the sandbag the action placed (--policy is not needed: the action picks the addon's
 ## straight policy).
@@ -84,6 +85,10 @@ func _run(glb: String) -> void:
 	_report.two_skeletons = _refused(level, null)
 	unnamed.free()
 
+	# The same model instanced from a scene file without Editable Children, as dropped into a level in the editor:
+	# the action turns them on, so that the modifier under its Skeleton3D is saved with the level.
+	_report.instanced = _instanced(document.generate_scene(state))
+
 	# The set-up character punches its sandbag.
 	var landed := {"hits": 0, "on_bag": 0, "finished": false}
 	var bag := sandbag.get_node("Bag")
@@ -104,7 +109,7 @@ func _run(glb: String) -> void:
 		if landed.finished:
 			break
 	_report.punch = landed
-	_report.written_bones = (modifier.call("written_bones") as PackedStringArray).size()
+	_report.written_bones = PunchProbe.written_bones(modifier).size()
 	_finish(undo)
 
 
@@ -162,6 +167,36 @@ func _saved(level: Node3D) -> Dictionary:
 		"bags": copy.find_children("Bag", "RigidBody3D", true, false).size()}
 	copy.free()
 	return saved
+
+
+## Saves `model` as a scene file, instances it into a new level (its children not editable) and sets it up.
+func _instanced(model: Node3D) -> Dictionary:
+	model.name = "Model"
+	for child in model.get_children():
+		_own(child, model)
+	var file := PackedScene.new()
+	file.pack(model)
+	model.free()
+	var path := "user://own_character_setup_model.tscn"
+	ResourceSaver.save(file, path)
+	var instance: Node3D = (load(path) as PackedScene).instantiate(PackedScene.GEN_EDIT_STATE_INSTANCE)
+	var level := Node3D.new()
+	level.name = "InstancedLevel"
+	level.position = Vector3(0, 0, 10)
+	root.add_child(level)
+	level.add_child(instance)
+	instance.owner = level
+	var undo := UndoRedo.new()
+	var skeleton := Setup.find_skeleton(level, [instance])
+	var made := Setup.make_skeleton_punch(level, skeleton, undo)
+	var result := {"ok": made.ok, "made_editable": made.get("made_editable", []).map(func(n): return String(n.name)),
+		"editable": level.is_editable_instance(instance), "saved_modifiers": _saved(level).modifiers}
+	undo.undo()
+	result.undone_editable = level.is_editable_instance(instance)
+	level.free()
+	undo.free()
+	DirAccess.remove_absolute(path)
+	return result
 
 
 ## The message the action gives for the level as it is, with no skeleton chosen.

@@ -38,11 +38,11 @@ func _initialize() -> void:
 func _physics_process(_delta: float) -> bool:
 	_frames += 1
 	if _frames == 2:
-		Engine.get_singleton("PunchInference").take_inference_counts()
+		PunchProbe.take_inference_counts()
 		for controller in _controllers:
 			controller.call("punch")
 	if _report.finished.size() == PAIRS and _second_round_frame < 0:
-		_report.inference = Engine.get_singleton("PunchInference").take_inference_counts()
+		_report.inference = PunchProbe.take_inference_counts()
 		_second_round_frame = _frames
 		for pair in PAIRS:
 			_controllers[pair].get("character").call("reset_pose")

@@ -73,7 +73,7 @@ func _controller_for(name: String, character: Node3D, target: Node3D) -> Node:
 	controller.set("character", character)
 	controller.set("target", target)
 	controller.set("policy", load(STRAIGHT))
-	controller.set("record", true)
+	PunchProbe.set_recording(controller, true)
 	controller.set("auto_recover", false)
 	_controllers[name] = controller
 	if not _report.has(name):
@@ -127,7 +127,7 @@ func _on_finished(name: String, controller: Node, metrics: Dictionary) -> void:
 		controller.queue_free()  # (Godot refuses free() of an object emitting a signal)
 		return
 	if is_instance_valid(controller) and controller.is_inside_tree():
-		var record: Dictionary = controller.call("last_punch_record")
+		var record: Dictionary = PunchProbe.last_punch_record(controller)
 		if record.decisions > 0:
 			_report[name].first_means.append(Array(record.mean_actions.slice(0, 10)))
 	if name == "free_other_in_finished" and _events(name).count("F:completed") == 1:

@@ -20,8 +20,8 @@
 ## With --bench=N (for `punch bench inference`): N copies of the first --glb (else of the mixamo_t_y rig), no twins
 ## and nothing recorded, each punching its sandbag --bench-punches=P times (3) one after another; prints
 ## `SKELETON_BENCH <json>`: the rig, its bone count, the bones written, the modifiers' mean time per character-frame
-## in which they wrote (`PunchSkeletonModifier.take_cost_usec`) and the controllers' mean work per physics frame
-## since the first punch over N (`PunchInference.take_frame_cost_usec`).
+## in which they wrote (`PunchProbe.take_skeleton_cost_usec`) and the controllers' mean work per physics frame
+## since the first punch over N (`PunchProbe.take_frame_cost_usec`).
 extends SceneTree
 
 ## name, naming, arm drop (deg: 0 T-pose), convention ("y" or "x"), arm scale, yaw (deg), position
@@ -404,8 +404,8 @@ func _physics_process(_delta: float) -> bool:
 			if entry.modifier.call("is_mapped"):
 				entry.controller.call("punch")
 		if _bench > 0:
-			PunchSkeletonModifier.take_cost_usec()
-			Engine.get_singleton("PunchInference").take_frame_cost_usec()
+			PunchProbe.take_skeleton_cost_usec()
+			PunchProbe.take_frame_cost_usec()
 	if _bench > 0:
 		if _frames > 8:
 			_bench_frame()
@@ -414,7 +414,7 @@ func _physics_process(_delta: float) -> bool:
 		var report := []
 		for entry in _rigs:
 			report.append(_summary(entry))
-		print("SKELETON_MODIFIER_COST ", JSON.stringify(PunchSkeletonModifier.take_cost_usec()))
+		print("SKELETON_MODIFIER_COST ", JSON.stringify(PunchProbe.take_skeleton_cost_usec()))
 		print("SKELETON_MODIFIER ", JSON.stringify(report))
 		quit(0)
 	return false
@@ -437,15 +437,15 @@ func _bench_frame() -> void:
 			done += 1
 	if done < _rigs.size() and _frames < 8 + 400 * _bench_punches:
 		return
-	var cost: Dictionary = PunchSkeletonModifier.take_cost_usec()
+	var cost: Dictionary = PunchProbe.take_skeleton_cost_usec()
 	var skeleton: Skeleton3D = _rigs[0].skeleton
 	var punches := 0
 	for entry in _rigs:
 		punches += entry.get("punches", 1)
 	# The controllers' mean work per physics frame since the first punch, all of them together.
-	var controller_usec: float = Engine.get_singleton("PunchInference").take_frame_cost_usec()
+	var controller_usec: float = PunchProbe.take_frame_cost_usec()
 	print("SKELETON_BENCH ", JSON.stringify({"rig": _bench_rig, "characters": _rigs.size(),
-		"bones": skeleton.get_bone_count(), "written": _rigs[0].modifier.call("written_bones").size(),
+		"bones": skeleton.get_bone_count(), "written": PunchProbe.written_bones(_rigs[0].modifier).size(),
 		"punches": punches, "character_frames": cost.frames,
 		"skeleton_usec_per_character_frame": cost.usec_per_frame,
 		"controller_usec_per_character_frame": controller_usec / _rigs.size()}))
@@ -455,7 +455,7 @@ func _bench_frame() -> void:
 func _summary(entry: Dictionary) -> Dictionary:
 	var skeleton: Skeleton3D = entry.skeleton
 	var modifier: Node = entry.modifier
-	var written: PackedStringArray = modifier.call("written_bones")
+	var written: PackedStringArray = PunchProbe.written_bones(modifier)
 	var written_ids: Array[int] = []
 	for name in written:
 		written_ids.append(skeleton.find_bone(name))

@@ -35,10 +35,10 @@ func _initialize() -> void:
 		controller.set("character", character)
 		controller.set("target", sandbag.get_node("Bag"))
 		controller.set("policy", load(policy))
-		controller.set("record", true)
+		PunchProbe.set_recording(controller, true)
 		root.add_child(controller)
 		controller.connect("punch_finished", func(metrics):
-			var record: Dictionary = controller.call("last_punch_record")
+			var record: Dictionary = PunchProbe.last_punch_record(controller)
 			_finished[index] = {"yaw": pose[0], "hits": metrics.hits, "peak_fist_speed_mps": metrics.peak_fist_speed_mps,
 				"features": Array(record.features)})
 		_controllers.append(controller)

@@ -84,14 +84,17 @@ def test_controller_faults_give_clear_errors_and_the_game_goes_on(policy, tmp_pa
     contract = policy_metadata(policy)
     nan = nan_policy(tmp_path / "nan.onnx", contract)
     incomplete = nan_policy(tmp_path / "incomplete.onnx", {k: v for k, v in contract.items() if k != "punch_smoothing_window"})
+    other_spec = nan_policy(tmp_path / "other_spec.onnx", {**contract, "punch_spec_hash": "0" * 16})
     run = run_script("controller_faults.gd", f"--policy={policy}", f"--nan-policy={nan}", f"--corrupt={corrupt}",
-                     f"--tiny={FIXTURES / 'tiny_actor.onnx'}", f"--pck={tmp_path / 'game.pck'}", f"--incomplete={incomplete}")
+                     f"--tiny={FIXTURES / 'tiny_actor.onnx'}", f"--pck={tmp_path / 'game.pck'}", f"--incomplete={incomplete}",
+                     f"--other-spec={other_spec}")
     assert run.fatal_lines() == [], run.log[-3000:]
     line = next((line for line in run.log.splitlines() if line.startswith("FAULTS ")), None)
     assert line, f"the game did not reach its end:\n{run.log[-3000:]}"
     report = json.loads(line[len("FAULTS "):])
     assert report["refused"] == {"missing": True, "corrupt": True, "incompatible": True, "empty": True,
-                                 "wrong_decision_period": True, "good_policy_afterwards_punches": True}
+                                 "other_spec": True, "decision_period_read_only": True,
+                                 "good_policy_afterwards_punches": True}
     for message in ["model file not found: res://no/such/policy.onnx", "invalid ONNX model",
                     "its input is '", "no policy set",
                     "incompatible policy: it was trained for spec", "returned NaN", "the target was freed",

@@ -90,22 +90,48 @@ def cycles_of(graph: dict[str, set[str]]) -> list[list[str]]:
     return cycles
 
 
-RUST_CRATES = [PROJECT_ROOT / "gdextension" / crate / "src" for crate in ("punch_core", "punch_godot")]
+RUST_CRATES = [PROJECT_ROOT / "gdextension" / crate / "src" for crate in ("punch_core", "punch_godot", "punch_model_check")]
 
 
 def rust_module_imports(source: Path) -> dict[str, set[str]]:
-    """Each module of a Rust crate (a file of src/) and the crate modules its code names (`crate::x`); unit
-    tests (from `#[cfg(test)]` on) and the test-only fake world are left out."""
-    code = {path.stem: path.read_text().split("#[cfg(test)]")[0] for path in source.glob("*.rs")}
+    """Each module of a Rust crate (a file under src/, named by its path: `contract::spec`; a folder's mod.rs is
+    the folder) and the crate modules its code names (`crate::contract::spec`, `crate::error`); unit tests (from
+    `#[cfg(test)]` on, and the `tests.rs` beside a module) and the test-only fake world are left out."""
+    def module(path: Path) -> str:
+        parts = list(path.relative_to(source).with_suffix("").parts)
+        return "::".join(parts[:-1] if parts[-1] == "mod" else parts)
+
+    code = {module(path): path.read_text().split("#[cfg(test)]")[0] for path in source.rglob("*.rs") if path.stem != "tests"}
     modules = set(code) - {"lib", "fake_world"}
-    return {name: set(re.findall(r"\bcrate::(\w+)", code[name])) & modules - {name} for name in modules}
+
+    def named(text: str) -> set[str]:
+        paths = re.findall(r"\bcrate::(\w+(?:::\w+)?)", text)
+        return {path if path in modules else path.split("::")[0] for path in paths} & modules
+
+    return {name: named(code[name]) - {name} for name in modules}
+
+
+def subsystem_imports(imports: dict[str, set[str]]) -> dict[str, set[str]]:
+    """The same imports between a crate's top-level modules (punch_core's subsystem folders)."""
+    top: dict[str, set[str]] = {}
+    for name, targets in imports.items():
+        top.setdefault(name.split("::")[0], set()).update(t.split("::")[0] for t in targets)
+    return {name: targets - {name} for name, targets in top.items()}
 
 
 def test_no_rust_modules_import_one_another_in_a_circle():
-    """In each crate: the game's classes, the training server and their helpers (punch_godot), and the core's
-    modules (punch_core) import one another without a circle; punch_core names no Godot type."""
+    """In each crate: the game's classes, the training server and their helpers (punch_godot), the core's
+    modules and its subsystem folders (punch_core), and the model check's modules import one another without a
+    circle; the core's contract names no other subsystem; punch_core names no Godot type."""
     for source in RUST_CRATES:
-        assert cycles_of(rust_module_imports(source)) == [], source
+        imports = rust_module_imports(source)
+        assert len(imports) >= 3, source
+        assert cycles_of(imports) == [], source
+        assert cycles_of(subsystem_imports(imports)) == [], source
+    core = subsystem_imports(rust_module_imports(RUST_CRATES[0]))
+    assert {"contract", "game", "inference", "rig", "training"} <= set(core), core
+    assert core["contract"] <= {"error"}, "the contract depends on no other subsystem"
+    assert not core["rig"] & {"game", "training"} and not core["training"] & {"game", "rig"}, core
     core_manifest = (RUST_CRATES[0].parent / "Cargo.toml").read_text()
     assert "godot" not in core_manifest.split("[dependencies]")[1], "punch_core depends on no Godot crate"
     assert cycles_of({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]

@@ -55,6 +55,12 @@ def test_the_action_undoes_redoes_and_saves(report):
                                "characters": 1, "bags": 1}
 
 
+def test_an_instanced_model_gets_editable_children_so_its_modifier_is_saved(report):
+    # Without Editable Children, the scene would be saved without the modifier under the model's Skeleton3D.
+    assert report["instanced"] == {"ok": True, "made_editable": ["Model"], "editable": True, "saved_modifiers": 1,
+                                   "undone_editable": False}
+
+
 def test_the_character_is_placed_on_the_rig_and_punches_the_bag(report):
     # The modifier's follow_rig moves the simulated body when it is more than 1 cm or 1 degree off the rig.
     assert report["placement_gap_m"] < 0.01 and report["placement_turn_rad"] < 0.0175, report

@@ -21,6 +21,10 @@ pub enum CoreError {
     #[error("invalid ONNX model: {0}")]
     InvalidModel(String),
 
+    /// The file holds what a policy file may not (`punch_model_check`), so ONNX Runtime never sees it.
+    #[error("invalid ONNX model: {0}")]
+    RefusedModel(#[from] punch_model_check::ModelError),
+
     /// The model loads but does not have the shape of a policy (one float input of shape [batch, n]).
     #[error("model is not a policy: {0}")]
     NotAPolicy(String),

@@ -4,12 +4,12 @@
 
 use glam::{Quat, Vec3};
 
-use crate::character::Body;
-use crate::motion::RootPose;
-use crate::punch::Touch;
-use crate::sensing::{BagContact, CharacterGeometry, FrameReading};
-use crate::session::World;
-use crate::spec::BagPlacement;
+use crate::contract::character::Body;
+use crate::contract::motion::RootPose;
+use crate::contract::sensing::{BagContact, CharacterGeometry, FrameReading};
+use crate::contract::spec::EpisodeConditions;
+use crate::game::punch::Touch;
+use crate::training::session::World;
 
 const FIST_OFFSET: Vec3 = Vec3::new(0.0, -0.155, 0.0);
 const START: Vec3 = Vec3::new(0.0, 1.505, 0.2);
@@ -64,18 +64,21 @@ impl FakeWorld {
             carried: Vec::new(),
             ropes: Vec::new(),
         };
-        world.place(&vec![BagPlacement::DEFAULT; slots]);
+        world.place(&vec![EpisodeConditions::DEFAULT; slots]);
         world
     }
 
-    fn place(&mut self, placements: &[BagPlacement]) {
+    fn place(&mut self, placements: &[EpisodeConditions]) {
         self.readings = placements
             .iter()
             .map(|placement| {
                 let mut reading = FrameReading::default();
                 for body in &mut reading.bodies {
-                    *body =
-                        crate::sensing::BodyState { position: START, rotation: Quat::IDENTITY, ..Default::default() };
+                    *body = crate::contract::sensing::BodyState {
+                        position: START,
+                        rotation: Quat::IDENTITY,
+                        ..Default::default()
+                    };
                 }
                 reading.bag.rotation = Quat::IDENTITY;
                 reading.bag.position = placement.position();
@@ -132,13 +135,13 @@ impl World for FakeWorld {
         self.readings.len()
     }
 
-    fn reset(&mut self, placements: &[BagPlacement]) -> Result<(), String> {
+    fn reset(&mut self, placements: &[EpisodeConditions]) -> Result<(), String> {
         self.resets += 1;
         self.place(placements);
         Ok(())
     }
 
-    fn place_bag(&mut self, slot: usize, placement: &BagPlacement) {
+    fn place_bag(&mut self, slot: usize, placement: &EpisodeConditions) {
         self.readings[slot].bag.position = placement.position();
     }
 

@@ -7,8 +7,8 @@ use std::io::{Read, Write};
 use std::net::{Shutdown, TcpStream};
 use std::time::{Duration, Instant};
 
-use punch_core::connections::{Connections, Limits};
-use punch_core::protocol::{Array, KEPT_BUFFER_BYTES, Message, PROTOCOL_VERSION};
+use punch_core::training::connections::{Connections, Limits};
+use punch_core::training::protocol::{Array, KEPT_BUFFER_BYTES, Message, PROTOCOL_VERSION};
 use serde_json::json;
 
 const SECRET: &str = "0123456789abcdef-test";

@@ -5,9 +5,10 @@
 mod common;
 
 use common::onnx_bytes::*;
-use punch_core::model_check::{MAX_ROW_ELEMENTS, ModelCost, check_model, measure_model};
-use punch_core::spec::OBS_DIM;
-use punch_core::{CoreError, Policy, runtime};
+use punch_core::contract::spec::OBS_DIM;
+use punch_core::inference::runtime;
+use punch_core::{CoreError, Policy};
+use punch_model_check::{MAX_ROW_ELEMENTS, ModelCost, check_model, measure_model};
 
 fn init() {
     if let Err(error) = runtime::init_from_dir(&common::onnxruntime_dir()) {
@@ -35,7 +36,9 @@ fn loop_graph() -> Vec<u8> {
 fn refused(bytes: &[u8], expected: &str) {
     init();
     match Policy::from_bytes(bytes) {
-        Err(CoreError::InvalidModel(reason)) => assert!(reason.contains(expected), "expected '{expected}': {reason}"),
+        Err(CoreError::RefusedModel(reason)) => {
+            assert!(reason.to_string().contains(expected), "expected '{expected}': {reason}")
+        }
         Err(other) => panic!("refused for another reason: {other}"),
         Ok(_) => panic!("loaded a file that should be refused ({expected})"),
     }

@@ -2,7 +2,7 @@
 //! library (where ONNX Runtime is shipped beside it), here this test program. Run on Linux (`dladdr`) and, as a
 //! Windows program under Wine, on Windows (`GetModuleHandleExW`).
 
-use punch_core::runtime;
+use punch_core::inference::runtime;
 
 #[test]
 fn own_binary_dir_is_the_folder_of_the_binary_holding_the_core() {

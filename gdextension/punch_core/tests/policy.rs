@@ -3,7 +3,8 @@
 
 mod common;
 
-use punch_core::{CoreError, Policy, runtime};
+use punch_core::inference::runtime;
+use punch_core::{CoreError, Policy};
 use serde_json::Value;
 
 fn init_runtime() {
@@ -96,7 +97,7 @@ fn non_finite_input_is_refused() {
 fn garbage_bytes_are_an_invalid_model() {
     init_runtime();
     assert!(matches!(Policy::from_bytes(b""), Err(CoreError::InvalidModel(_))));
-    assert!(matches!(Policy::from_bytes(b"this is not an onnx file"), Err(CoreError::InvalidModel(_))));
+    assert!(matches!(Policy::from_bytes(b"this is not an onnx file"), Err(CoreError::RefusedModel(_))));
     let bytes = std::fs::read(common::fixture("tiny_actor.onnx")).expect("fixture");
-    assert!(matches!(Policy::from_bytes(&bytes[..bytes.len() / 2]), Err(CoreError::InvalidModel(_))));
+    assert!(matches!(Policy::from_bytes(&bytes[..bytes.len() / 2]), Err(CoreError::RefusedModel(_))));
 }

@@ -5,11 +5,12 @@ mod common;
 
 use std::rc::Rc;
 
-use punch_core::character::DOF_COUNT;
-use punch_core::observation::{OBS_DIM, spec_hash};
-use punch_core::policy_gate::{PunchingPolicy, decide_batched};
-use punch_core::spec::{REACH_VOLUME, keys};
-use punch_core::{CoreError, Policy, runtime};
+use punch_core::contract::character::DOF_COUNT;
+use punch_core::contract::observation::{OBS_DIM, spec_hash};
+use punch_core::contract::spec::{REACH_VOLUME, keys};
+use punch_core::game::policy_gate::{PunchingPolicy, decide_batched};
+use punch_core::inference::runtime;
+use punch_core::{CoreError, Policy};
 
 /// The observation spec hash of every policy the addon ships (their `punch_spec_hash`), pinned: a change to
 /// the observation (features, order, decision period) changes it, and the shipped policies must be retrained.

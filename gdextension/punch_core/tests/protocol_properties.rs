@@ -4,7 +4,7 @@
 use std::io::Read;
 
 use proptest::prelude::*;
-use punch_core::protocol::{Array, FrameReader, MAX_PAYLOAD_BYTES, Message, ProtocolError};
+use punch_core::training::protocol::{Array, FrameReader, MAX_PAYLOAD_BYTES, Message, ProtocolError};
 use serde_json::json;
 
 /// A reader that serves `bytes` and then reports the end of the stream.

@@ -5,7 +5,8 @@ mod common;
 
 use std::path::Path;
 
-use punch_core::{CoreError, Policy, runtime};
+use punch_core::inference::runtime;
+use punch_core::{CoreError, Policy};
 
 #[test]
 fn bad_runtime_locations_give_clear_errors() {

@@ -5,7 +5,7 @@
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
 
-use punch_core::access::scrub_environment_variable;
+use punch_core::training::access::scrub_environment_variable;
 
 const SECRET: &str = "9f8e7d6c5b4a39281706f5e4d3c2b1a0";
 /// Set in the child only: it then scrubs and waits to be read.

@@ -1,4 +1,4 @@
-//! Applies `punch_core::arm_size` to a `PunchCharacter`'s scene: moves the arm bodies, their shapes, meshes and
+//! Applies `punch_core::contract::arm_size` to a `PunchCharacter`'s scene: moves the arm bodies, their shapes, meshes and
 //! fist markers, and the shoulder and elbow joints, and rebuilds the joints. Always from the scene as it was
 //! loaded (`SceneArms`), so sizing twice does not compound.
 
@@ -9,9 +9,9 @@ use godot::classes::{
     RigidBody3D,
 };
 use godot::obj::Gd;
-use punch_core::arm_size::{ArmLengths, ArmScale, Stretch};
-use punch_core::character::{Body, JOINTS};
-use punch_core::sensing::CharacterGeometry;
+use punch_core::contract::arm_size::{ArmLengths, ArmScale, Stretch};
+use punch_core::contract::character::{Body, JOINTS};
+use punch_core::contract::sensing::CharacterGeometry;
 
 use crate::convert::{vec3, vector3};
 

@@ -2,7 +2,7 @@
 
 use glam::{Mat3, Quat, Vec3};
 use godot::builtin::{Basis, Quaternion, Vector3, Vector3Axis};
-use punch_core::character::Axis;
+use punch_core::contract::character::Axis;
 
 pub fn vec3(v: Vector3) -> Vec3 {
     Vec3::new(v.x, v.y, v.z)

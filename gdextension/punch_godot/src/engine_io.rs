@@ -10,9 +10,9 @@ use godot::classes::{
     PhysicsShapeQueryParameters3D,
 };
 use godot::obj::{Gd, Singleton};
-use punch_core::character::{Axis, Body, JOINTS, engine_axis, joint_dofs};
-use punch_core::punch::Touch;
-use punch_core::sensing::{BagContact, CharacterGeometry, FrameReading, MAX_BAG_CONTACTS};
+use punch_core::contract::character::{Axis, Body, JOINTS, engine_axis, joint_dofs};
+use punch_core::contract::sensing::{BagContact, CharacterGeometry, FrameReading, MAX_BAG_CONTACTS};
+use punch_core::game::punch::Touch;
 
 use crate::convert::{godot_axis, quat, vec3};
 

@@ -1,5 +1,5 @@
 //! Reads where a rig's hands are from its skin: the rest positions of the vertices bound mostly to each hand and
-//! the bones below it, for `punch_core::skeleton_pose::rig_fists` (the bones alone cannot say where the middle of
+//! the bones below it, for `punch_core::rig::skeleton_pose::rig_fists` (the bones alone cannot say where the middle of
 //! some hands is).
 
 use glam::Vec3;

@@ -7,8 +7,11 @@ mod engine_io;
 mod hand_skin;
 mod punch_character;
 mod punch_controller;
-mod punch_inference;
+mod punch_controller_registry;
 mod punch_policy;
+// Tests' and benchmarks' hooks, off the game classes: debug builds only.
+#[cfg(feature = "probe")]
+mod punch_probe;
 mod punch_runtime;
 mod punch_skeleton_modifier;
 mod punch_spec;

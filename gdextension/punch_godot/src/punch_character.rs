@@ -30,9 +30,9 @@ use godot::global::godot_error;
 use godot::meta::ToGodot;
 use godot::obj::{Base, EngineEnum, Gd, Singleton, WithBaseField};
 use godot::prelude::{GodotClass, godot_api};
-use punch_core::arm_size::{ARM_SCALE_RANGE, ArmLengths, ArmScale};
-use punch_core::character::{Axis, Body, JOINTS};
-use punch_core::sensing::{BodyState, CharacterGeometry, MAX_BAG_CONTACTS};
+use punch_core::contract::arm_size::{ARM_SCALE_RANGE, ArmLengths, ArmScale};
+use punch_core::contract::character::{Axis, Body, JOINTS};
+use punch_core::contract::sensing::{BodyState, CharacterGeometry, MAX_BAG_CONTACTS};
 
 use crate::arm_sizing::{SceneArms, rebuild_joints};
 use crate::convert::{quat, rotation, vec3, vector3};

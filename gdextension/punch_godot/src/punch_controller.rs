@@ -1,5 +1,5 @@
 //! `PunchController`: plays a trained punching policy on a `PunchCharacter` in a game. What a punch is and
-//! how it goes (phases, decisions, noise, hits, events) is `punch_core::lifecycle`; this class reads the
+//! how it goes (phases, decisions, noise, hits, events) is `punch_core::game::lifecycle`; this class reads the
 //! engine into it, drives the joints with what comes back, and turns its events into signals.
 //!
 //! Signals are emitted with no borrow of the controller held (`#[func(gd_self)]`, and the frame pass), so a
@@ -9,23 +9,23 @@ use std::rc::Rc;
 use std::time::Instant;
 
 use glam::Vec3;
-use godot::builtin::{PackedFloat32Array, VarDictionary, Vector2, Vector3};
+use godot::builtin::{VarDictionary, Vector2, Vector3};
 use godot::classes::notify::NodeNotification;
 use godot::classes::{Engine, INode, Node, Node3D, PhysicsShapeQueryParameters3D, SceneTree, SphereShape3D};
 use godot::global::{godot_error, godot_warn};
 use godot::obj::{Base, Gd, InstanceId, NewGd, Singleton, WithBaseField, WithSignals, WithUserSignals};
+use godot::prelude::PhantomVar;
 use godot::prelude::{GodotClass, godot_api};
-use punch_core::character::{Body, DEFAULT_DECISION_PERIOD};
-use punch_core::lifecycle::{Drive, Ending, Event, FrameNeeds, Lifecycle, NoiseSettings, PunchStart};
-use punch_core::observation::OBS_DIM;
-use punch_core::policy_gate::{DecisionRequest, PunchingPolicy, decide_batched};
-use punch_core::punch::{Punch, PunchSummary};
-use punch_core::sensing::{CharacterGeometry, FEATURE_COUNT, FrameReading};
+use punch_core::contract::character::{Body, DEFAULT_DECISION_PERIOD};
+use punch_core::contract::sensing::{CharacterGeometry, FrameReading};
+use punch_core::game::lifecycle::{Drive, Ending, Event, FrameNeeds, Lifecycle, NoiseSettings, PunchStart};
+use punch_core::game::policy_gate::{DecisionRequest, PunchingPolicy, decide_batched};
+use punch_core::game::punch::{Punch, PunchSummary};
 
 use crate::convert::vector3;
 use crate::engine_io::{add_area_touches, add_bag_contacts, read_forearm_contacts};
 use crate::punch_character::PunchCharacter;
-use crate::punch_inference::PunchInference;
+use crate::punch_controller_registry::PunchControllerRegistry;
 use crate::punch_policy::PunchPolicy;
 use crate::target::Target;
 
@@ -72,10 +72,12 @@ pub struct PunchController {
     /// effect at the next punch.
     #[export]
     seed: i64,
-    /// Physics frames each decision is held for; must match the policy's.
-    #[export(range = (1.0, 60.0, 1.0, suffix = "frames"))]
-    #[init(val = DEFAULT_DECISION_PERIOD as i32)]
-    decision_period: i32,
+    /// Physics frames each decision is held for: the policy's own (its `punch_decision_period`; 5 for the addon's
+    /// policies, and when no policy is set). Read-only: a policy plays only at the period it was trained with
+    /// (the period is part of its spec hash), so it is not a setting; it was once an inspector field, and any other
+    /// value made `punch()` refuse the policy.
+    #[var(get = get_decision_period, no_set)]
+    decision_period: PhantomVar<i32>,
 
     /// The character to drive. A new character is driven from the next punch.
     #[export_group(name = "Character and target")]
@@ -113,9 +115,9 @@ pub struct PunchController {
     /// Punch as soon as the scene starts.
     #[export]
     autostart: bool,
-    /// Keep each punch's per-frame features, observations and actions for `last_punch_record()`
-    /// (for analysis tools such as `punch replay`; leave it off in games).
-    #[export]
+
+    /// Keep each punch's per-frame features, observations and actions for `last_punch_record` (set by analysis
+    /// tools and tests through `PunchProbe`, debug builds only).
     record: bool,
 
     lifecycle: Lifecycle<Rc<PunchingPolicy>>,
@@ -292,20 +294,10 @@ impl PunchController {
         self.lifecycle.is_recovering()
     }
 
-    /// The last finished punch, when `record` is on: `features` (frames x feature count, the names are
-    /// `PunchSpec.feature_names()`), `observations` (decisions x 45), `mean_actions` and `actions`
-    /// (decisions x 10, before and after noise), `frames` and `decisions`.
+    /// Physics frames each decision is held for: the policy's (`decision_period`).
     #[func]
-    fn last_punch_record(&self) -> VarDictionary {
-        let record = self.lifecycle.last_record();
-        let mut result = VarDictionary::new();
-        result.set("features", &PackedFloat32Array::from(record.features.as_slice()));
-        result.set("observations", &PackedFloat32Array::from(record.observations.as_slice()));
-        result.set("mean_actions", &PackedFloat32Array::from(record.mean_actions.as_slice()));
-        result.set("actions", &PackedFloat32Array::from(record.actions.as_slice()));
-        result.set("frames", (record.features.len() / FEATURE_COUNT) as i64);
-        result.set("decisions", (record.observations.len() / OBS_DIM) as i64);
-        result
+    fn get_decision_period(&self) -> i32 {
+        self.punching_policy().map_or(DEFAULT_DECISION_PERIOD, |policy| policy.spec.decision_period) as i32
     }
 
     /// Sets the policy; the next punch plays it (a punch running now plays on with its own).
@@ -335,6 +327,33 @@ impl PunchController {
 }
 
 impl PunchController {
+    /// Keeps each punch's per-frame features, observations and actions from the next punch on
+    /// (`last_punch_record`), or stops keeping them.
+    #[cfg(feature = "probe")]
+    pub fn set_record(&mut self, record: bool) {
+        self.record = record;
+    }
+
+    /// The last finished punch, when `record` is on: `features` (frames x feature count, the names are
+    /// `PunchSpec.feature_names()`), `observations` (decisions x 45), `mean_actions` and `actions`
+    /// (decisions x 10, before and after noise), `frames` and `decisions`.
+    #[cfg(feature = "probe")]
+    pub fn last_punch_record(&self) -> VarDictionary {
+        use godot::builtin::PackedFloat32Array;
+        use punch_core::contract::observation::OBS_DIM;
+        use punch_core::contract::sensing::FEATURE_COUNT;
+
+        let record = self.lifecycle.last_record();
+        let mut result = VarDictionary::new();
+        result.set("features", &PackedFloat32Array::from(record.features.as_slice()));
+        result.set("observations", &PackedFloat32Array::from(record.observations.as_slice()));
+        result.set("mean_actions", &PackedFloat32Array::from(record.mean_actions.as_slice()));
+        result.set("actions", &PackedFloat32Array::from(record.actions.as_slice()));
+        result.set("frames", (record.features.len() / FEATURE_COUNT) as i64);
+        result.set("decisions", (record.observations.len() / OBS_DIM) as i64);
+        result
+    }
+
     /// Starts a punch (its events queued); returns the character it drives.
     fn start_punch(&mut self) -> Result<Gd<PunchCharacter>, String> {
         self.lifecycle.interrupt();
@@ -344,9 +363,9 @@ impl PunchController {
                         run on the scene tree's physics frames)"
                 .into());
         }
-        PunchInference::check_project_settings()?;
+        PunchControllerRegistry::check_project_settings()?;
         let policy = self.punching_policy()?;
-        policy.check_spec(self.decision_period.max(1) as u32).map_err(|e| e.to_string())?;
+        policy.check_spec(policy.spec.decision_period).map_err(|e| e.to_string())?;
         let character = live(&self.character).ok_or("no character set (or it was freed)")?;
         let mut target = Target::resolve(live(&self.target).ok_or("no target set (or it was freed)")?);
         let mut geometry = geometry_of(&character)?;
@@ -387,13 +406,15 @@ impl PunchController {
         self.driven = Some(character);
         self.sensed = false;
         let tree = self.base().get_tree();
-        PunchInference::enlist(self.base().instance_id(), tree, Self::frame_pass);
+        PunchControllerRegistry::enlist(self.base().instance_id(), tree, Self::frame_pass);
     }
 
     /// `this` drives `character` from now on: another controller that drove it stops, its punch ending
     /// (interrupted), with a warning.
     fn take_over(this: &Gd<Self>, character: Gd<PunchCharacter>) {
-        let Some(previous) = PunchInference::take_over(character.instance_id(), this.instance_id()) else { return };
+        let Some(previous) = PunchControllerRegistry::take_over(character.instance_id(), this.instance_id()) else {
+            return;
+        };
         let Ok(mut other) = Gd::<Self>::try_from_instance_id(previous) else { return };
         let was_punching = other.bind().lifecycle.is_punching();
         if !other.bind().lifecycle.is_active() || other.bind().driven.as_ref() != Some(&character) {
@@ -453,7 +474,7 @@ impl PunchController {
     /// once for all controllers that ask it, then each drives its joints and emits its signals.
     fn frame_pass() {
         let started = Instant::now();
-        let Some(ids) = PunchInference::begin_frame(started) else { return };
+        let Some(ids) = PunchControllerRegistry::begin_frame(started) else { return };
         let mut requests: Vec<DecisionRequest> = Vec::new();
         let mut askers: Vec<InstanceId> = Vec::new();
         for &id in &ids {
@@ -484,10 +505,10 @@ impl PunchController {
                 Self::emit_events(&mut controller);
             }
         }
-        PunchInference::retain_active(|id| {
+        PunchControllerRegistry::retain_active(|id| {
             Gd::<Self>::try_from_instance_id(id).is_ok_and(|controller| controller.bind().lifecycle.is_active())
         });
-        PunchInference::count_frame(started, &batch.calls);
+        PunchControllerRegistry::count_frame(started, &batch.calls);
     }
 
     /// First half of a frame: reads the frame just simulated and, when a decision is due, returns the

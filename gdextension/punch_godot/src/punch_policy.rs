@@ -12,7 +12,7 @@ use godot::global::{Error, godot_error};
 use godot::obj::WithBaseField;
 use godot::prelude::{Base, GodotClass, godot_api};
 use punch_core::Policy;
-use punch_core::policy_gate::PunchingPolicy;
+use punch_core::game::policy_gate::PunchingPolicy;
 
 use crate::punch_runtime::ensure_onnx_runtime;
 

@@ -20,8 +20,9 @@ impl PunchRuntime {
         versions.set("extension", punch_core::VERSION);
         versions.set("godot_api", "4.6");
         let loaded = ensure_onnx_runtime();
-        versions.set("onnxruntime", punch_core::runtime::version().unwrap_or(""));
-        let library = punch_core::runtime::library_path().map(|p| p.display().to_string()).unwrap_or_default();
+        versions.set("onnxruntime", punch_core::inference::runtime::version().unwrap_or(""));
+        let library =
+            punch_core::inference::runtime::library_path().map(|p| p.display().to_string()).unwrap_or_default();
         versions.set("onnxruntime_library", &GString::from(library.as_str()));
         versions.set("onnxruntime_loaded", loaded);
         versions
@@ -31,14 +32,14 @@ impl PunchRuntime {
 /// Loads ONNX Runtime from the `libonnxruntime.so*` that sits next to this extension's own library, by
 /// absolute path, so that users never set an environment variable. Logs one clear error on failure.
 pub fn ensure_onnx_runtime() -> bool {
-    if punch_core::runtime::version().is_some() {
+    if punch_core::inference::runtime::version().is_some() {
         return true;
     }
-    let Some(dir) = punch_core::runtime::own_binary_dir() else {
+    let Some(dir) = punch_core::inference::runtime::own_binary_dir() else {
         godot_error!("PunchController: could not determine where the extension library was loaded from");
         return false;
     };
-    match punch_core::runtime::init_from_dir(&dir) {
+    match punch_core::inference::runtime::init_from_dir(&dir) {
         Ok(()) => true,
         Err(error) => {
             godot_error!("PunchController: {error}. Rebuild the addon (scons) so that bin/ holds ONNX Runtime.");

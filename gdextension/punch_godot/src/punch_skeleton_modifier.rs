@@ -1,8 +1,8 @@
 //! `PunchSkeletonModifier`: puts a `PunchController`'s simulated upper body onto a game's own rigged
 //! `Skeleton3D`, after its animation, blended in and out around punches.
 //!
-//! Method (the math is `punch_core::skeleton_pose`, unit-tested there):
-//! - Mapping: `punch_core::bone_map` finds the hips, the spine up to the chest, the head and per side the
+//! Method (the math is `punch_core::rig::skeleton_pose`, unit-tested there):
+//! - Mapping: `punch_core::rig::bone_map` finds the hips, the spine up to the chest, the head and per side the
 //!   clavicle, upper arm, forearm and hand from bone names and parents (Godot humanoid profile, Mixamo, Unreal,
 //!   CMU, MakeHuman, Blender namings); bones typed into `bone_map` by hand hold their roles.
 //! - Rest frames are read from the skeleton's global rest, never assumed: a bone's direction is the line from
@@ -14,7 +14,7 @@
 //!   does, whatever axis convention (+Y, +X, any roll) the rig uses.
 //! - The chest takes the simulated torso's rotation, shared evenly along the spine; the clavicles, twist bones
 //!   on the arm and the hand follow their segment rigidly, as at rest. With `fist_curl`, the fingers below each
-//!   hand close into a fist (`punch_core::fist`: each finger bone bends toward the palm about an axis read from
+//!   hand close into a fist (`punch_core::rig::fist`: each finger bone bends toward the palm about an axis read from
 //!   the rest). Hips, legs, neck and head keep the animation's pose. Only rotations are written
 //!   (`set_bone_pose_rotation`), so the rig keeps its own bone lengths.
 //! - Blending: each written bone's local rotation (the fingers' included) is `slerp(animation, simulated, w)`;
@@ -43,10 +43,10 @@ use godot::global::godot_error;
 use godot::meta::ToGodot;
 use godot::obj::{Base, Gd, InstanceId, Singleton, WithBaseField};
 use godot::prelude::{GodotClass, godot_api};
-use punch_core::bone_map::{BoneMap, Role, map_bones_with};
-use punch_core::character::Body;
-use punch_core::fist::FistPose;
-use punch_core::skeleton_pose::{Blend, BodyFrames, BodyRotations, SkeletonPoser, rig_arm_lengths, rig_fists};
+use punch_core::contract::character::Body;
+use punch_core::rig::bone_map::{BoneMap, Role, map_bones_with};
+use punch_core::rig::fist::FistPose;
+use punch_core::rig::skeleton_pose::{Blend, BodyFrames, BodyRotations, SkeletonPoser, rig_arm_lengths, rig_fists};
 
 use crate::convert::{quat, quaternion, rotation, vec3, vector3};
 use crate::hand_skin::hand_skin_points;
@@ -297,10 +297,12 @@ impl PunchSkeletonModifier {
     fn mapping_problem(&self) -> GString {
         GString::from(self.problem.as_deref().unwrap_or_default())
     }
+}
 
-    /// The bones this modifier writes each frame, in order (for tools and tests).
-    #[func]
-    fn written_bones(&self) -> PackedStringArray {
+impl PunchSkeletonModifier {
+    /// The bones this modifier writes each frame, in order (read by tests through `PunchProbe`).
+    #[cfg(feature = "probe")]
+    pub fn written_bones(&self) -> PackedStringArray {
         let mut names = PackedStringArray::new();
         if let (Some((_, poser, _)), Some(skeleton)) = (&self.poser, self.base().get_skeleton()) {
             for bone in poser.written_bones() {
@@ -314,18 +316,16 @@ impl PunchSkeletonModifier {
     }
 
     /// Mean time (µs) all modifiers spent per character-frame writing poses since the last call, and how many
-    /// character-frames that was: for benchmarks.
-    #[func]
-    fn take_cost_usec() -> VarDictionary {
+    /// character-frames that was (read by benchmarks through `PunchProbe`).
+    #[cfg(feature = "probe")]
+    pub fn take_cost_usec() -> VarDictionary {
         let (usec, frames) = COST.with(|c| c.replace((0.0, 0)));
         let mut cost = VarDictionary::new();
         cost.set("usec_per_frame", if frames == 0 { 0.0 } else { usec / frames as f64 });
         cost.set("frames", frames as i64);
         cost
     }
-}
 
-impl PunchSkeletonModifier {
     /// The finger bones curled into fists (none when `fist_curl` is off).
     fn fist_bones(&self) -> impl Iterator<Item = (usize, Quat)> + '_ {
         self.mapped.as_ref().filter(|_| self.fist_curl).into_iter().flat_map(|m| m.fist.bones())

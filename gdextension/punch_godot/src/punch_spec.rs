@@ -1,13 +1,13 @@
 //! `PunchSpec`: what policies are trained with, for the game's scripts and the editor plugin (static
-//! functions only; `punch_core::spec` and `punch_core::sensing` define it all).
+//! functions only; `punch_core::contract::spec` and `punch_core::contract::sensing` define it all).
 
 use godot::builtin::{GString, PackedStringArray, VarDictionary, Vector3};
 use godot::classes::{Engine, ProjectSettings};
 use godot::meta::ToGodot;
 use godot::obj::Singleton;
 use godot::prelude::{GodotClass, godot_api};
-use punch_core::sensing::FEATURE_NAMES;
-use punch_core::spec::{BagPlacement, PROJECT_SETTINGS, SettingValue, project_setting_problems};
+use punch_core::contract::sensing::FEATURE_NAMES;
+use punch_core::contract::spec::{EpisodeConditions, PROJECT_SETTINGS, SettingValue, project_setting_problems};
 
 /// The policy contract as a game sees it: where training puts the target, the project settings policies
 /// are trained with, and the names of the per-frame features. Static functions: `PunchSpec.default_target_offset()`.
@@ -22,7 +22,7 @@ impl PunchSpec {
     /// punch (`character.transform * PunchSpec.default_target_offset()`).
     #[func]
     fn default_target_offset() -> Vector3 {
-        let position = BagPlacement::DEFAULT.position();
+        let position = EpisodeConditions::DEFAULT.position();
         Vector3::new(position.x, position.y, position.z)
     }
 

@@ -13,10 +13,11 @@ use godot::classes::{Engine, INode, Node, Os, PackedScene};
 use godot::global::{godot_error, godot_print, godot_warn};
 use godot::obj::{Base, Gd, Singleton, WithBaseField};
 use godot::prelude::{GodotClass, godot_api};
-use punch_core::access::ClientId;
-use punch_core::character::{DEFAULT_DECISION_PERIOD, PHYSICS_HZ};
-use punch_core::connections::{Connections, Limits};
-use punch_core::session::{BagPlacement, Outcome, Session, World};
+use punch_core::contract::character::{DEFAULT_DECISION_PERIOD, PHYSICS_HZ};
+use punch_core::contract::spec::EpisodeConditions;
+use punch_core::training::access::ClientId;
+use punch_core::training::connections::{Connections, Limits};
+use punch_core::training::session::{Outcome, Session, World};
 
 use crate::training_world::{MAX_SLOTS_PER_WORLD, TrainingWorld};
 
@@ -128,7 +129,7 @@ impl PunchTrainingServer {
         let os = Os::singleton();
         let secret = os.get_environment(SECRET_VARIABLE).to_string();
         // Unsetting alone leaves it where /proc/PID/environ shows the environment the process started with.
-        punch_core::access::scrub_environment_variable(SECRET_VARIABLE);
+        punch_core::training::access::scrub_environment_variable(SECRET_VARIABLE);
         os.unset_environment(SECRET_VARIABLE);
         if secret.is_empty() {
             return Err(format!(
@@ -150,7 +151,7 @@ impl PunchTrainingServer {
             self.slot_count as usize,
             self.slots_per_world as usize,
         )?;
-        world.reset(&vec![BagPlacement::default(); self.slot_count as usize])?;
+        world.reset(&vec![EpisodeConditions::default(); self.slot_count as usize])?;
         self.world = Some(world);
         self.session = Some(Session::new(self.decision_period as usize));
         godot_print!(
@@ -204,7 +205,7 @@ impl PunchTrainingServer {
         }
     }
 
-    fn send(&mut self, client: ClientId, message: &punch_core::protocol::Message) {
+    fn send(&mut self, client: ClientId, message: &punch_core::training::protocol::Message) {
         if let Some(connections) = self.connections.as_mut() {
             connections.send(client, message);
         }

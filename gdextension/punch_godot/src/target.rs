@@ -7,7 +7,7 @@ use godot::classes::{
     PhysicsServer3D, RigidBody3D,
 };
 use godot::obj::{Gd, Singleton};
-use punch_core::sensing::{BodyState, CharacterGeometry};
+use punch_core::contract::sensing::{BodyState, CharacterGeometry};
 
 use crate::convert::{quat, vec3};
 

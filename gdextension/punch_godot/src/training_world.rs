@@ -23,11 +23,12 @@ use godot::classes::{
 };
 use godot::meta::ToGodot;
 use godot::obj::{Gd, NewGd, Singleton};
-use punch_core::arm_size::ArmScale;
-use punch_core::character::{Axis, Body, JOINTS};
-use punch_core::motion::RootPose;
-use punch_core::sensing::{BodyState, CharacterGeometry, FrameReading, MAX_BAG_CONTACTS};
-use punch_core::session::{BagPlacement, World};
+use punch_core::contract::arm_size::ArmScale;
+use punch_core::contract::character::{Axis, Body, JOINTS};
+use punch_core::contract::motion::RootPose;
+use punch_core::contract::sensing::{BodyState, CharacterGeometry, FrameReading, MAX_BAG_CONTACTS};
+use punch_core::contract::spec::EpisodeConditions;
+use punch_core::training::session::World;
 
 use crate::arm_sizing::SceneArms;
 use crate::convert::{godot_axis, quat, quaternion, vec3, vector3};
@@ -220,7 +221,7 @@ struct Slot {
     bag: Rid,
     bag_state: Gd<PhysicsDirectBodyState3D>,
     pin: Rid,
-    /// The kinematic body a carried bag's rope hangs from (`BagPlacement::glides`, `rides`); none for a fixed rope.
+    /// The kinematic body a carried bag's rope hangs from (`EpisodeConditions::glides`, `rides`); none for a fixed rope.
     rope_anchor: Option<Rid>,
     /// Where the placement put the bag (its offset from the template's place).
     bag_offset: Vector3,
@@ -288,7 +289,7 @@ impl TrainingWorld {
 
     /// Builds the sized templates `placements` ask for and has not got. Call with no slot built: forgetting a
     /// template frees its shapes.
-    fn prepare_sizes(&mut self, placements: &[BagPlacement]) -> Result<(), String> {
+    fn prepare_sizes(&mut self, placements: &[EpisodeConditions]) -> Result<(), String> {
         let wanted: Vec<ArmScale> = placements.iter().map(|p| p.arms).filter(|a| *a != ArmScale::IDENTITY).collect();
         let missing = wanted.iter().filter(|a| !self.sized.contains_key(&size_key(a))).count();
         if self.sized.len() + missing > MAX_SIZED_TEMPLATES {
@@ -309,7 +310,13 @@ impl TrainingWorld {
         self.sized.get(&size_key(arms)).unwrap_or(&self.character)
     }
 
-    fn build_slot(&self, server: &mut Gd<PhysicsServer3D>, space: Rid, slot: usize, placement: &BagPlacement) -> Slot {
+    fn build_slot(
+        &self,
+        server: &mut Gd<PhysicsServer3D>,
+        space: Rid,
+        slot: usize,
+        placement: &EpisodeConditions,
+    ) -> Slot {
         let character = self.template(&placement.arms);
         // The character's bodies are on one layer and mask only its bag's layer, and the bag the other way
         // round: the character never collides with itself, the bag with all of it, and masks stay two-sided
@@ -385,7 +392,7 @@ impl TrainingWorld {
     /// Sets a bag's velocity from its placement: a bag swinging on its rope turns about the pin as it moves,
     /// ω = r × v / |r|² (r from the pin to the centre of mass).
     /// A gliding bag (its rope carried) moves along without turning.
-    fn set_bag_motion(&self, server: &mut Gd<PhysicsServer3D>, bag: Rid, placement: &BagPlacement) {
+    fn set_bag_motion(&self, server: &mut Gd<PhysicsServer3D>, bag: Rid, placement: &EpisodeConditions) {
         let velocity = vector3(placement.velocity());
         let arm = self.bag.body.transform.origin - self.bag.pin_from_root;
         let spin = if placement.glides { Vector3::ZERO } else { arm.cross(velocity) / arm.length_squared() };
@@ -418,7 +425,7 @@ impl World for TrainingWorld {
         self.slot_count
     }
 
-    fn reset(&mut self, placements: &[BagPlacement]) -> Result<(), String> {
+    fn reset(&mut self, placements: &[EpisodeConditions]) -> Result<(), String> {
         self.free_all();
         self.prepare_sizes(placements)?;
         let mut server = PhysicsServer3D::singleton();
@@ -438,7 +445,7 @@ impl World for TrainingWorld {
         Ok(())
     }
 
-    fn place_bag(&mut self, slot: usize, placement: &BagPlacement) {
+    fn place_bag(&mut self, slot: usize, placement: &EpisodeConditions) {
         let mut server = PhysicsServer3D::singleton();
         let Some((bag, rope_anchor)) = self.slots.get(slot).map(|s| (s.bag, s.rope_anchor)) else { return };
         let offset = Vector3::new(placement.side_m, placement.height_m, placement.distance_m);

@@ -1,5 +1,7 @@
 //! Shared test helpers: the project's fixtures and the ONNX Runtime library the build installed.
 
+/// The ONNX writer `punch_model_check`'s tests use.
+#[path = "../../../punch_model_check/tests/common/onnx_bytes.rs"]
 pub mod onnx_bytes;
 
 use std::path::PathBuf;

@@ -1,7 +1,7 @@
 //! The ONNX messages a policy may hold (onnx.proto's field numbers), read strictly (`proto`) into the few
 //! facts the check needs: the opset, the graph's input, initializers, nodes and outputs.
 
-use super::proto::{Kind, MANY_I32, MANY_I64, MANY_LEN, MANY_VARINT, Message, ONE_I32, ONE_LEN, ONE_VARINT, Schema};
+use crate::proto::{Kind, MANY_I32, MANY_I64, MANY_LEN, MANY_VARINT, Message, ONE_I32, ONE_LEN, ONE_VARINT, Schema};
 
 const MODEL: Schema = Schema {
     name: "ModelProto",

@@ -1,8 +1,8 @@
 //! The policy observation and the versioned spec that both sides of every boundary check: the training
 //! server's handshake, the exported ONNX metadata, and `PunchController` when it loads a model.
 
-use crate::character::{DOF_COUNT, DOFS, MAX_JOINT_SPEED_RAD_S, PHYSICS_HZ, POSITION_GAIN_PER_S};
-use crate::sensing::{FEATURE_COUNT, FEATURE_NAMES};
+use crate::contract::character::{DOF_COUNT, DOFS, MAX_JOINT_SPEED_RAD_S, PHYSICS_HZ, POSITION_GAIN_PER_S};
+use crate::contract::sensing::{FEATURE_COUNT, FEATURE_NAMES};
 
 /// Bumped whenever the observation, action or feature layout or meaning changes. 2: the root's own velocity
 /// and turning are features and observed, and every feature is in the frame of the root as it is at that
@@ -85,7 +85,7 @@ mod tests {
         assert_eq!(FEATURE_NAMES.iter().filter(|name| observed(name)).count() + 1, OBS_DIM);
     }
 
-    use crate::sensing::feature_index;
+    use crate::contract::sensing::feature_index;
 
     #[test]
     fn observation_copies_features_and_phase() {

@@ -12,10 +12,10 @@ use std::collections::VecDeque;
 
 use glam::Vec3;
 
+use crate::contract::observation::OBS_DIM;
+use crate::contract::sensing::{CharacterGeometry, FrameReading};
 use crate::error::CoreResult;
-use crate::observation::OBS_DIM;
-use crate::punch::{Hit, Punch, PunchRecord, PunchSummary, Recovery, RuntimeNoise, Sensed, Touch};
-use crate::sensing::{CharacterGeometry, FrameReading};
+use crate::game::punch::{Hit, Punch, PunchRecord, PunchSummary, Recovery, RuntimeNoise, Sensed, Touch};
 
 /// Joint motor commands for one physics step (`Body` joint order).
 pub type MotorCommands = [Vec3; 5];
@@ -329,10 +329,10 @@ mod tests {
     use proptest::prelude::*;
 
     use super::*;
-    use crate::character::Body;
+    use crate::contract::character::Body;
+    use crate::contract::spec::PolicySpec;
     use crate::error::CoreError;
     use crate::fake_world::{FAKE_BAG_ID, FakeWorld, rest_geometry};
-    use crate::spec::PolicySpec;
 
     /// Policies are numbers here: the lifecycle only hands them back with each decision.
     type Policy = u8;

@@ -1,4 +1,5 @@
-//! What a policy file may hold before ONNX Runtime sees it. A file is data: whatever its bytes, the check
+//! What a policy file may hold before ONNX Runtime sees it (the ONNX verifier `punch_core` runs on every
+//! policy file before loading it; no dependency on ONNX Runtime or Godot). A file is data: whatever its bytes, the check
 //! refuses it with one clear error, or ONNX Runtime loads it and runs a decision within a bounded time and
 //! memory.
 //!
@@ -18,9 +19,9 @@
 //! The bounds leave a wide margin above the shipped policies (45 -> 128 -> 128 -> 2 x 10: largest value 128
 //! elements per row and 16 384 shared; work 40 317 units per row, 52 times under the bound, of which 24 704
 //! multiply-adds; 25 074 shared, the initializers). Measured with ONNX Runtime 1.31 on one thread of an AMD
-//! EPYC (`tests/model_check.rs`, `measure_the_worst_files_that_pass`), the worst files that pass decide one
-//! row in at most about 0.1 ms and 64 rows in at most about 6 ms (median; 2.5 ms for a 45-1024-1024-864-10
-//! MLP, 6 ms for Softplus at the bound, the shipped policies 0.05 ms), plus up to 0.5 ms per call for a
+//! EPYC (punch_core's `tests/model_check.rs`, `measure_the_worst_files_that_pass`), the worst files that pass
+//! decide one row in at most about 0.1 ms and 64 rows in at most about 6 ms (median; 2.5 ms for a
+//! 45-1024-1024-864-10 MLP, 6 ms for Softplus at the bound, the shipped policies 0.05 ms), plus up to 0.5 ms per call for a
 //! graph of `MAX_NODES` nodes, whose session takes about 60 ms to create. Memory per row is at most
 //! `MAX_ROW_WORK` / 16 elements written (512 KiB of float32), and what does not depend on the batch at most
 //! 16 MiB per value. No time limit per call is needed on top: the static bound holds for every file that
@@ -31,6 +32,32 @@ mod proto;
 mod shapes;
 
 pub use shapes::ModelCost;
+
+/// Why a policy file is refused; its message says what is refused and why.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ModelError {
+    /// The file is larger than `MAX_MODEL_BYTES`.
+    #[error("the file has {bytes} bytes, more than the {MAX_MODEL_BYTES} a policy may have")]
+    TooLarge {
+        /// The file's size.
+        bytes: usize,
+    },
+    /// The bytes are not an ONNX model read strictly (truncated, a field written twice or unknown, a wrong
+    /// encoding), or hold a construct a policy may not (subgraphs, functions, sparse, external or string data,
+    /// training info, more than `MAX_NODES` nodes).
+    #[error("{0}")]
+    Format(String),
+    /// The model's ONNX opset is outside `MIN_OPSET..=MAX_OPSET`.
+    #[error("the model uses ONNX opset {opset}; a policy uses opset {MIN_OPSET} to {MAX_OPSET} (export again)")]
+    Opset {
+        /// The opset the model imports.
+        opset: i64,
+    },
+    /// The graph uses an operator a policy may not, has a shape the check cannot infer or that mixes rows,
+    /// or goes over a bound on its values' size or its work.
+    #[error("{0}")]
+    Graph(String),
+}
 
 /// Largest policy file accepted, bytes (the shipped policies are about 120 kB).
 pub const MAX_MODEL_BYTES: usize = 16 * 1024 * 1024;
@@ -95,21 +122,18 @@ pub const ALLOWED_OPERATORS: &[&str] = &[
 ];
 
 /// Checks a policy file's bytes; the error says what is refused and why.
-pub fn check_model(bytes: &[u8]) -> Result<(), String> {
+pub fn check_model(bytes: &[u8]) -> Result<(), ModelError> {
     measure_model(bytes).map(|_| ())
 }
 
 /// Checks a policy file's bytes (`check_model`) and returns what it costs.
-pub fn measure_model(bytes: &[u8]) -> Result<ModelCost, String> {
+pub fn measure_model(bytes: &[u8]) -> Result<ModelCost, ModelError> {
     if bytes.len() > MAX_MODEL_BYTES {
-        return Err(format!("the file has {} bytes, more than the {MAX_MODEL_BYTES} a policy may have", bytes.len()));
+        return Err(ModelError::TooLarge { bytes: bytes.len() });
     }
-    let model = onnx::read_model(bytes, MAX_NODES)?;
+    let model = onnx::read_model(bytes, MAX_NODES).map_err(ModelError::Format)?;
     if !(MIN_OPSET..=MAX_OPSET).contains(&model.opset) {
-        return Err(format!(
-            "the model uses ONNX opset {}; a policy uses opset {MIN_OPSET} to {MAX_OPSET} (export again)",
-            model.opset
-        ));
+        return Err(ModelError::Opset { opset: model.opset });
     }
     let bounds = shapes::Bounds {
         row_elements: MAX_ROW_ELEMENTS,
@@ -117,7 +141,7 @@ pub fn measure_model(bytes: &[u8]) -> Result<ModelCost, String> {
         row_work: MAX_ROW_WORK,
         shared_work: MAX_SHARED_WORK,
     };
-    shapes::infer(&model.graph, model.opset, ALLOWED_OPERATORS, &bounds)
+    shapes::infer(&model.graph, model.opset, ALLOWED_OPERATORS, &bounds).map_err(ModelError::Graph)
 }
 
 /// The tests' ONNX writer, shared with the integration tests.
@@ -163,7 +187,7 @@ mod tests {
     }
 
     fn refused(bytes: &[u8], expected: &str) {
-        let error = check_model(bytes).expect_err(expected);
+        let error = check_model(bytes).expect_err(expected).to_string();
         assert!(error.contains(expected), "expected '{expected}' in: {error}");
     }
 
@@ -313,7 +337,7 @@ mod tests {
         assert!(check_model(b"").is_err());
         assert!(check_model(&[0x3a, 0x7f, 0x01]).is_err(), "a field longer than the file");
         assert!(check_model(&[0xff; 12]).is_err(), "an endless varint");
-        assert!(check_model(&vec![0u8; MAX_MODEL_BYTES + 1]).expect_err("size").contains("more than"));
+        assert!(check_model(&vec![0u8; MAX_MODEL_BYTES + 1]).expect_err("size").to_string().contains("more than"));
         let whole = model(&policy_graph(), 17);
         for cut in 0..whole.len() {
             let _ = check_model(&whole[..cut]); // no panic at any length

@@ -4,8 +4,8 @@
 
 use glam::{Quat, Vec3};
 
-use crate::arm_size::ArmLengths;
-use crate::character::{Body, DOF_COUNT, DOFS, JOINTS, PHYSICS_HZ, dof_angles, joint_rotation};
+use crate::contract::arm_size::ArmLengths;
+use crate::contract::character::{Body, DOF_COUNT, DOFS, JOINTS, PHYSICS_HZ, dof_angles, joint_rotation};
 
 /// State of one rigid body in world coordinates.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

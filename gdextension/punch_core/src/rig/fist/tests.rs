@@ -1,7 +1,7 @@
 use glam::{Quat, Vec3};
 
 use super::*;
-use crate::bone_map::map_bones;
+use crate::rig::bone_map::map_bones;
 
 /// Bone names, parents and global rest positions.
 type Bones = Vec<(String, i32, Vec3)>;

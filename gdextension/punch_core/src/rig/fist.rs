@@ -28,7 +28,7 @@
 
 use glam::{Quat, Vec3};
 
-use crate::bone_map::{BoneMap, Side};
+use crate::rig::bone_map::{BoneMap, Side};
 
 /// Fist flexion of a finger's joints (degrees, knuckle first) for fingers of three or more bones.
 pub const FINGER_FLEXION_DEG: [f32; 3] = [90.0, 100.0, 70.0];

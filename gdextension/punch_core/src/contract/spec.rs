@@ -4,8 +4,8 @@
 //!   per-frame features (`FEATURE_NAMES`), and the spec version and hash that name their layout.
 //! - Timing: the physics rate (`PHYSICS_HZ`), the decision period, the frames of one punch, and the smoothing
 //!   window of the actions (`PolicySpec`).
-//! - The default target placement (`BagPlacement::DEFAULT`) and the reach volume a policy covers
-//!   (`REACH_VOLUME`, `ReachVolume`).
+//! - The default episode conditions (`EpisodeConditions::DEFAULT`: where the target hangs) and the reach
+//!   volume a policy covers (`REACH_VOLUME`, `ReachVolume`).
 //!
 //! The training server's handshake (`handshake_fields`) and its reset replies (`PolicySpec::metadata`) are
 //! generated here; the trainer copies the reset's metadata into every policy file it writes, and
@@ -14,12 +14,12 @@
 use glam::Vec3;
 use serde_json::{Map, Value, json};
 
-use crate::arm_size::ArmScale;
-use crate::motion::BodyMotion;
+use crate::contract::arm_size::ArmScale;
+use crate::contract::motion::BodyMotion;
 
-pub use crate::character::{DEFAULT_DECISION_PERIOD, DOF_COUNT, DOFS, PHYSICS_HZ};
-pub use crate::observation::{OBS_DIM, OBS_SPEC_VERSION, observation_names, spec_hash};
-pub use crate::sensing::{FEATURE_COUNT, FEATURE_NAMES};
+pub use crate::contract::character::{DEFAULT_DECISION_PERIOD, DOF_COUNT, DOFS, PHYSICS_HZ};
+pub use crate::contract::observation::{OBS_DIM, OBS_SPEC_VERSION, observation_names, spec_hash};
+pub use crate::contract::sensing::{FEATURE_COUNT, FEATURE_NAMES};
 
 /// Physics frames of one punch unless a reset says otherwise (the paper's 50: 0.42 s at 120 Hz).
 pub const DEFAULT_FRAMES: u32 = 50;
@@ -35,15 +35,17 @@ pub const MAX_DECISION_PERIOD: u32 = 60;
 /// Largest smoothing window, actions (1 turns smoothing off).
 pub const MAX_SMOOTHING_WINDOW: u32 = 50;
 
-/// Where a target (the bag) hangs, in the character's frame: `distance_m` ahead (+Z), `height_m` of its
-/// centre of mass above the ground, `side_m` to the character's left (+X); how fast it moves when the
-/// episode starts (`velocity_side_mps` along +X, `velocity_forward_mps` along +Z: a bag still swinging, or,
-/// with `glides`, a bag whose rope is carried at that velocity, as a target that walks); how the character's
-/// own root moves through the episode (`body`, in training: walking, turning, a lunge); with `rides`, a
-/// bag carried along with it; and how the character's arms are sized (`arms`, in training: the range of rigs
-/// `PunchCharacter.size_arms` accepts).
+/// The conditions of one episode (one punch in training or evaluation): where the target (the bag) hangs, in
+/// the character's frame: `distance_m` ahead (+Z), `height_m` of its centre of mass above the ground, `side_m`
+/// to the character's left (+X); how fast it moves when the episode starts (`velocity_side_mps` along +X,
+/// `velocity_forward_mps` along +Z: a bag still swinging, or, with `glides`, a bag whose rope is carried at
+/// that velocity, as a target that walks); how the character's own root moves through the episode (`body`,
+/// in training: walking, turning, a lunge); with `rides`, a bag carried along with it; and how the character's
+/// arms are sized (`arms`, in training: the range of rigs `PunchCharacter.size_arms` accepts). On the wire it
+/// is a reset's `bags` entry and the handshake's `default_bag` (docs/protocol.md; the names there are
+/// unchanged).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct BagPlacement {
+pub struct EpisodeConditions {
     pub distance_m: f32,
     pub height_m: f32,
     pub side_m: f32,
@@ -58,8 +60,9 @@ pub struct BagPlacement {
     pub arms: ArmScale,
 }
 
-impl BagPlacement {
-    /// The placement every policy is trained at unless told otherwise.
+impl EpisodeConditions {
+    /// The conditions every policy is trained at unless told otherwise (a bag at rest, the body still, the
+    /// addon's arms).
     pub const DEFAULT: Self = Self::at(0.72, 1.35, 0.0);
 
     /// A bag at rest at a place, the character standing still.
@@ -100,13 +103,13 @@ impl BagPlacement {
     }
 }
 
-impl Default for BagPlacement {
+impl Default for EpisodeConditions {
     fn default() -> Self {
         Self::DEFAULT
     }
 }
 
-/// The target placements a policy covers, in the character's frame (`BagPlacement`'s conventions): a box of
+/// The target placements a policy covers, in the character's frame (`EpisodeConditions`'s conventions): a box of
 /// target centres, the target's largest speed when a punch starts, and whether a punch may start from any
 /// pose (the end of an earlier punch, mid-recovery) or only from the settled guard.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -142,8 +145,8 @@ pub const AIM_BEYOND_REACH_M: f32 = 0.3;
 
 impl ReachVolume {
     /// The reach of a policy trained at one spot (the quickstart): that spot, at rest, from the guard.
-    pub fn spot(placement: BagPlacement) -> Self {
-        let BagPlacement { distance_m, height_m, side_m, .. } = placement;
+    pub fn spot(placement: EpisodeConditions) -> Self {
+        let EpisodeConditions { distance_m, height_m, side_m, .. } = placement;
         Self {
             distance_m: [distance_m; 2],
             height_m: [height_m; 2],
@@ -157,7 +160,7 @@ impl ReachVolume {
         [self.side_m, self.height_m, self.distance_m]
     }
 
-    /// The point of the box nearest to `position` (x side, y height, z distance, as `BagPlacement::position`).
+    /// The point of the box nearest to `position` (x side, y height, z distance, as `EpisodeConditions::position`).
     pub fn nearest(&self, position: Vec3) -> Vec3 {
         let [x, y, z] = self.ranges();
         Vec3::new(position.x.clamp(x[0], x[1]), position.y.clamp(y[0], y[1]), position.z.clamp(z[0], z[1]))
@@ -505,7 +508,7 @@ pub fn handshake_fields(decision_period: u32) -> Map<String, Value> {
     fields.insert("action_upper_rad".into(), json!(DOFS.iter().map(|d| d.upper_rad).collect::<Vec<_>>()));
     fields.insert("observation_names".into(), json!(observation_names()));
     fields.insert("feature_names".into(), json!(FEATURE_NAMES.to_vec()));
-    fields.insert("default_bag".into(), BagPlacement::DEFAULT.to_json());
+    fields.insert("default_bag".into(), EpisodeConditions::DEFAULT.to_json());
     fields.insert("reach_volume".into(), REACH_VOLUME.to_json());
     fields
 }
@@ -617,14 +620,14 @@ mod tests {
 
     #[test]
     fn the_reach_volume_contains_its_box_give_or_take_the_tolerance() {
-        let centre = BagPlacement::at(0.72, 1.35, 0.0).position();
+        let centre = EpisodeConditions::at(0.72, 1.35, 0.0).position();
         assert!(REACH_VOLUME.contains(centre));
         assert!(REACH_VOLUME.contains(Vec3::new(0.25 + REACH_TOLERANCE_M * 0.9, 1.55, 0.85)));
         let far = Vec3::new(0.0, 1.35, 1.2);
         assert!(!REACH_VOLUME.contains(far));
         assert_eq!(REACH_VOLUME.nearest(far), Vec3::new(0.0, 1.35, 0.85));
         assert!(!REACH_VOLUME.contains(Vec3::NAN));
-        let spot = ReachVolume::spot(BagPlacement::DEFAULT);
+        let spot = ReachVolume::spot(EpisodeConditions::DEFAULT);
         assert!(spot.contains(centre + Vec3::new(0.02, 0.0, 0.0)));
         assert!(!spot.contains(centre + Vec3::new(0.0, 0.05, 0.0)));
     }
@@ -636,7 +639,7 @@ mod tests {
         assert_eq!(REACH_VOLUME.aim_point(beside), beside);
         let far = Vec3::new(0.0, 1.35, 2.0);
         assert_eq!(REACH_VOLUME.aim_point(far), Vec3::new(0.0, 1.35, 0.85 + AIM_BEYOND_REACH_M));
-        let spot = ReachVolume::spot(BagPlacement::DEFAULT);
+        let spot = ReachVolume::spot(EpisodeConditions::DEFAULT);
         assert_eq!(spot.aim_point(beside), spot.nearest(beside));
     }
 

@@ -12,9 +12,9 @@ use std::net::{TcpListener, TcpStream};
 use std::os::fd::AsRawFd;
 use std::time::{Duration, Instant};
 
-use crate::access::{Access, ClientId, Verdict};
-use crate::log_budget::LogBudget;
-use crate::protocol::{FrameReader, Message, ProtocolError, error_reply, release_spare};
+use crate::training::access::{Access, ClientId, Verdict};
+use crate::training::log_budget::LogBudget;
+use crate::training::protocol::{FrameReader, Message, ProtocolError, error_reply, release_spare};
 
 /// The server's limits on its clients.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -6,7 +6,7 @@
 //! At the start of an episode, when fewer than n actions exist, the average runs over those that do (with
 //! their weights), so the first action is taken as it is. n = 1 turns smoothing off.
 
-use crate::character::DOF_COUNT;
+use crate::contract::character::DOF_COUNT;
 
 #[derive(Debug, Clone)]
 pub struct Smoother {

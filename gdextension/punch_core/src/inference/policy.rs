@@ -5,8 +5,8 @@ use ort::session::{Session, builder::GraphOptimizationLevel};
 use ort::value::{TensorRef, ValueType};
 
 use crate::error::{CoreError, CoreResult};
-use crate::model_check::check_model;
-use crate::runtime;
+use crate::inference::runtime;
+use punch_model_check::check_model;
 
 /// One named output of a policy run, row-major `[batch, width]`.
 #[derive(Debug, Clone, PartialEq)]
@@ -31,14 +31,14 @@ impl Policy {
     /// Builds a policy from the bytes of an .onnx file (bytes, not a path, so models inside a Godot .pck
     /// work too). Fails if the runtime is not initialised, the bytes are not ONNX, or the model does not have
     /// one float input of shape [batch, n] with a fixed n. The graph is checked first
-    /// (`model_check::check_model`): a file with control flow or other operators a policy may not use is
+    /// (`punch_model_check::check_model`): a file with control flow or other operators a policy may not use is
     /// refused before ONNX Runtime sees it.
     pub fn from_bytes(model_bytes: &[u8]) -> CoreResult<Self> {
         let environment = runtime::environment()?;
         if model_bytes.is_empty() {
             return Err(CoreError::InvalidModel("the file is empty".into()));
         }
-        check_model(model_bytes).map_err(CoreError::InvalidModel)?;
+        check_model(model_bytes)?;
         let invalid = |e: ort::Error| CoreError::InvalidModel(e.to_string());
         let session = Session::builder(environment)
             .map_err(invalid)?

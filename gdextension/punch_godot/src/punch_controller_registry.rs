@@ -1,21 +1,23 @@
-//! `PunchInference`: the state every `PunchController` of a game shares, as an engine singleton: which
-//! controllers are active, which controller drives each character, and the counters benchmarks read. The
-//! frame pass that runs the active controllers, batching their policy calls, is `PunchController`'s own
-//! (`punch_controller.rs`); this class knows controllers only by their instance ids.
+//! `PunchControllerRegistry`: the state every `PunchController` of a game shares, as an engine singleton:
+//! which controllers are active, which controller drives each character, and the counters benchmarks read
+//! (through `PunchProbe`, in debug builds). The frame pass that runs the active controllers, batching their
+//! policy calls, is `PunchController`'s own (`punch_controller.rs`); this class knows controllers only by
+//! their instance ids.
 
-use godot::builtin::{Callable, StringName, VarDictionary, Variant};
+use godot::builtin::{Callable, StringName, Variant};
 use godot::classes::{Object, SceneTree};
 use godot::obj::{Base, Gd, InstanceId, Singleton};
 use godot::prelude::{GodotClass, godot_api};
-use punch_core::policy_gate::PolicyCall;
+use punch_core::game::policy_gate::PolicyCall;
 
 use crate::punch_spec::PunchSpec;
 
-/// Shared state of every `PunchController` in the game, and counters for benchmarks. An engine singleton the
-/// extension registers itself; games need not touch it.
+/// The registry of a game's `PunchController`s: which are active, which one drives each character, and what
+/// their frames cost. An engine singleton the extension registers itself; games need not touch it (tests and
+/// benchmarks read its counters through `PunchProbe`).
 #[derive(GodotClass)]
 #[class(init, singleton, base = Object)]
-pub struct PunchInference {
+pub struct PunchControllerRegistry {
     /// The controllers with a punch or a recovery running (or just started).
     active: Vec<InstanceId>,
     /// Which controller drives each character now: (character, controller).
@@ -32,36 +34,9 @@ pub struct PunchInference {
 }
 
 #[godot_api]
-impl PunchInference {
-    /// Mean time (µs) all controllers together spent per physics frame (sensing, batched inference,
-    /// driving) since the last call: for benchmarks.
-    #[func]
-    pub fn take_frame_cost_usec(&mut self) -> f64 {
-        let (usec, frames) = std::mem::take(&mut self.cost);
-        if frames == 0 { 0.0 } else { usec / frames as f64 }
-    }
+impl PunchControllerRegistry {}
 
-    /// How many controllers the frame pass runs now (punching, recovering, or with a last command to give):
-    /// for tests and benchmarks.
-    #[func]
-    pub fn active_count(&self) -> i64 {
-        self.active.len() as i64
-    }
-
-    /// How batched the inference was since the last call, over all controllers: `calls` to ONNX Runtime,
-    /// the `rows` (controller decisions) they ran, and the time they took, `usec` (for benchmarks).
-    #[func]
-    pub fn take_inference_counts(&mut self) -> VarDictionary {
-        let (calls, rows, usec) = std::mem::take(&mut self.inference);
-        let mut counts = VarDictionary::new();
-        counts.set("calls", calls as i64);
-        counts.set("rows", rows as i64);
-        counts.set("usec", usec);
-        counts
-    }
-}
-
-impl PunchInference {
+impl PunchControllerRegistry {
     /// The active controllers, in the order they became active.
     pub fn active() -> Vec<InstanceId> {
         Self::singleton().bind().active.clone()
@@ -143,6 +118,26 @@ impl PunchInference {
              README, 'Project settings'):\n{}",
             lines.join("\n")
         ))
+    }
+
+    /// How many controllers the frame pass runs now (punching, recovering, or with a last command to give).
+    #[cfg(feature = "probe")]
+    pub fn active_count() -> usize {
+        Self::singleton().bind().active.len()
+    }
+
+    /// Mean time (µs) all controllers together spent per physics frame (sensing, batched inference, driving)
+    /// since the last call.
+    #[cfg(feature = "probe")]
+    pub fn take_frame_cost_usec() -> f64 {
+        let (usec, frames) = std::mem::take(&mut Self::singleton().bind_mut().cost);
+        if frames == 0 { 0.0 } else { usec / frames as f64 }
+    }
+
+    /// The policy calls, the rows they ran and their time (µs) since the last call.
+    #[cfg(feature = "probe")]
+    pub fn take_inference_counts() -> (u64, u64, f64) {
+        std::mem::take(&mut Self::singleton().bind_mut().inference)
     }
 
     /// Counts one frame of controller work that began at `started`, and its policy calls.

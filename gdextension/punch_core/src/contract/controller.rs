@@ -4,10 +4,10 @@
 
 use glam::Vec3;
 
-use crate::character::{DOF_COUNT, joint_target, motor_velocities, targets_from_action};
+use crate::contract::character::{DOF_COUNT, joint_target, motor_velocities, targets_from_action};
+use crate::contract::sensing::{CharacterGeometry, FEATURE_COUNT, FrameReading, Sensor};
+use crate::contract::smoothing::Smoother;
 use crate::error::{CoreError, CoreResult};
-use crate::sensing::{CharacterGeometry, FEATURE_COUNT, FrameReading, Sensor};
-use crate::smoothing::Smoother;
 
 #[derive(Debug, Clone)]
 pub struct CharacterController {

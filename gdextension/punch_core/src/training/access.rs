@@ -10,7 +10,7 @@ use std::collections::HashSet;
 
 use serde_json::Value;
 
-use crate::protocol::{Message, error_reply};
+use crate::training::protocol::{Message, error_reply};
 
 /// A connection's number, unique for the life of the server.
 pub type ClientId = u64;
@@ -146,7 +146,9 @@ mod tests {
     }
 
     fn hello(secret: &str) -> Message {
-        message(json!({"type": "hello", "protocol_version": crate::protocol::PROTOCOL_VERSION, "secret": secret}))
+        message(
+            json!({"type": "hello", "protocol_version": crate::training::protocol::PROTOCOL_VERSION, "secret": secret}),
+        )
     }
 
     #[test]

@@ -9,7 +9,7 @@
 
 use std::collections::HashMap;
 
-use super::onnx::{Attribute, FLOAT, Graph, INT32, INT64, InputDim, Node, allowed_type};
+use crate::onnx::{Attribute, FLOAT, Graph, INT32, INT64, InputDim, Node, allowed_type};
 
 #[derive(Clone, Copy, PartialEq, Debug)]
 enum Dim {

@@ -9,11 +9,13 @@
 use std::cell::RefCell;
 use std::rc::Rc;
 
-use crate::character::DOF_COUNT;
+use crate::contract::character::DOF_COUNT;
+use crate::contract::observation::{OBS_DIM, OBS_SPEC_VERSION, spec_hash};
+use crate::contract::spec::{
+    NoiseScale, POLICY_INPUT, POLICY_OUTPUTS, PolicySpec, ReachVolume, keys, noise_scale_from_metadata,
+};
 use crate::error::{CoreError, CoreResult};
-use crate::observation::{OBS_DIM, OBS_SPEC_VERSION, spec_hash};
-use crate::policy::{Policy, Tensor};
-use crate::spec::{NoiseScale, POLICY_INPUT, POLICY_OUTPUTS, PolicySpec, ReachVolume, keys, noise_scale_from_metadata};
+use crate::inference::policy::{Policy, Tensor};
 
 /// A model checked as a punching policy, shared by every controller that plays it.
 pub struct PunchingPolicy {

@@ -33,10 +33,10 @@
 
 use glam::{Mat3, Quat, Vec3};
 
-use crate::arm_size::ArmLengths;
-use crate::bone_map::{BoneMap, Side};
-use crate::character::{Body, JOINTS};
-use crate::sensing::CharacterGeometry;
+use crate::contract::arm_size::ArmLengths;
+use crate::contract::character::{Body, JOINTS};
+use crate::contract::sensing::CharacterGeometry;
+use crate::rig::bone_map::{BoneMap, Side};
 
 /// Why a skeleton's rest cannot be posed from the simulated body.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -431,7 +431,7 @@ pub fn rig_fist(parents: &[i32], rest: &[(Quat, Vec3)], hand: usize, forearm: us
 }
 
 /// How far the fist centre lies from the wrist toward the knuckles (a fraction of that distance). Measured on the
-/// converted CC0 characters with their fingers curled into fists (`crate::fist`), skinned at the hit: at three
+/// converted CC0 characters with their fingers curled into fists (`crate::rig::fist`), skinned at the hit: at three
 /// quarters, the skinned fist's front meets the simulated fist's front within 5 mm and its centre is about
 /// 1.5 cm further along and 1.8 cm toward the palm; at half, the skin reached 1.5 to 3 cm past the simulated fist.
 pub const FIST_ALONG_HAND: f32 = 0.75;

@@ -8,13 +8,15 @@
 
 use glam::Vec3;
 
-use crate::character::{Body, DOF_COUNT};
-use crate::controller::CharacterController;
+use crate::contract::character::{Body, DOF_COUNT};
+use crate::contract::controller::CharacterController;
+use crate::contract::observation::{OBS_DIM, observation};
+use crate::contract::sensing::{
+    CharacterGeometry, FEATURE_COUNT, FIST_CONTACT_MARGIN_M, FrameReading, columns, feature_vector,
+};
+use crate::contract::spec::{NoiseScale, PolicySpec, UNIFORM_NOISE};
 use crate::error::{CoreError, CoreResult};
-use crate::noise::GaussianNoise;
-use crate::observation::{OBS_DIM, observation};
-use crate::sensing::{CharacterGeometry, FEATURE_COUNT, FIST_CONTACT_MARGIN_M, FrameReading, columns, feature_vector};
-use crate::spec::{NoiseScale, PolicySpec, UNIFORM_NOISE};
+use crate::game::noise::GaussianNoise;
 
 /// Impulse (N s) on the target above which a fist counts as hitting it.
 pub const HIT_IMPULSE_NS: f32 = 0.05;

@@ -1,7 +1,7 @@
 use glam::{Quat, Vec3};
 
 use super::*;
-use crate::bone_map::map_bones;
+use crate::rig::bone_map::map_bones;
 
 /// A humanoid in a T-pose (or an A-pose, arms `arm_drop_rad` below horizontal), facing +Z, +X its left, with
 /// its bones' rest rotations in one of several axis conventions: 0 identity, 1 each bone's +Y toward its child

@@ -4,23 +4,23 @@
 use glam::Vec3;
 use serde_json::{Value, json};
 
-use crate::character::{DOF_COUNT, PHYSICS_HZ};
-use crate::controller::CharacterController;
-use crate::motion::{self, RootPose};
-use crate::observation::{OBS_DIM, observation};
-use crate::protocol::{Array, Message, PROTOCOL_VERSION, error_reply};
-use crate::sensing::{CharacterGeometry, FEATURE_COUNT, FrameReading, guard};
-pub use crate::spec::BagPlacement;
-use crate::spec::{DEFAULT_FRAMES, PolicySpec, handshake_fields};
+use crate::contract::character::{DOF_COUNT, PHYSICS_HZ};
+use crate::contract::controller::CharacterController;
+use crate::contract::motion::{self, RootPose};
+use crate::contract::observation::{OBS_DIM, observation};
+use crate::contract::sensing::{CharacterGeometry, FEATURE_COUNT, FrameReading, guard};
+use crate::contract::spec::EpisodeConditions;
+use crate::contract::spec::{DEFAULT_FRAMES, PolicySpec, handshake_fields};
+use crate::training::protocol::{Array, Message, PROTOCOL_VERSION, error_reply};
 
 /// The physics the session drives: N character slots, each with its own bag, never touching each other.
 /// The Godot layer's `TrainingWorld` is the real one; the unit tests use a fake one.
 pub trait World {
     fn slot_count(&self) -> usize;
     /// Rebuilds every slot in its initial state (a fresh physics world, so every reset is identical).
-    fn reset(&mut self, placements: &[BagPlacement]) -> Result<(), String>;
+    fn reset(&mut self, placements: &[EpisodeConditions]) -> Result<(), String>;
     /// Puts a slot's bag back as `placement` hangs it (position, at rest or swinging as it says).
-    fn place_bag(&mut self, slot: usize, placement: &BagPlacement);
+    fn place_bag(&mut self, slot: usize, placement: &EpisodeConditions);
     fn geometry(&self, slot: usize) -> CharacterGeometry;
     fn read(&self, slot: usize) -> FrameReading;
     /// Sets the joint motors of a slot for the next physics step.
@@ -32,7 +32,7 @@ pub trait World {
     /// carried rigidly by it), and to its bag when `with_bag` (a bag that rides along): an episode that starts
     /// while walking starts with the body already walking.
     fn carry_bodies(&mut self, slot: usize, root: &RootPose, with_bag: bool);
-    /// Moves the top of a carried bag's rope (`BagPlacement::glides` or `rides`) to where `carry` (a rigid
+    /// Moves the top of a carried bag's rope (`EpisodeConditions::glides` or `rides`) to where `carry` (a rigid
     /// motion in the slot's frame at the episode's start) takes it from where the placement put it, reached
     /// after the next physics step; nothing for a bag on a fixed rope.
     fn move_rope(&mut self, slot: usize, carry: &RootPose);
@@ -82,7 +82,7 @@ pub struct Session {
     run: Option<Run>,
     episode_started: bool,
     /// Where each slot's bag hangs in the episode being reset (a lead-in's punch moves it; it is put back).
-    placements: Vec<BagPlacement>,
+    placements: Vec<EpisodeConditions>,
 }
 
 /// Longest lead-in of a reset, decisions.
@@ -401,13 +401,13 @@ impl Session {
     }
 }
 
-fn parse_placements(value: Option<&Value>, slot_count: usize) -> Result<Vec<BagPlacement>, String> {
+fn parse_placements(value: Option<&Value>, slot_count: usize) -> Result<Vec<EpisodeConditions>, String> {
     const NAMES: &str = "distance_m, height_m, side_m, velocity_side_mps, velocity_forward_mps, bag_glides, bag_rides, \
                          body_side_mps, body_forward_mps, body_turn_rad_s, body_lunge_m, body_bob_m, \
                          arms_upper_arm_scale, arms_forearm_scale, arms_shoulder_shift_m";
-    let parse_one = |value: &Value| -> Result<BagPlacement, String> {
+    let parse_one = |value: &Value| -> Result<EpisodeConditions, String> {
         let object = value.as_object().ok_or("a bag placement is an object")?;
-        let mut placement = BagPlacement::default();
+        let mut placement = EpisodeConditions::default();
         for (key, field) in object {
             if key == "bag_glides" || key == "bag_rides" {
                 let value = field.as_bool().ok_or(format!("bag '{key}' must be true or false"))?;
@@ -446,7 +446,7 @@ fn parse_placements(value: Option<&Value>, slot_count: usize) -> Result<Vec<BagP
         Ok(placement)
     };
     match value {
-        None | Some(Value::Null) => Ok(vec![BagPlacement::default(); slot_count]),
+        None | Some(Value::Null) => Ok(vec![EpisodeConditions::default(); slot_count]),
         Some(Value::Array(list)) if list.len() == slot_count => list.iter().map(parse_one).collect(),
         Some(Value::Array(list)) => Err(format!("'bags' lists {} placements for {slot_count} slots", list.len())),
         Some(one) => Ok(vec![parse_one(one)?; slot_count]),
@@ -456,10 +456,10 @@ fn parse_placements(value: Option<&Value>, slot_count: usize) -> Result<Vec<BagP
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::contract::observation::observation_names;
+    use crate::contract::sensing::feature_index;
+    use crate::contract::spec::keys;
     use crate::fake_world::FakeWorld;
-    use crate::observation::observation_names;
-    use crate::sensing::feature_index;
-    use crate::spec::keys;
 
     fn message(text: serde_json::Value, actions: Option<Array>) -> Message {
         let mut message = Message::new(text["type"].as_str().expect("type"));
@@ -495,8 +495,8 @@ mod tests {
             session.handle(&message(json!({"type": "hello", "protocol_version": PROTOCOL_VERSION}), None), &mut world),
         );
         assert_eq!(hello.header["slot_count"], json!(3));
-        assert_eq!(hello.header["spec_hash"], json!(crate::spec::spec_hash(5)));
-        assert_eq!(hello.header["default_bag"], BagPlacement::DEFAULT.to_json());
+        assert_eq!(hello.header["spec_hash"], json!(crate::contract::spec::spec_hash(5)));
+        assert_eq!(hello.header["default_bag"], EpisodeConditions::DEFAULT.to_json());
         let old = reply(session.handle(&message(json!({"type": "hello", "protocol_version": 1}), None), &mut world));
         assert_eq!(old.message_type(), "error");
     }
@@ -599,7 +599,7 @@ mod tests {
         let bags = json!([{"body_forward_mps": 1.4, "body_turn_rad_s": 1.5, "bag_glides": true,
                            "velocity_forward_mps": 1.0}, {}]);
         reply(session.handle(&message(json!({"type": "reset", "frames": 10, "bags": bags}), None), &mut world));
-        let walking = BagPlacement { velocity_forward_mps: 1.0, glides: true, ..BagPlacement::DEFAULT };
+        let walking = EpisodeConditions { velocity_forward_mps: 1.0, glides: true, ..EpisodeConditions::DEFAULT };
         assert_eq!(session.placements[0].body.forward_mps, 1.4);
         assert_eq!(
             (session.placements[0].glides, session.placements[0].velocity()),

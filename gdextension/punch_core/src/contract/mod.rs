@@ -1,0 +1,10 @@
+//! The policy contract and what training and the game both run (see `lib.rs`).
+
+pub mod arm_size;
+pub mod character;
+pub mod controller;
+pub mod motion;
+pub mod observation;
+pub mod sensing;
+pub mod smoothing;
+pub mod spec;
