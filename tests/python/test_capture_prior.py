@@ -47,7 +47,7 @@ def test_the_actions_are_shares_of_each_range_and_the_guard_arm_holds() -> None:
 def test_played_open_loop_most_captured_punches_reach_the_bag_and_the_guard_holds() -> None:
     """In the simulator, three of the four retargeted punches carry the right fist forward onto a bag in front at
     the capture's pace (0.12-0.21 s), the left fist near its guard; the second, whose upper arm turns 30 degrees
-    across the body, stalls (docs/experiments.md)."""
+    across the body, stalls (experiments/notebook.md)."""
     with RolloutPool(1, 4) as pool:
         info, names = pool.info, pool.info.feature_names
         actions = np.stack([captured_actions(p, info.action_names, info.action_lower_rad, info.action_upper_rad, 10,

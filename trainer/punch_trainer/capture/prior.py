@@ -1,4 +1,4 @@
-"""The captured punches retargeted onto the character's joints: a prior from motion capture (docs/experiments.md,
+"""The captured punches retargeted onto the character's joints: a prior from motion capture (experiments/notebook.md,
 "The captured punches as the search's start, and tracked").
 
 A captured punch (capture/punches.py: CMU 143/23, turned so that its reach points at +Z with +X the boxer's

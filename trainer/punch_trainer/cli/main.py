@@ -382,7 +382,7 @@ def build_parser() -> argparse.ArgumentParser:
     pre.set_defaults(run=_pretrain)
 
     soup = commands.add_parser("soup", help="one policy whose weights are the mean of several fine-tuned from one parent "
-                                            "(a weight-space ensemble; docs/experiments.md)")
+                                            "(a weight-space ensemble; experiments/notebook.md)")
     soup.add_argument("policies", type=Path, nargs="+", help="policy files of one lineage (one contract, reward, noise "
                                                              "scale and observation normalisation)")
     soup.add_argument("--out", type=Path, required=True, help="the policy file to write")

@@ -1,6 +1,6 @@
 """`punch soup`: one policy whose weights are the mean of several policies of one lineage, a weight-space
 ensemble (Wortsman et al. 2022, "Model soups", and "Robust fine-tuning of zero-shot models", WiSE-FT). Each round
-of A2C from one policy file trades something for what it gains (docs/experiments.md); policies fine-tuned from
+of A2C from one policy file trades something for what it gains (experiments/notebook.md); policies fine-tuned from
 one parent stay close enough in weight space that their mean can keep what each gained.
 
 The mean is only meaningful among policies of one lineage, so every ingredient must share the network, the

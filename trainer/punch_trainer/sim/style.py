@@ -1,7 +1,7 @@
 """Motion style: a prior, added by the product to any reward, that keeps a punch looking like a person's
 (docs/style.md). The user still writes only their reward; the style decides how a punch may earn it.
 
-A style has two parts, chosen by measurement (docs/experiments.md, "A motion style"):
+A style has two parts, chosen by measurement (experiments/notebook.md, "A motion style"):
 
 1. **A discount on what a punch earns.** Every frame has a style cost (fist speeds measured on the body, less
    the root's own walking and turning): the off (left) fist's distance from its guard and its speed, the waist's forward flexion, the punching fist's speed and, until it lands, its
@@ -12,7 +12,7 @@ A style has two parts, chosen by measurement (docs/experiments.md, "A motion sty
    tenth of every later frame's cost is taken from it too (so flailing after the fist lands is not free): a
    punch that flails earns less, but any hit still earns more than standing still. Penalties added to the
    reward instead made the search settle on standing still, since every exploratory motion then scores below
-   zero (docs/experiments.md, "A motion style"); subtracting even 2% of the cost as well made the punching
+   zero (experiments/notebook.md, "A motion style"); subtracting even 2% of the cost as well made the punching
    arm wind up and missed a far target.
    The order styles add a charge that takes the whole punch's earnings, for a punch whose waist, shoulder and
    elbow do not peak in the proximal-to-distal order (`whole_punch_cost`; docs/style.md, "The proximal-to-distal
@@ -71,11 +71,11 @@ class Style:
     chain_cost: float = 0.0
     """cost of a joint turning faster, relative to a captured punch's peak, than the joint before it in the chain
     (waist rotation, shoulder, elbow) has turned so far, until the fist lands: the proximal-to-distal order of
-    boxing (0 in `boxing`; tried as `boxing_chain`: docs/experiments.md)"""
+    boxing (0 in `boxing`; tried as `boxing_chain`: experiments/notebook.md)"""
     drive_cost: float = 0.0
     """cost of the shoulder or the elbow turning slower, relative to a captured punch's peak, than it already has,
     until the fist lands: the arm drives into the target, so its joints peak at contact, with the waist, whose
-    turn the policies already speed up until contact (tried as `boxing_drive`: docs/experiments.md)"""
+    turn the policies already speed up until contact (tried as `boxing_drive`: experiments/notebook.md)"""
     chain_peak_rad_s: tuple[float, float, float] = (3.0, 10.0, 18.0)
     """waist rotation, shoulder and elbow speeds the chain measures against: the captured punches' peaks
     (../shared/data, CMU 143/23, from joint positions: the shoulder line's yaw 3.5-5.4, the upper arm's direction
@@ -127,19 +127,19 @@ class Style:
     order_charged_at_contact: bool = False
     """the order's charge all at once on the first contact frame, so that a punch which never touches the bag
     escapes it (the first form, in the `boxing_order` styles before `boxing_ordered`: a policy trained with it
-    stopped short of targets that its short arms reached only out of order, docs/experiments.md)"""
+    stopped short of targets that its short arms reached only out of order, experiments/notebook.md)"""
     miss_after_frames: int = 0
     """the frame from which a punch that has not yet touched the bag is charged `miss_cost_per_frame` a frame"""
     miss_cost_per_frame: float = 0.0
     """cost, taking the whole punch's earnings as the order's does, of each frame from `miss_after_frames` on
     before the fist first touches the bag, so that with a reward that pays near the bag without a touch (the
     hook's, the swing's) stopping short is not a way out of the order's charge (0: none; tried on the hook: it did
-    not keep short arms' hits, docs/experiments.md)"""
+    not keep short arms' hits, experiments/notebook.md)"""
     arm_first_cost: float = 0.0
     """cost, taking the whole punch's earnings as the order's does, on the first frame on which the character
     touches the bag elsewhere than with its punching fist (the forearm, the elbow, the other fist) before that
     fist has: a bag pushed by the forearm is no hit in a game (`punch eval`'s success, the controller's `hit`),
-    and under noise the ordered straight's forearm met near bags first (0: none; docs/experiments.md)"""
+    and under noise the ordered straight's forearm met near bags first (0: none; experiments/notebook.md)"""
     arm_first_reach_share: float = 0.0
     """`arm_first_cost` only where the bag's near side starts within this share of the arm's length from the
     shoulder (`reach_share`, as `order_reach_share`): a short arm at a far bag leans in, and its trunk may meet the
