@@ -34,3 +34,21 @@ pub fn godot_axis(axis: Axis) -> Vector3Axis {
         Axis::Z => Vector3Axis::Z,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn vectors_and_rotations_go_both_ways_and_a_scaled_basis_keeps_its_rotation() {
+        let v = Vec3::new(1.0, -2.0, 3.5);
+        assert_eq!(vec3(vector3(v)), v);
+        let q = Quat::from_rotation_y(0.7) * Quat::from_rotation_x(-0.3);
+        assert!(quat(quaternion(q)).angle_between(q) < 1e-5);
+        // A rig imported in centimetres: its node's basis is its rotation scaled by 0.01 (by 0.02 along one axis).
+        for scale in [Vector3::splat(0.01), Vector3::new(0.01, 0.02, 0.01)] {
+            let basis = Basis::from_quaternion(quaternion(q)) * Basis::from_scale(scale);
+            assert!(rotation(basis).angle_between(q) < 1e-4, "{scale:?}");
+        }
+    }
+}

@@ -428,3 +428,24 @@ fn configure_joint(joint: &mut Gd<Generic6DofJoint3D>, joint_index: usize) {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use godot::builtin::{Basis, Transform3D, Vector3};
+
+    use super::*;
+
+    #[test]
+    fn a_frames_walk_or_turn_is_no_teleport_but_a_jump_is() {
+        let here = Transform3D::IDENTITY;
+        let moved = |turn_rad: f32, x: f32| {
+            Transform3D::new(Basis::from_axis_angle(Vector3::UP, turn_rad), Vector3::new(x, 0.0, 0.0))
+        };
+        assert!(!is_teleport(here, moved(0.05, 0.03)), "a frame of a walk and a turn");
+        assert!(is_teleport(here, moved(0.0, TELEPORT_DISTANCE_M + 0.01)));
+        assert!(is_teleport(here, moved(TELEPORT_TURN_RAD + 0.01, 0.0)));
+        // Under a node scaled by 0.01 (a rig in centimetres), only the motion counts.
+        let scaled = Transform3D::new(Basis::IDENTITY.scaled(Vector3::splat(0.01)), Vector3::ZERO);
+        assert!(!is_teleport(here, scaled));
+    }
+}
