@@ -44,7 +44,7 @@ def imported_modules(path: Path, package: Path) -> list[str]:
 def layer_violations(package: Path, layers: list[str]) -> list[str]:
     """'<module> imports <module>' for every import of a layer above the importer's own, of a module outside
     every layer, and for every module that is itself outside every layer and not shared."""
-    shared = {package.name, f"{package.name}.errors", f"{package.name}.options"}
+    shared = {package.name, f"{package.name}.errors", f"{package.name}.options", f"{package.name}.policy_file"}
     violations = []
     for path in sorted(package.rglob("*.py")):
         own = module_name(path, package)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import torch
 
-from punch_trainer.errors import GodotRunError
+from punch_trainer.errors import GodotRunError, PolicyFileError
 from punch_trainer.learn.dataset import load_datasets
 from punch_trainer.learn.export import export_policy
 from punch_trainer.learn.policy import ActorCritic
@@ -102,11 +102,11 @@ def test_replay_reports_and_plots_every_sigma(trained, tmp_path):
 
 
 def test_replay_refuses_bad_policies_clearly(tmp_path):
-    with pytest.raises(ReplayError, match="not found"):
+    with pytest.raises(PolicyFileError, match="not found"):
         run_replay(ReplayArgs(policy=tmp_path / "missing.onnx", sigmas=[0.0], episodes=1), progress=False)
     corrupt = tmp_path / "corrupt.onnx"
     corrupt.write_bytes(b"not a model at all")
-    with pytest.raises(ReplayError, match="not an ONNX model"):
+    with pytest.raises(PolicyFileError, match="not an ONNX model"):
         run_replay(ReplayArgs(policy=corrupt, sigmas=[0.0], episodes=1), progress=False)
     with pytest.raises(ReplayError, match="sigmas must lie"):
         run_replay(ReplayArgs(policy=SHIPPED_POLICY, sigmas=[1.5], episodes=1), progress=False)

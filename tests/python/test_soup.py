@@ -19,8 +19,10 @@ from punch_trainer.learn.soup import SoupError, soup
 from punch_trainer.learn.warm_start import actor_parameters
 
 OBSERVATIONS, ACTIONS = 6, 10
+REACH = '{"any_start_pose": false, "distance_m": [0.72, 0.72], "height_m": [1.35, 1.35], "side_m": [0, 0], "max_target_speed_mps": 0}'
 CONTRACT = {"punch_spec_hash": "b3b18e1568362141", "punch_observation_size": str(OBSERVATIONS),
-            "punch_action_size": str(ACTIONS), "punch_decision_period": "5"}
+            "punch_action_size": str(ACTIONS), "punch_decision_period": "5", "punch_frames": "50", "punch_physics_hz": "120",
+            "punch_smoothing_window": "3", "punch_reach_volume": REACH}
 NORMALISATION = np.random.default_rng(0).normal(1.0, 2.0, size=(100, OBSERVATIONS))
 
 

@@ -10,14 +10,14 @@ import torch
 
 from punch_trainer.learn.a2c import collect_episodes
 from punch_trainer.learn.policy import SIGMA_MIN, ActorCritic
-from punch_trainer.learn.reach import HELD_OUT_SEED, METADATA_KEY, ReachVolume, placement
+from punch_trainer.learn.reach import HELD_OUT_SEED, ReachVolume, placement
 from punch_trainer.learn.search import SearchArgs
 from punch_trainer.learn.volume import EpisodeConditions, VolumeArgs
 from punch_trainer.pipelines.evaluate import EvalArgs, run_eval
 from punch_trainer.pipelines.experiments import AfterPunchArgs, after_punch_headroom
-from punch_trainer.pipelines.replay import policy_metadata
 from punch_trainer.pipelines.search import run_search
 from punch_trainer.pipelines.train import TrainArgs, run_train
+from punch_trainer.policy_file import read_policy_metadata
 from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.rewards import load_reward
 from punch_trainer.sim.server import TrainingServer
@@ -43,8 +43,8 @@ def test_a_volume_policy_beats_a_single_spot_policy_on_held_out_placements(tmp_p
     spot = run_train(TrainArgs(out=tmp_path / "spot", style="none", reach="spot", **BUDGET), progress=False)
     with TrainingServer(1) as server:
         announced = ReachVolume.from_json(server.info.reach_volume)
-    assert ReachVolume.from_json(policy_metadata(volume / "policy.onnx")[METADATA_KEY]) == announced
-    spot_reach = ReachVolume.from_json(policy_metadata(spot / "policy.onnx")[METADATA_KEY])
+    assert ReachVolume.from_json(read_policy_metadata(volume / "policy.onnx").reach_volume) == announced
+    spot_reach = ReachVolume.from_json(read_policy_metadata(spot / "policy.onnx").reach_volume)
     assert spot_reach.is_spot and not spot_reach.any_start_pose
 
     out, report = run_eval(EvalArgs(policy=volume / "policy.onnx", baseline=spot / "policy.onnx", placements=32,

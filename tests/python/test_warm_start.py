@@ -18,6 +18,14 @@ from punch_trainer.learn.warm_start import SNAPSHOT_KIND, WarmStartError, warm_s
 EARLIER = ["fist_x", "bag_x", "root_spin", "episode_phase"]
 NOW = ["fist_x", "bag_x", "root_spin", "arm_m", "forearm_m", "episode_phase"]
 SPEC = "b3b18e1568362141"
+REACH = '{"any_start_pose": false, "distance_m": [0.72, 0.72], "height_m": [1.35, 1.35], "side_m": [0, 0], "max_target_speed_mps": 0}'
+
+
+def contract(spec: str = SPEC) -> dict[str, str]:
+    """A policy contract as `punch train` writes it, for an observation of NOW."""
+    return {"punch_spec_hash": spec, "punch_observation_size": str(len(NOW)), "punch_action_size": "10",
+            "punch_decision_period": "5", "punch_frames": "50", "punch_physics_hz": "120", "punch_smoothing_window": "3",
+            "punch_reach_volume": REACH}
 
 
 def earlier_run(folder: Path, names: list[str] = EARLIER) -> ActorCritic:
@@ -75,8 +83,7 @@ def test_a_policy_file_is_started_from_with_its_actor_and_a_critic_fitted_here(t
     no critic, so the run's fresh one is fitted to the search's returns-to-go, the actor untouched."""
     shipped = ActorCritic(len(NOW), 10, seed=3)
     shipped.set_normalization(np.random.default_rng(0).normal(1.0, 2.0, size=(100, len(NOW))))
-    contract = {"punch_spec_hash": SPEC, "punch_observation_size": str(len(NOW))}
-    path = export_policy(shipped, tmp_path / "policy.onnx", contract=contract, reward="hook", summary={})
+    path = export_policy(shipped, tmp_path / "policy.onnx", contract=contract(), reward="hook", summary={})
     model = ActorCritic(len(NOW), 10, seed=0)
     fresh_critic = {key: value.clone() for key, value in model.state_dict().items() if key.startswith("critic.")}
     assert warm_start(model, path, NOW, np.zeros((4, len(NOW))), SPEC) == []
@@ -99,7 +106,7 @@ def test_a_policy_file_is_started_from_with_its_actor_and_a_critic_fitted_here(t
 
 def test_a_policy_file_of_another_observation_spec_or_no_policy_at_all_is_refused(tmp_path: Path) -> None:
     other = export_policy(ActorCritic(len(NOW), 10), tmp_path / "other.onnx", reward="hook", summary={},
-                          contract={"punch_spec_hash": "0000000000000000", "punch_observation_size": str(len(NOW))})
+                          contract=contract("0000000000000000"))
     with pytest.raises(WarmStartError, match="observation spec"):
         warm_start(ActorCritic(len(NOW), 10), other, NOW, np.zeros((4, len(NOW))), SPEC)
     lying = tmp_path / "lying.onnx"

@@ -23,3 +23,15 @@ class ExportError(PunchError):
 
 class SelfCheckError(PunchError):
     """The stack self-check found Godot, Jolt, the extension or ONNX Runtime not working as required."""
+
+
+class PolicyFileError(PunchError):
+    """A policy file cannot be read, or an entry of its metadata does not read as its type (`key` names it)."""
+
+    def __init__(self, message: str, key: str | None = None):
+        super().__init__(message)
+        self.key = key
+
+
+class MissingMetadataError(PolicyFileError):
+    """A policy file's metadata lacks a required entry (`key`; punch_trainer/policy_file.py lists them)."""

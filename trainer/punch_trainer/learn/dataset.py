@@ -17,8 +17,9 @@ from typing import Any
 import numpy as np
 
 from punch_trainer.errors import PunchError
-from punch_trainer.learn.reach import METADATA_KEY, ReachVolume
+from punch_trainer.learn.reach import ReachVolume
 from punch_trainer.learn.search import SearchArgs, SearchResult
+from punch_trainer.policy_file import REACH_VOLUME
 from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.placement import BagPlacement
 from punch_trainer.sim.rewards import Reward, decision_rewards, score
@@ -61,7 +62,7 @@ def record_datasets(results: list[SearchResult], reward: Reward, args: SearchArg
             for slot, index in by_slot.items():
                 slot_bags[slot] = placed[index] or info.default_bag
             passed = restarts.run(functools.partial(_play_pass, group, results, by_slot, slot_bags, reward, args))
-            contract = dict(passed.policy_metadata, **{METADATA_KEY: reach.to_json()})
+            contract = dict(passed.policy_metadata, **{REACH_VOLUME: reach.to_json()})
             for slot, index in by_slot.items():
                 recorded[index] = _dataset(results[index], reward, args, info, contract, slot_bags[slot],
                                            passed.observations[slot], passed.executed[slot], passed.frames[slot])

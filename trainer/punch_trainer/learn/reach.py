@@ -19,7 +19,6 @@ import numpy as np
 from punch_trainer.errors import PunchError
 from punch_trainer.sim.placement import BagPlacement
 
-METADATA_KEY = "punch_reach_volume"
 REACH_LIMIT_M = 3.0
 """No reach volume extends beyond this from the character (m): a human arm's reach is under 1 m."""
 TARGET_SPEED_LIMIT_MPS = 10.0

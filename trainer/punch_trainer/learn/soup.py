@@ -21,12 +21,13 @@ import torch
 from google.protobuf.message import DecodeError  # type: ignore[import-untyped]  # protobuf ships no stubs here
 
 from punch_trainer import __version__
-from punch_trainer.errors import PunchError
+from punch_trainer.errors import PolicyFileError, PunchError
 from punch_trainer.learn.export import export_onnx
 from punch_trainer.learn.policy import Actor, ActorCritic
 from punch_trainer.learn.warm_start import actor_parameters
+from punch_trainer.policy_file import STYLE, TRAINER_VERSION, TRAINING_SUMMARY, PolicyMetadata, model_entries
 
-KEPT_APART = ("punch_style", "punch_trainer_version", "punch_training_summary")
+KEPT_APART = (STYLE, TRAINER_VERSION, TRAINING_SUMMARY)
 """metadata that may differ between ingredients (how each was trained); every other entry (the policy
 contract, the reward, the noise scale) must be equal"""
 NORMALISATION = ("obs_mean", "obs_std")
@@ -43,7 +44,7 @@ class Ingredient:
     """One policy file of a soup, as read."""
 
     path: Path
-    metadata: dict[str, str]
+    metadata: PolicyMetadata
     parameters: dict[str, torch.Tensor]
     sha256: str
 
@@ -55,10 +56,10 @@ def read_ingredient(path: Path) -> Ingredient:
         policy = onnx.load_from_string(content)
     except (OSError, ValueError, DecodeError) as error:
         raise SoupError(f"{path}: not a readable policy file ({error})") from None
-    metadata = {entry.key: entry.value for entry in policy.metadata_props}
-    for key in ("punch_spec_hash", "punch_observation_size", "punch_action_size"):
-        if key not in metadata:
-            raise SoupError(f"{path}: its metadata has no {key}, so it is no policy file of `punch train`")
+    try:
+        metadata = PolicyMetadata.from_entries(model_entries(policy), str(path))
+    except PolicyFileError as error:
+        raise SoupError(f"{error}, so it is no policy file of `punch train`") from None
     parameters = actor_parameters(policy)
     if not parameters:
         raise SoupError(f"{path}: it holds no actor parameters (model.*)")
@@ -70,8 +71,8 @@ def read_ingredient(path: Path) -> Ingredient:
 
 def check_one_lineage(first: Ingredient, other: Ingredient) -> None:
     """Raises SoupError unless `other` can be averaged with `first`."""
-    differing = sorted(key for key in first.metadata.keys() | other.metadata.keys()
-                       if key not in KEPT_APART and first.metadata.get(key) != other.metadata.get(key))
+    mine, theirs = first.metadata.entries, other.metadata.entries
+    differing = sorted(key for key in mine.keys() | theirs.keys() if key not in KEPT_APART and mine.get(key) != theirs.get(key))
     if differing:
         raise SoupError(f"{other.path} differs from {first.path} in {', '.join(differing)}: a soup averages policies "
                         "of one contract, reward and noise scale")
@@ -84,11 +85,9 @@ def check_one_lineage(first: Ingredient, other: Ingredient) -> None:
                             "not fine-tuned from one parent, and the mean of their weights means nothing")
 
 
-def training_summary(ingredient: Ingredient) -> Any:
-    try:
-        return json.loads(ingredient.metadata.get("punch_training_summary", "{}"))
-    except ValueError as error:
-        raise SoupError(f"{ingredient.path}: its punch_training_summary is not JSON ({error})") from None
+def style_of(ingredient: Ingredient) -> str:
+    """An ingredient's motion style (`none` for a file that names none: one trained before styles were)."""
+    return ingredient.metadata.style or "none"
 
 
 def soup(paths: list[Path], out: Path) -> Path:
@@ -103,20 +102,18 @@ def soup(paths: list[Path], out: Path) -> Path:
         check_one_lineage(first, other)
     mean = {key: torch.stack([ingredient.parameters[key] for ingredient in ingredients]).mean(dim=0)
             for key in first.parameters}
-    observation_size, action_size = int(first.metadata["punch_observation_size"]), int(first.metadata["punch_action_size"])
+    observation_size, action_size = first.metadata.observation_size, first.metadata.action_size
     model = ActorCritic(observation_size, action_size, hidden=int(mean["actor.0.weight"].shape[0]))
     state = model.state_dict()  # the critic keeps fresh weights: a policy file holds none
     unknown = sorted(mean.keys() - state.keys())
     if unknown or any(tuple(mean[key].shape) != tuple(state[key].shape) for key in mean):
         raise SoupError(f"{first.path}: its network is not this trainer's ActorCritic ({', '.join(unknown) or 'shapes'})")
     model.load_state_dict({**state, **mean})
-    styles = list(dict.fromkeys(ingredient.metadata.get("punch_style", "none") for ingredient in ingredients))
-    first_summary = training_summary(first)
-    summary = {key: first_summary[key] for key in ("search_best_return", "reach")
-               if isinstance(first_summary, dict) and key in first_summary}
-    summary["soup"] = [{"file": str(ingredient.path), "sha256": ingredient.sha256,
-                        "style": ingredient.metadata.get("punch_style", "none"), "summary": training_summary(ingredient)}
-                       for ingredient in ingredients]
-    metadata = {**first.metadata, "punch_style": STYLE_SEPARATOR.join(styles), "punch_trainer_version": __version__,
-                "punch_training_summary": json.dumps(summary)}
+    styles = list(dict.fromkeys(style_of(ingredient) for ingredient in ingredients))
+    first_summary = first.metadata.training_summary or {}
+    summary: dict[str, Any] = {key: first_summary[key] for key in ("search_best_return", "reach") if key in first_summary}
+    summary["soup"] = [{"file": str(ingredient.path), "sha256": ingredient.sha256, "style": style_of(ingredient),
+                        "summary": ingredient.metadata.training_summary or {}} for ingredient in ingredients]
+    metadata = {**first.metadata.entries, STYLE: STYLE_SEPARATOR.join(styles), TRAINER_VERSION: __version__,
+                TRAINING_SUMMARY: json.dumps(summary)}
     return export_onnx(Actor(model), observation_size, Path(out), metadata=metadata)

@@ -17,9 +17,10 @@ import torch
 from google.protobuf.message import DecodeError  # type: ignore[import-untyped]  # protobuf ships no stubs here
 from onnx import numpy_helper
 
-from punch_trainer.errors import PunchError
+from punch_trainer.errors import PolicyFileError, PunchError
 from punch_trainer.learn.checkpoint import CHECKPOINT_FILE, CheckpointError, read_checkpoint
 from punch_trainer.learn.policy import ActorCritic
+from punch_trainer.policy_file import PolicyMetadata, model_entries
 
 SNAPSHOT_KIND = "a2c_snapshot"
 """the checkpoint kind of a snapshot of A2C's model (`punch train --a2c-snapshot-every`)"""
@@ -61,11 +62,13 @@ def policy_file_parameters(path: Path, names: list[str], spec_hash: str) -> dict
         policy = onnx.load(str(path))
     except (OSError, ValueError, DecodeError) as error:
         raise WarmStartError(f"cannot start from {path}: not a readable policy file ({error})") from None
-    metadata = {entry.key: entry.value for entry in policy.metadata_props}
-    if metadata.get("punch_spec_hash") != spec_hash or metadata.get("punch_observation_size") != str(len(names)):
-        raise WarmStartError(f"cannot start from {path}: its observation spec ({metadata.get('punch_spec_hash')}, "
-                             f"{metadata.get('punch_observation_size')} inputs) is not this run's ({spec_hash}, "
-                             f"{len(names)} inputs)")
+    try:
+        metadata = PolicyMetadata.from_entries(model_entries(policy), str(path))
+    except PolicyFileError as error:
+        raise WarmStartError(f"cannot start from {path}: {error}") from None
+    if metadata.spec_hash != spec_hash or metadata.observation_size != len(names):
+        raise WarmStartError(f"cannot start from {path}: its observation spec ({metadata.spec_hash}, "
+                             f"{metadata.observation_size} inputs) is not this run's ({spec_hash}, {len(names)} inputs)")
     return actor_parameters(policy)
 
 

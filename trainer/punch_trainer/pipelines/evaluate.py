@@ -40,7 +40,8 @@ from punch_trainer.learn.reach import HELD_OUT_SEED, ReachVolume
 from punch_trainer.learn.search import SearchArgs, placement_search
 from punch_trainer.learn.volume import success, success_interval
 from punch_trainer.options import bounds
-from punch_trainer.pipelines.replay import ReplayArgs, ReplayError, analyse_sigma, policy_metadata, run_godot_replay
+from punch_trainer.pipelines.replay import ReplayArgs, ReplayError, analyse_sigma, run_godot_replay
+from punch_trainer.policy_file import REACH_VOLUME, read_policy_metadata
 from punch_trainer.report.naturalness import (
     NaturalnessSummary,
     capture_figures,
@@ -94,7 +95,7 @@ def run_condition(policy: Path, bags: list[BagPlacement], sigmas: list[float], r
     sigma; per sigma: returns, success, the placement of every episode, the analysis of `punch replay` and every
     punch's naturalness figures (`keep_features`: also the features [episodes, frames, F] and their names)."""
     refuse_unreplayable(bags)
-    physics_hz = float(policy_metadata(policy).get("punch_physics_hz", 120))
+    physics_hz = float(read_policy_metadata(policy).physics_hz)
     with tempfile.TemporaryDirectory(prefix="punch_eval_") as directory:
         frames_dir = Path(directory)
         bags_file = frames_dir / "bags.json"
@@ -162,7 +163,7 @@ def search_bests(policy_actions: np.ndarray, bags: list[BagPlacement], reward: R
 
 def policy_reward(policy: Path) -> tuple[Reward, dict[str, str]]:
     """The reward a policy was trained for (from its metadata), and the metadata."""
-    metadata = policy_metadata(policy)
+    metadata = read_policy_metadata(policy).entries
     return metadata_reward(metadata, str(policy)), metadata
 
 
@@ -194,7 +195,7 @@ def evaluate_policy(policy: Path, args: EvalArgs, still: list[BagPlacement], mov
                      "impact_spread_m": result["impact_spread_m"]})
     naturalness = [{"sigma": result["sigma"], **summarise(result["naturalness"]).to_json()}
                    for name, result in conditions if name == "every decision"]
-    return {"policy": str(policy), "reward": reward.name, "reach": metadata.get("punch_reach_volume"), "rows": rows,
+    return {"policy": str(policy), "reward": reward.name, "reach": metadata[REACH_VOLUME], "rows": rows,
             "success_at_sigma0": base["success"].tolist(), "naturalness": naturalness,
             "naturalness_at_sigma0": [punch.to_json() for punch in base["naturalness"]]}
 
@@ -233,7 +234,7 @@ def run_eval(args: EvalArgs, progress: bool = True, *, backend: Backend = LOCAL)
     if args.search_iterations > 0:
         if progress:
             print("searching the best punch at every placement ...", flush=True)
-        best = search_bests(bases[0]["actions"], still, reward, int(metadata.get("punch_smoothing_window", 1)),
+        best = search_bests(bases[0]["actions"], still, reward, read_policy_metadata(policies[0]).smoothing_window,
                             args.search_iterations, args.seed, backend)
         best = np.max([best, *[base["returns"] for base in bases]], axis=0)  # a policy may beat the short search
     evaluations = []

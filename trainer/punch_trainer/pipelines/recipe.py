@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import json
 import shutil
 import time
 import tomllib
@@ -45,6 +44,7 @@ from punch_trainer.errors import PunchError
 from punch_trainer.learn.checkpoint import CONFIG_FILE, stored_config
 from punch_trainer.learn.soup import soup
 from punch_trainer.pipelines.train import TrainArgs, run_train
+from punch_trainer.policy_file import read_policy_metadata
 from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.style import STYLES
 
@@ -338,11 +338,8 @@ def _sha256(path: Path) -> str:
 
 def _soup_ingredients(path: Path) -> list[str]:
     """The SHA-256s of the ingredients a soup file records (empty if it records none)."""
-    import onnx
-
-    entries = {entry.key: entry.value for entry in onnx.load(str(path), load_external_data=False).metadata_props}
-    summary = json.loads(entries.get("punch_training_summary", "{}"))
-    return [str(ingredient.get("sha256")) for ingredient in summary.get("soup", [])] if isinstance(summary, dict) else []
+    summary = read_policy_metadata(path).training_summary or {}
+    return [str(ingredient.get("sha256")) for ingredient in summary.get("soup", [])]
 
 
 def write_report(recipe: Recipe, run_dir: Path, results: list[StageResult]) -> Path:

@@ -24,12 +24,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import onnx
 from tqdm import tqdm
 
 from punch_trainer.errors import GodotRunError, PunchError
-from punch_trainer.learn.reach import METADATA_KEY, ReachVolume
+from punch_trainer.learn.reach import ReachVolume
 from punch_trainer.options import SIGMA
+from punch_trainer.policy_file import PolicyMetadata, read_entries, read_policy_metadata
 from punch_trainer.sim.godot import FATAL_LOG_PATTERNS, GODOT_PROJECT, start_godot, stop_godot, tail
 from punch_trainer.sim.placement import BagPlacement
 from punch_trainer.sim.rewards import Reward, first_right_contact, metadata_reward, score
@@ -90,42 +90,24 @@ def parse_sigmas(text: str) -> list[float]:
         raise ReplayError(f"bad --sigmas '{text}' (use start:stop:step or a,b,c): {error}") from None
 
 
-def training_best_return(metadata: dict[str, str], source: str) -> float | None:
-    """The search's best return from a policy's `punch_training_summary` (None when it has none), checked
-    before Godot runs: the summary must be a JSON object and the return a finite number."""
-    try:
-        summary = json.loads(metadata.get("punch_training_summary", "{}"), parse_constant=_no_constant)
-    except ValueError as error:
-        raise ReplayError(f"{source}: its metadata's punch_training_summary is not JSON ({error})") from None
-    if not isinstance(summary, dict):
-        raise ReplayError(f"{source}: its metadata's punch_training_summary is a {type(summary).__name__}, not an object")
-    best = summary.get("search_best_return")
+def training_best_return(metadata: PolicyMetadata, source: str) -> float | None:
+    """The search's best return from a policy's training summary (None when it has none), checked before Godot
+    runs: a finite number (the summary itself is checked by `PolicyMetadata`)."""
+    best = (metadata.training_summary or {}).get("search_best_return")
     if best is not None and (isinstance(best, bool) or not isinstance(best, (int, float)) or not math.isfinite(best)):
         raise ReplayError(f"{source}: its metadata's search_best_return {best!r} is not a finite number")
     return None if best is None else float(best)
 
 
-def _no_constant(name: str) -> float:
-    raise ValueError(f"{name} is not a number")
-
-
 def policy_metadata(path: Path) -> dict[str, str]:
-    if not Path(path).is_file():
-        raise ReplayError(f"policy file not found: {path}")
-    try:
-        model = onnx.load(str(path), load_external_data=False)
-    except Exception as error:  # onnx raises several types for a corrupt file
-        raise ReplayError(f"{path} is not an ONNX model: {error}") from error
-    return {p.key: p.value for p in model.metadata_props}
+    """Every metadata entry of the policy file `path`, as it holds them (`policy_file.read_entries`)."""
+    return read_entries(path)
 
 
 def policy_placements(policy: Path, count: int, seed: int) -> list[BagPlacement]:
     """`count` held-out placements at rest from the policy's reach volume (its metadata's), drawn by `ReachVolume.sample`
     as `punch eval` draws its held-out ones, from `seed`."""
-    metadata = policy_metadata(policy)
-    if METADATA_KEY not in metadata:
-        raise ReplayError(f"{policy}: its metadata has no {METADATA_KEY}")
-    reach = ReachVolume.from_json(metadata[METADATA_KEY])
+    reach = ReachVolume.from_json(read_policy_metadata(policy).reach_volume)
     return reach.sample(np.random.default_rng(seed), count)
 
 
@@ -193,12 +175,12 @@ def analyse_sigma(features: np.ndarray, names: list[str], reward: Reward, chunk:
 
 
 def run_replay(args: ReplayArgs, progress: bool = True) -> tuple[Path, list[dict[str, Any]]]:
-    metadata = policy_metadata(args.policy)
+    metadata = read_policy_metadata(args.policy)
     if not args.sigmas or any(not 0.0 <= s <= 1.0 for s in args.sigmas):
         raise ReplayError(f"sigmas must lie in [0, 1], got {args.sigmas}")
     if args.episodes < 1:
         raise ReplayError("--episodes must be at least 1")
-    reward = metadata_reward(metadata, str(args.policy), args.reward)
+    reward = metadata_reward(metadata.entries, str(args.policy), args.reward)
     best = training_best_return(metadata, str(args.policy))
     out = Path(args.out or Path(args.policy).parent / f"replay_{int(time.time())}")
     frames_dir = out / "frames"

@@ -31,6 +31,7 @@ from punch_trainer.learn.volume import ArmRange, EpisodeConditions, MotionRange,
 from punch_trainer.learn.warm_start import SNAPSHOT_KIND, warm_start
 from punch_trainer.options import bounds
 from punch_trainer.pipelines.search import run_search
+from punch_trainer.policy_file import SPEC_HASH
 from punch_trainer.report.a2c_report import write_a2c_report
 from punch_trainer.report.motion import motion_report
 from punch_trainer.report.naturalness import capture_figures, naturalness_table, punch_naturalness, summarise
@@ -327,7 +328,7 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
         f"- timings: search {timings['search_s']:.1f} s, pretraining {timings['pretrain_s']:.1f} s, A2C {timings['a2c_s']:.1f} s, "
         f"total {timings['total_s']:.1f} s",
         f"- policy: `policy.onnx` (input `obs` [B, {env.info.observation_size}], outputs `mean`, `sigma` [B, {env.info.action_size}]; "
-        f"metadata: spec hash {data['policy_metadata']['punch_spec_hash']})",
+        f"metadata: spec hash {data['policy_metadata'][SPEC_HASH]})",
         "", "Search details: [search/report.md](search/report.md)",
     ]
     naturalness = punch_naturalness(features, env.feature_names, float(env.info.physics_hz))

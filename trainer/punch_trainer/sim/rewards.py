@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from punch_trainer.options import BOUNDS
+from punch_trainer.policy_file import FRAMES, REWARD
 from punch_trainer.sim.reward_worker import Frames as Frames
 from punch_trainer.sim.reward_worker import IsolatedFunction, result_terms
 from punch_trainer.sim.reward_worker import RewardError as RewardError
@@ -123,13 +124,15 @@ def metadata_reward(metadata: dict[str, str], source: str, explicit: str | None 
     """The reward to score a policy's punches with: `explicit` (the user's `--reward`, which may name their
     own code) when given, else the policy's `punch_reward` metadata, which is only ever a preset name: a model
     file is data and never chooses code to run."""
-    frames = metadata.get("punch_frames", "50")
+    if FRAMES not in metadata:
+        raise RewardError(f"{source}: its metadata has no {FRAMES}")
+    frames = metadata[FRAMES]
     limits = BOUNDS["frames"]
     if not (frames.isascii() and frames.isdigit() and len(frames) < 8) or limits.refuses(int(frames)):
-        raise RewardError(f"{source}: its metadata's punch_frames {frames[:40]!r} is not a frame count ({limits.describe()})")
+        raise RewardError(f"{source}: its metadata's {FRAMES} {frames[:40]!r} is not a frame count ({limits.describe()})")
     if explicit:
         return load_reward(explicit, int(frames))
-    name = metadata.get("punch_reward")
+    name = metadata.get(REWARD)
     if not name:
         raise RewardError(f"{source} names no reward in its metadata; pass --reward")
     if name not in PRESETS:
