@@ -7,10 +7,10 @@ import shutil
 import sys
 import zipfile
 
-import onnx
 import pytest
 
 from punch_trainer import __version__
+from punch_trainer.policy_file import read_policy_metadata
 from punch_trainer.sim.godot import ADDON_POLICIES, GODOT_PROJECT, PROJECT_ROOT, run_godot
 
 sys.path.insert(0, str(PROJECT_ROOT / "tools"))
@@ -24,8 +24,7 @@ def test_one_version_names_the_addon_the_extension_the_trainer_and_the_policies(
     version = package.agreed_version()
     assert version == __version__
     for policy in ADDON_POLICIES.glob("*.onnx"):
-        metadata = {entry.key: entry.value for entry in onnx.load(policy).metadata_props}
-        assert metadata["punch_trainer_version"] == version, policy.name
+        assert read_policy_metadata(policy).trainer_version == version, policy.name
 
 
 def test_the_versions_must_agree(monkeypatch):

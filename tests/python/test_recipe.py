@@ -4,14 +4,13 @@ would not make the same policy."""
 from __future__ import annotations
 
 import hashlib
-import json
 from pathlib import Path
 
-import onnx
 import pytest
 
 from punch_trainer.cli.main import main
 from punch_trainer.pipelines.recipe import RecipeError, SoupStage, TrainStage, load_recipe, run_recipe
+from punch_trainer.policy_file import read_policy_metadata
 from punch_trainer.sim.style import style_named
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -44,8 +43,7 @@ def test_the_straights_recipe_ends_in_the_soup_its_file_records() -> None:
     recipe = load_recipe(ROOT / "recipes" / "straight.toml")
     last = recipe.stages[-1]
     assert isinstance(last, SoupStage)
-    metadata = {entry.key: entry.value for entry in onnx.load(str(SHIPPED / "straight.onnx")).metadata_props}
-    soup = json.loads(metadata["punch_training_summary"])["soup"]
+    soup = (read_policy_metadata(SHIPPED / "straight.onnx").training_summary or {})["soup"]
     styles = [f"{recipe.stage(name).args['style']}@1" for name in last.ingredients]  # type: ignore[union-attr]
     assert styles == [ingredient["style"] for ingredient in soup]
     updates = [recipe.stage(name).updates for name in last.ingredients]  # type: ignore[union-attr]

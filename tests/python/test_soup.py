@@ -17,6 +17,7 @@ from punch_trainer.learn.export import export_policy
 from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.soup import SoupError, soup
 from punch_trainer.learn.warm_start import actor_parameters
+from punch_trainer.policy_file import read_entries
 
 OBSERVATIONS, ACTIONS = 6, 10
 REACH = '{"any_start_pose": false, "distance_m": [0.72, 0.72], "height_m": [1.35, 1.35], "side_m": [0, 0], "max_target_speed_mps": 0}'
@@ -37,7 +38,7 @@ def fine_tuned(folder: Path, name: str, seed: int, *, contract: dict[str, str] =
 
 
 def metadata_of(path: Path) -> dict[str, str]:
-    return {entry.key: entry.value for entry in onnx.load(str(path)).metadata_props}
+    return read_entries(path)
 
 
 def test_a_soup_acts_with_the_mean_of_its_ingredients_weights_and_says_what_they_were(tmp_path: Path) -> None:

@@ -8,6 +8,7 @@ import onnx
 import pytest
 
 from punch_trainer.pipelines.train import TrainArgs, run_exported_policy, run_train
+from punch_trainer.policy_file import read_entries
 from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.rewards import load_reward, score
 from punch_trainer.sim.style import style_named
@@ -39,9 +40,9 @@ def test_small_training_run_exports_a_policy_that_repeats_its_punch(tmp_path, st
     assert snapshots == ["update_00001", "update_00002"]
     last = out / "a2c" / "snapshots" / snapshots[-1]
     assert (last / "checkpoint.pt").is_file()  # for `--init-from`
-    snapshot = {p.key: p.value for p in onnx.load(str(last / "policy.onnx")).metadata_props}
+    snapshot = read_entries(last / "policy.onnx")
     model = onnx.load(str(out / "policy.onnx"))
-    metadata = {p.key: p.value for p in model.metadata_props}
+    metadata = read_entries(out / "policy.onnx")
     assert {key: value for key, value in snapshot.items() if key != "punch_training_summary"} == \
         {key: value for key, value in metadata.items() if key != "punch_training_summary"}
     snapshot_summary = json.loads(snapshot["punch_training_summary"])
