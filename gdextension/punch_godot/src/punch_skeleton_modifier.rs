@@ -216,6 +216,7 @@ impl ISkeletonModifier3D for PunchSkeletonModifier {
 
 #[godot_api]
 impl PunchSkeletonModifier {
+    /// Sets `bone_map` and maps the skeleton again with it (at once when in the tree).
     #[func]
     fn set_bone_map(&mut self, bone_map: VarDictionary) {
         self.bone_map = bone_map;
@@ -228,6 +229,7 @@ impl PunchSkeletonModifier {
         }
     }
 
+    /// Sets `show_simulated_body`: shows or hides the simulated body's capsules at once.
     #[func]
     fn set_show_simulated_body(&mut self, show: bool) {
         self.show_simulated_body = show;
