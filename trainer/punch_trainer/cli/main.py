@@ -20,19 +20,11 @@ from punch_trainer.learn.checkpoint import read_config
 from punch_trainer.learn.pretrain import PretrainArgs
 from punch_trainer.learn.search import SearchArgs
 from punch_trainer.pipelines.bench import BenchEnvArgs, BenchInferenceArgs, BenchSearchArgs
-from punch_trainer.pipelines.evaluate import EvalArgs
+from punch_trainer.pipelines.evaluation import EvalArgs, parse_scales, parse_sigmas, parse_sizes
 from punch_trainer.pipelines.experiments import AfterPunchArgs, Fig6Args
-from punch_trainer.pipelines.moving_eval import MovingEvalArgs
 from punch_trainer.pipelines.render import RenderArgs, parse_bags
-from punch_trainer.pipelines.replay import ReplayArgs, parse_sigmas
+from punch_trainer.pipelines.replay import ReplayArgs
 from punch_trainer.pipelines.selfcheck import SelfCheckArgs
-from punch_trainer.pipelines.sizes_eval import (
-    SizesEvalArgs,
-    check_proportions,
-    check_scales,
-    parse_proportions,
-    parse_scales,
-)
 from punch_trainer.pipelines.style_experiment import StyleExperimentArgs
 from punch_trainer.pipelines.train import TrainArgs, reach_default_notes
 from punch_trainer.sim.cluster import backend_for
@@ -204,31 +196,14 @@ def _resume_hint(command: str, out: Path | None) -> Iterator[None]:
 
 
 def _eval(args: argparse.Namespace) -> int:
-    from punch_trainer.pipelines.evaluate import run_eval
+    """`punch eval` and its shortcuts `eval-moving` and `eval-sizes` (their scenario set by the parser)."""
+    from punch_trainer.pipelines.evaluation import run_eval, scenario_of
 
-    with backend_for(args.ray) as backend:
+    values = {name: getattr(args, name, None) for name in ("arms", "scales", "proportions")}
+    # Before the options' own bounds check: it names size_arms's range and why.
+    scenario_of(EvalArgs(policy=args.policy, scenario=args.scenario, **values))
+    with backend_for(getattr(args, "ray", None)) as backend:
         out, _ = run_eval(dataclass_from_arguments(EvalArgs, args), backend=backend)
-    print((out / "report.md").read_text())
-    print(f"report: {out / 'report.md'}")
-    return 0
-
-
-def _eval_moving(args: argparse.Namespace) -> int:
-    from punch_trainer.pipelines.moving_eval import run_moving_eval
-
-    check_proportions(args.arms)  # before the options' own bounds check: it names size_arms's range and why
-    out, _ = run_moving_eval(dataclass_from_arguments(MovingEvalArgs, args))
-    print((out / "report.md").read_text())
-    print(f"report: {out / 'report.md'}")
-    return 0
-
-
-def _eval_sizes(args: argparse.Namespace) -> int:
-    from punch_trainer.pipelines.sizes_eval import run_sizes_eval
-
-    check_scales(args.scales)  # before the options' own bounds check: it names size_arms's range and why
-    check_proportions(args.proportions)
-    out, _ = run_sizes_eval(dataclass_from_arguments(SizesEvalArgs, args))
     print((out / "report.md").read_text())
     print(f"report: {out / 'report.md'}")
     return 0
@@ -402,24 +377,27 @@ def build_parser() -> argparse.ArgumentParser:
     add_ray_option(recipe)
     recipe.set_defaults(run=_recipe)
 
-    evaluation = commands.add_parser("eval", help="success and quality of a policy on held-out target placements, with noise, "
-                                                  "through PunchController in Godot")
-    add_dataclass_arguments(evaluation, EvalArgs, value_parsers={"sigmas": parse_sigmas})
+    evaluation = commands.add_parser("eval", help="success of a policy in an evaluation scenario (held-out placements, noise, "
+                                                  "moving bodies and targets, arm sizes; docs/evaluation.md), through "
+                                                  "PunchController in Godot")
+    eval_parsers = {"sigmas": parse_sigmas, "arms": parse_sizes, "scales": parse_scales, "proportions": parse_sizes}
+    add_dataclass_arguments(evaluation, EvalArgs, exclude=["timeout_s"], value_parsers=eval_parsers)
     add_ray_option(evaluation)
     evaluation.set_defaults(run=_eval)
 
-    moving = commands.add_parser("eval-moving", help="hit rates of a policy while its character walks, turns and steps in, "
-                                                     "and against a moving target, through PunchController in Godot")
-    add_dataclass_arguments(moving, MovingEvalArgs, exclude=["timeout_s"],
-                            value_parsers={"sigmas": parse_sigmas, "arms": parse_proportions})
-    moving.set_defaults(run=_eval_moving)
+    moving = commands.add_parser("eval-moving", help="punch eval --scenario moving: hit rates of a policy while its character "
+                                                     "walks, turns and steps in, and against a moving target")
+    add_dataclass_arguments(moving, EvalArgs, value_parsers=eval_parsers,
+                            exclude=["scenario", "conditions", "scales", "proportions", "noisy_episodes", "search_iterations", "timeout_s"])
+    moving.add_argument("--cases", dest="conditions", nargs="+", metavar="CASE",
+                        help="motion cases to run, by name (default: all; docs/moving.md lists them)")
+    moving.set_defaults(run=_eval, scenario="moving")
 
-    sizes = commands.add_parser("eval-sizes", help="hit rates of a policy when its character's arms are sized to other "
-                                                   "bodies (PunchCharacter.size_arms), through PunchController in Godot")
-    add_dataclass_arguments(sizes, SizesEvalArgs, exclude=["timeout_s"],
-                            value_parsers={"sigmas": parse_sigmas, "scales": parse_scales,
-                                           "proportions": parse_proportions})
-    sizes.set_defaults(run=_eval_sizes)
+    sizes = commands.add_parser("eval-sizes", help="punch eval --scenario sizes: hit rates of a policy when its character's "
+                                                   "arms are sized to other bodies (PunchCharacter.size_arms)")
+    add_dataclass_arguments(sizes, EvalArgs, value_parsers=eval_parsers,
+                            exclude=["scenario", "conditions", "arms", "lead_s", "noisy_episodes", "search_iterations", "timeout_s"])
+    sizes.set_defaults(run=_eval, scenario="sizes")
 
     replay = commands.add_parser("replay", help="replay a policy through PunchController in Godot at several noise sigmas (paper Fig. 10-11)")
     # bags and start are punch eval's conditions, not options of a replay

@@ -108,8 +108,8 @@ def plot_replay(out: Path, sigmas: list[float], rows: list[dict[str, Any]], anal
 
 
 def plot_eval(out: Path, placements: list[dict[str, float]], evaluations: list[dict[str, Any]]) -> list[Path]:
-    """`punch eval`: success at sigma 0 over the reach volume (side x height, one panel per distance band,
-    one row per policy) and success against sigma (noise on every decision and on the first 4 only)."""
+    """`punch eval`: success of the first condition at sigma 0 over the reach volume (side x height, one panel per
+    distance band, one row per policy) and success against sigma of each condition measured under noise."""
     points = np.array([[p["distance_m"], p["height_m"], p["side_m"]] for p in placements])
     edges = np.quantile(points[:, 0], [0, 1 / 3, 2 / 3, 1])
     figure, axes = plt.subplots(len(evaluations), 3, figsize=(11, 3.6 * len(evaluations)), squeeze=False)
@@ -130,13 +130,21 @@ def plot_eval(out: Path, placements: list[dict[str, float]], evaluations: list[d
     figure.tight_layout()
     paths = [_save(figure, out / "eval_volume.png")]
 
+    # Success against sigma for each condition measured under noise (with the first condition's sigma-0 row
+    # where it has none of its own), when there are few enough to read.
+    first = evaluations[0]["rows"][0]["condition"]
+    noisy = list(dict.fromkeys(r["condition"] for r in evaluations[0]["rows"] if r["sigma"] > 0))
+    if not noisy or len(noisy) * len(evaluations) > 8:
+        return paths
     figure, axis = plt.subplots(figsize=(6.5, 4))
     for evaluation in evaluations:
-        for condition, style in [("every decision", "-"), ("first 4 decisions", "--")]:
-            rows = [r for r in evaluation["rows"] if r["condition"] == condition or (r["sigma"] == 0 and r["condition"] == "every decision")]
+        for condition, style in zip(noisy, ["-", "--", ":", "-."] * 2, strict=False):
+            rows = [r for r in evaluation["rows"] if r["condition"] == condition]
+            if not any(r["sigma"] == 0 for r in rows):
+                rows += [r for r in evaluation["rows"] if r["sigma"] == 0 and r["condition"] == first][:1]
             rows = sorted(rows, key=lambda r: r["sigma"])
             axis.plot([r["sigma"] for r in rows], [100 * r["success_rate"] for r in rows], style, marker="o",
-                      label=f"{_short(evaluation['policy'])}, noise on {condition}")
+                      label=f"{_short(evaluation['policy'])}, {condition}")
     axis.set_xlabel("runtime noise sigma")
     axis.set_ylabel("success (%)")
     axis.set_ylim(0, 102)

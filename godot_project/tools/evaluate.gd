@@ -1,0 +1,380 @@
+## The evaluator's one driver: plays a list of episodes through PunchController itself, each in its own conditions
+## (where the target is and how it moves, how the character's body moves, its arms' size, the noise), and writes
+## what every punch did. For `punch eval` (its scenarios: trainer/punch_trainer/pipelines/evaluation.py,
+## docs/evaluation.md), `punch replay` and `punch bench inference`.
+##
+## tools/godot --headless --fixed-fps 120 --path godot_project --script res://tools/evaluate.gd -- \
+##     --policy=PATH --episodes=FILE.json --out=DIR [--record=0|1] [--characters=64]
+##     [--characters-per-world=16] [--idle-frames=0]
+##
+## `--episodes` names a JSON list; each episode is an object (every key optional but `seed`):
+## - `placement`: the target's centre in the character's frame (`distance_m`, `height_m`, `side_m`) and the
+##   bag's swing at the start (`velocity_side_mps`, `velocity_forward_mps`); default: the spec's default target;
+## - `sigma`, `noise_decisions` (-1: every decision), `seed` (the controller's noise seed);
+## - `start`: "guard", or "after_punch": the controller punches once, then again at once from where that left
+##   it, the bag put back as placed (only the second punch is recorded and counted);
+## - `arms`: [upper arm, forearm] scales, sized through `PunchCharacter.size_arms` right after the character
+##   enters the tree (a size it refuses ends the run with exit code 2);
+## - `lead_s`: how long the episode runs before its punch (a moving body moves from the start, a moving
+##   target's hook from the punch on);
+## - `body`: a motion (below) of the character's holder, the node a game moves (its CharacterBody3D), with the
+##   sandbag riding along: its hook pinned to a kinematic body that is the holder's child (a joint does not
+##   follow its node), the bag `top_level`, hanging from the carried hook under physics at the holder's velocity;
+## - `target`: a motion of the sandbag's hook alone (the character stands): a kinematic body that moves itself
+##   every physics frame (`sync_to_physics`), the bag starting at the hook's velocity.
+## A motion (the moving node's own frame at the start: +Z ahead, +X its left, +Y up): `velocity_mps` [left, up,
+## forward] (turning while walking walks an arc), `turn_dps` (about +Y, positive to the left), `lunge_m` over
+## `lunge_s` (forward, minimum-jerk, begins with the punch), `bob_m` at `bob_hz` (vertical, a sine). An empty
+## motion ({}) still carries the hook as described, without moving.
+##
+## Episodes run side by side, `--characters` at a time, in episode order: each batch is built fresh, a
+## SubViewport with its own World3D per `--characters-per-world` pairs, two collision layers per pair
+## (tools/punch_pair.gd), so every punch starts from the same state whatever its batch.
+##
+## Output in DIR: `episodes.json` with one row per episode, in order: [hits on the target (the controller's
+## `hit` signal with the target's Bag as the body), target_out_of_reach signals, how far outside the reach
+## volume the target was at the last of them (m), how the punch ended, how far the moved node went (m, straight
+## line), upper arm, forearm, shoulder width (m, as `arm_lengths()` reports them)]; `arm_scale_range`; the
+## feature names, frames and decisions of a punch; the controllers' inference counts and their work per
+## physics frame per batch (and, with `--idle-frames=N`, per idle frame: each batch's characters stand N frames
+## after their punches, for `punch bench inference`). With `--record=1` also features.f32 [episodes, frames, F],
+## observations.f32 [episodes, decisions, obs], mean_actions.f32 and actions.f32 [episodes, decisions, 10]
+## (little-endian float32, in episode order). Progress lines: `EVALUATE_PROGRESS done total`.
+extends SceneTree
+
+const PunchPair := preload("res://tools/punch_pair.gd")
+
+
+## The node a game moves: the character's holder (`body`) or the target's hook (`target`) run the same motion.
+class Motion:
+	var spec: Dictionary
+	var time_s := 0.0
+	var base_y := 0.0
+	## When the lunge starts (the punch's start), s after the motion's.
+	var lunge_start_s := 0.0
+
+	func _init(motion: Dictionary) -> void:
+		spec = motion
+
+	func advance(node: Node3D, delta: float) -> void:
+		if time_s == 0.0:
+			base_y = node.position.y
+		var before := time_s
+		time_s += delta
+		node.rotate_y(deg_to_rad(float(spec.get("turn_dps", 0.0))) * delta)
+		var velocity: Array = spec.get("velocity_mps", [0.0, 0.0, 0.0])
+		node.position += node.basis * Vector3(velocity[0], velocity[1], velocity[2]) * delta
+		var lunge_m := float(spec.get("lunge_m", 0.0))
+		if lunge_m > 0.0:
+			var lunge_s := float(spec.get("lunge_s", 0.25))
+			var step := lunge_m * (_minimum_jerk((time_s - lunge_start_s) / lunge_s)
+				- _minimum_jerk((before - lunge_start_s) / lunge_s))
+			node.position += node.basis * Vector3(0.0, 0.0, step)
+		var bob_m := float(spec.get("bob_m", 0.0))
+		if bob_m > 0.0:
+			node.position.y = base_y + bob_m * sin(TAU * float(spec.get("bob_hz", 2.0)) * time_s)
+
+	## The velocity (global) the motion starts with, for a bag that hangs from a moving hook.
+	func start_velocity(node: Node3D) -> Vector3:
+		var velocity: Array = spec.get("velocity_mps", [0.0, 0.0, 0.0])
+		return node.global_basis * Vector3(velocity[0], velocity[1], velocity[2])
+
+	static func _minimum_jerk(fraction: float) -> float:
+		var t := clampf(fraction, 0.0, 1.0)
+		return t * t * t * (10.0 - 15.0 * t + 6.0 * t * t)
+
+
+## The character's holder (a game's CharacterBody3D): moves while `motion` is set.
+class Holder extends Node3D:
+	var motion: Motion
+
+	func _physics_process(delta: float) -> void:
+		if motion != null:
+			motion.advance(self, delta)
+
+
+## The sandbag's hook of a moving target: a kinematic body that moves itself while `motion` is set.
+class MovingHook extends AnimatableBody3D:
+	var motion: Motion
+
+	func _physics_process(delta: float) -> void:
+		if motion != null:
+			motion.advance(self, delta)
+
+
+## One episode of the batch under way.
+class Slot:
+	var controller: Node
+	var row: Array
+	## The node that moves, its Motion and the bag that starts at its velocity (or null: nothing moves).
+	var moved: Node3D
+	var motion: Motion
+	var bag: RigidBody3D
+	## The motion starts with the punch (a moving target, or no lead), not with the episode.
+	var motion_with_punch := false
+	## Physics frames left before the punch (-1: punched).
+	var lead_frames := 0
+
+
+const KINDS := ["features", "observations", "mean_actions", "actions"]
+
+var _options := {
+	"policy": "", "episodes": "", "out": "", "record": "0", "characters": "64", "characters-per-world": "16",
+	"idle-frames": "0",
+}
+var _episodes: Array = []
+var _rows: Array = []
+var _next := 0
+var _slots: Array[Slot] = []
+var _arenas: Array[SubViewport] = []
+var _pending := 0
+var _failed := false
+var _record := false
+var _files := {}
+var _meta := {}
+var _inference := {"calls": 0, "rows": 0, "usec": 0.0}
+var _controller_frame_usec := []
+var _idle_frame_usec := []
+var _idle_frames_left := -1
+var _scale_range := Vector2.ZERO
+
+
+func _initialize() -> void:
+	var error := PunchPair.read_options(_options, ["policy", "episodes", "out"])
+	if error != "":
+		_fail(error)
+		return
+	_episodes = PunchPair.json_list(_options.episodes)
+	if _episodes.is_empty():
+		_fail("--episodes must name a JSON file holding a non-empty list of episodes: %s" % _options.episodes)
+		return
+	for index in _episodes.size():
+		var episode = _episodes[index]
+		if not episode is Dictionary or not (episode as Dictionary).has("seed"):
+			_fail("episode %d is not an object with a seed" % index)
+			return
+		if not episode.get("start", "guard") in ["guard", "after_punch"]:
+			_fail("episode %d: start is guard or after_punch, not '%s'" % [index, episode.get("start")])
+			return
+		if episode.get("body") != null and episode.get("target") != null:
+			_fail("episode %d moves both the body and the target's hook; one of them at a time" % index)
+			return
+	_record = _options.record == "1"
+	_rows.resize(_episodes.size())
+	DirAccess.make_dir_recursive_absolute(_options.out)
+	if _record:
+		for kind in KINDS:
+			_files[kind] = FileAccess.open(_options.out.path_join("%s.f32" % kind), FileAccess.WRITE)
+	_meta = {"policy": _options.policy, "episodes": _episodes.size(), "characters": int(_options.characters),
+		"characters_per_world": int(_options["characters-per-world"]),
+		"feature_names": Array(ClassDB.class_call_static("PunchSpec", "feature_names"))}
+
+
+func _physics_process(_delta: float) -> bool:
+	if _failed:
+		return true
+	var waiting := false
+	for slot in _slots:
+		if slot.lead_frames > 0:
+			slot.lead_frames -= 1
+			if slot.lead_frames == 0 and not _punch(slot):
+				return true
+			waiting = true
+	if waiting or _pending > 0:
+		return false
+	if not _slots.is_empty():
+		var idle := int(_options["idle-frames"])
+		if _idle_frames_left < 0 and idle > 0:
+			_controller_frame_usec.append(PunchProbe.take_frame_cost_usec())
+			_idle_frames_left = idle + 1
+			_idle_frame_usec.append([])
+		if _idle_frames_left > 0:
+			# Frame by frame: a median is not moved by the rare frame the OS takes the thread away.
+			_idle_frame_usec[-1].append(PunchProbe.take_frame_cost_usec())
+			_idle_frames_left -= 1
+			if _idle_frames_left > 0:
+				return false
+			_idle_frame_usec[-1].pop_front()  # the frame the punches ended in
+		_idle_frames_left = -1
+		_collect_batch()
+	if _next < _episodes.size():
+		_start_batch()
+		return false
+	_finish()
+	return true
+
+
+func _start_batch() -> void:
+	var count := mini(int(_options.characters), _episodes.size() - _next)
+	var per_world := clampi(int(_options["characters-per-world"]), 1, PunchPair.MAX_PER_WORLD)
+	var default_offset := PunchSpec.default_target_offset()
+	var arena: SubViewport
+	for index in count:
+		if index % per_world == 0:
+			arena = PunchPair.add_arena(root)
+			_arenas.append(arena)
+		var episode: Dictionary = _episodes[_next + index]
+		var slot := _add_episode(arena, index % per_world, episode, _next + index, default_offset)
+		if slot == null:
+			return
+		_slots.append(slot)
+	_next += count
+	_pending = count
+	PunchProbe.take_inference_counts()
+	PunchProbe.take_frame_cost_usec()
+	for slot in _slots:
+		if slot.motion != null and not slot.motion_with_punch:
+			slot.motion.lunge_start_s = float(_episodes[slot.row[8]].get("lead_s", 0.0))
+			_start_motion(slot)
+	for slot in _slots:
+		if slot.lead_frames == 0 and not _punch(slot):
+			return
+
+
+## Builds one episode's pair in `arena`'s world slot `layer_slot`; null when it cannot (the run has failed).
+func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, index: int, default_offset: Vector3) -> Slot:
+	var slot := Slot.new()
+	var placement: Dictionary = episode.get("placement", {})
+	var offset := Vector3(placement.get("side_m", default_offset.x), placement.get("height_m", default_offset.y),
+		placement.get("distance_m", default_offset.z))
+	var swing := Vector3(placement.get("velocity_side_mps", 0.0), 0.0, placement.get("velocity_forward_mps", 0.0))
+	var body_motion = episode.get("body")
+	var target_motion = episode.get("target")
+	var parent: Node = arena
+	var holder: Holder = null
+	if body_motion != null or target_motion != null:
+		holder = Holder.new()
+		arena.add_child(holder)
+		parent = holder
+	var controller := PunchPair.add(parent, layer_slot, Vector3.ZERO, offset, _options.policy,
+		float(episode.get("sigma", 0.0)), int(episode.get("noise_decisions", -1)), int(episode.seed), swing)
+	if _record:
+		PunchProbe.set_recording(controller, true)
+	controller.set("auto_recover", false)  # each batch's scene is freed after its punches
+	var character: Node3D = controller.get("character")
+	_scale_range = character.call("arm_scale_range")
+	var arms: Array = episode.get("arms", [1.0, 1.0])
+	var refused := PunchPair.size_arms(character, Vector2(arms[0], arms[-1]))
+	if refused != "":
+		_fail(refused)
+		return null
+	var sized: Vector3 = character.call("arm_lengths")
+	var bag: RigidBody3D = controller.get("target")
+	slot.controller = controller
+	slot.row = [0, 0, 0.0, "", 0.0, sized.x, sized.y, sized.z, index]
+	if holder != null:
+		var hook: PinJoint3D = bag.get_parent().get_node("Hook")
+		# The body the hook is pinned to, placed before it enters the tree (a kinematic body moved into place
+		# afterwards would sweep there in the first physics step and yank the bag).
+		var anchor: AnimatableBody3D
+		if body_motion != null:
+			anchor = AnimatableBody3D.new()
+			anchor.sync_to_physics = false  # follows its parent, the holder
+			anchor.position = hook.global_position
+			holder.add_child(anchor)
+			# The bag hangs from the carried hook under physics: were it moved with its parent too, it would be
+			# teleported every frame and also fly on at the velocity it starts with.
+			bag.top_level = true
+			slot.moved = holder
+			slot.motion = Motion.new(body_motion)
+		else:
+			var moving_hook := MovingHook.new()
+			moving_hook.position = hook.global_position
+			arena.add_child(moving_hook)
+			anchor = moving_hook
+			slot.moved = moving_hook
+			slot.motion = Motion.new(target_motion)
+		anchor.collision_layer = 0
+		anchor.collision_mask = 0
+		hook.node_a = hook.get_path_to(anchor)
+		slot.bag = bag
+	var lead_s := maxf(float(episode.get("lead_s", 0.0)), 0.0)
+	slot.motion_with_punch = target_motion != null or lead_s == 0.0
+	slot.lead_frames = roundi(lead_s * Engine.physics_ticks_per_second)
+	var row := slot.row
+	controller.connect("hit", func(_impulse, _speed, _position, body, _push):
+		if body == bag:
+			row[0] += 1)
+	controller.connect("target_out_of_reach", func(offset_now: Vector3, nearest: Vector3):
+		row[1] += 1
+		row[2] = snappedf(offset_now.distance_to(character.global_transform.affine_inverse() * nearest), 0.001))
+	var lead_punches := [1 if episode.get("start", "guard") == "after_punch" else 0]
+	var bag_start := [bag.global_transform, bag.linear_velocity, bag.angular_velocity]
+	controller.connect("punch_finished", func(metrics: Dictionary):
+		if metrics.get("ended") == "error":
+			_fail("a punch stopped on an error: %s" % metrics.get("error", "see the error above"))
+			return
+		if lead_punches[0] > 0:
+			lead_punches[0] -= 1
+			# The character starts where its earlier punch left it; the bag hangs as placed again.
+			bag.global_transform = bag_start[0]
+			bag.linear_velocity = bag_start[1]
+			bag.angular_velocity = bag_start[2]
+			row[0] = 0
+			row[1] = 0
+			row[2] = 0.0
+			controller.call("punch")
+			return
+		row[3] = metrics.get("ended", "")
+		if slot.moved != null:
+			slot.moved.set("motion", null)
+			row[4] = snappedf(slot.moved.global_position.length(), 0.001)
+		_pending -= 1)
+	return slot
+
+
+## Starts a slot's motion: its node moves from this physics frame on, and the bag that hangs from it (or rides
+## along with it) starts at its velocity.
+func _start_motion(slot: Slot) -> void:
+	slot.moved.set("motion", slot.motion)
+	slot.bag.linear_velocity = slot.motion.start_velocity(slot.moved)
+
+
+## Starts a slot's punch (and the motion that starts with it); false when the controller refused.
+func _punch(slot: Slot) -> bool:
+	slot.lead_frames = -1
+	if not slot.controller.call("punch"):
+		_fail("PunchController refused to punch (see the error above)")
+		return false
+	if slot.motion != null and slot.motion_with_punch:
+		_start_motion(slot)
+	return true
+
+
+func _collect_batch() -> void:
+	var counts: Dictionary = PunchProbe.take_inference_counts()
+	for key in _inference:
+		_inference[key] += counts[key]
+	if int(_options["idle-frames"]) == 0:  # else taken before the idle frames
+		_controller_frame_usec.append(PunchProbe.take_frame_cost_usec())
+	for slot in _slots:
+		var index: int = slot.row.pop_back()
+		_rows[index] = slot.row
+		if _record:
+			var record: Dictionary = PunchProbe.last_punch_record(slot.controller)
+			_meta["frames"] = record.frames
+			_meta["decisions"] = record.decisions
+			for kind in KINDS:
+				_files[kind].store_buffer((record[kind] as PackedFloat32Array).to_byte_array())
+	print("EVALUATE_PROGRESS %d %d" % [_next, _episodes.size()])
+	PunchPair.free_arenas(_arenas)
+	_slots.clear()
+
+
+func _finish() -> void:
+	for kind in _files:
+		_files[kind].close()
+	_files.clear()
+	_meta["rows"] = _rows
+	_meta["arm_scale_range"] = [_scale_range.x, _scale_range.y]
+	_meta["inference"] = _inference
+	_meta["controller_frame_usec_per_batch"] = _controller_frame_usec
+	_meta["idle_controller_frame_usec_per_batch"] = _idle_frame_usec
+	PunchPair.write_json(_options.out.path_join("episodes.json"), _meta)
+	print("EVALUATE_DONE")
+
+
+func _fail(message: String) -> void:
+	printerr("error: evaluate: ", message)
+	_failed = true
+	quit(2)

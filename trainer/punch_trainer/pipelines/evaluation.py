@@ -1,0 +1,475 @@
+"""`punch eval`: the one evaluator. A scenario (pipelines/scenario.py, docs/evaluation.md) names held-out
+placements and the conditions of the punches there; every punch runs in headless Godot through `PunchController`
+itself, the node, ONNX Runtime call and noise a game uses, played by one driver (godot_project/tools/evaluate.gd);
+one row per condition and sigma, one report (report.md and eval.json in the output directory).
+
+    punch eval --policy P.onnx [--scenario held_out|moving|sizes|FILE.toml] [--baseline OTHER.onnx]
+        [--placements 64] [--seed S] [--sigmas 0,0.3] [--conditions NAME ...] [--out DIR]
+
+`punch eval-moving` and `punch eval-sizes` are the scenarios `moving` and `sizes` with their own flags. Per row:
+the success rate with its 95% interval (Wilson's: 64 placements tell a few points apart only roughly); with
+success "return", the mean return as a fraction of a short search's best at that placement and the spread of the
+impact points, and for the first condition the naturalness figures (docs/naturalness.md) beside the captured
+punches'. This module also holds what `punch replay` and `punch bench inference` share with it: the driver's run
+(`run_episodes`), the sigma lists (`parse_sigmas`) and the scoring of recorded punches (`analyse_punches`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from punch_trainer.errors import PunchError
+from punch_trainer.learn.reach import ReachVolume
+from punch_trainer.learn.volume import success, success_interval
+from punch_trainer.options import SIGMA, bounds
+from punch_trainer.pipelines.scenario import (
+    SEED_STRIDE,
+    Condition,
+    Scenario,
+    build_scenario,
+    check_arms,
+    override,
+    read_scenario_data,
+    size_label,
+)
+from punch_trainer.policy_file import read_policy_metadata
+from punch_trainer.sim.backend import LOCAL, Backend
+from punch_trainer.sim.godot import run_godot_tool
+from punch_trainer.sim.placement import ARM_SCALE_RANGE, SEGMENT_SCALE_RANGE, BagPlacement
+from punch_trainer.sim.rewards import Reward, first_right_contact, metadata_reward, score
+
+KINDS = ("features", "observations", "mean_actions", "actions")
+"""what evaluate.gd records of every punch with --record=1"""
+ROW_FIELDS = ("hits", "out_of_reach", "out_of_reach_m", "ended", "moved_m", "upper_arm_m", "forearm_m", "shoulder_width_m")
+"""the columns of evaluate.gd's row of one punch"""
+
+
+class EvalError(PunchError):
+    """An evaluation could not run: bad arguments, a bad policy file, or Godot failed."""
+
+
+def parse_sigmas(text: str) -> list[float]:
+    """`0.1:0.9:0.1` (start:stop:step, inclusive) or `0,0.5`; at most SIGMA.max_items of them (their bounds
+    are checked with every option's, punch_trainer/options.py)."""
+    try:
+        if ":" in text:
+            start, stop, step = (float(v) for v in text.split(":"))
+            if not all(map(math.isfinite, (start, stop, step))) or step <= 0:
+                raise ValueError("start, stop and step must be finite, and step > 0")
+            count = math.floor((stop - start) / step + 0.5) + 1
+            if not 1 <= count <= (SIGMA.max_items or 0):
+                raise ValueError(f"that is {max(count, 0)} sigmas; at least 1 and at most {SIGMA.max_items}")
+            return [round(start + i * step, 6) for i in range(count)]
+        return [float(v) for v in text.split(",")]
+    except ValueError as error:
+        raise EvalError(f"bad --sigmas '{text}' (use start:stop:step or a,b,c): {error}") from None
+
+
+def parse_sizes(text: str) -> list[tuple[float, float]]:
+    """`0.7x0.85,1.3x1.1`: upper arm and forearm scales (checked by `check_arms`); a bare `0.8` is both times 0.8."""
+    try:
+        sizes = [item.split("x") for item in text.split(",") if item.strip()]
+        if any(len(size) not in (1, 2) for size in sizes):
+            raise ValueError("one or two scales per size")
+        return [(float(size[0]), float(size[-1])) for size in sizes]
+    except ValueError as error:
+        raise EvalError(f"bad --proportions '{text}' (use UPPERxFOREARM,...: 0.7x0.85,1.3x1.1): {error}") from None
+
+
+def parse_scales(text: str) -> list[float]:
+    """`0.75,1,1.25`: arm scales (their range is checked by `check_arms`)."""
+    try:
+        return [float(value) for value in text.split(",")]
+    except ValueError as error:
+        raise EvalError(f"bad --scales '{text}' (use a,b,c): {error}") from None
+
+
+def run_episodes(policy: Path, episodes: list[dict[str, Any]], directory: Path, *, record: bool = False,
+                 characters: int = 64, characters_per_world: int = 16, idle_frames: int = 0, timeout_s: float = 3600.0,
+                 on_progress: Callable[[int], None] | None = None) -> dict[str, Any]:
+    """Plays `episodes` (evaluate.gd's episode objects) for `policy` in headless Godot, writing into `directory`;
+    returns evaluate.gd's episodes.json (a row per episode, feature names, inference counts, ...). With `record`,
+    `directory` also holds every punch's features, observations and actions (`recorded`)."""
+    directory.mkdir(parents=True, exist_ok=True)
+    (directory / "episodes_in.json").write_text(json.dumps(episodes))
+    run_godot_tool("evaluate", {"policy": Path(policy).resolve(), "episodes": (directory / "episodes_in.json").resolve(),
+                                "out": directory.resolve(), "record": int(record), "characters": characters,
+                                "characters-per-world": characters_per_world, "idle-frames": idle_frames},
+                   what="the punches", timeout_s=timeout_s, on_progress=on_progress, timeout_error=EvalError)
+    meta: dict[str, Any] = json.loads((directory / "episodes.json").read_text())
+    return meta
+
+
+def recorded(directory: Path, meta: dict[str, Any], kind: str, start: int = 0, count: int | None = None) -> np.ndarray:
+    """What `run_episodes(record=True)` recorded of episodes start..start+count: `kind` one of KINDS, as
+    [episodes, frames, F] (features) or [episodes, decisions, size]; a memory map (read lazily)."""
+    total = int(meta["episodes"])
+    rows = np.memmap(directory / f"{kind}.f32", dtype="<f4", mode="r").reshape(total, -1)
+    rows = rows[start:total if count is None else start + count]
+    return rows.reshape(len(rows), meta["frames"] if kind == "features" else meta["decisions"], -1)
+
+
+def analyse_punches(features: np.ndarray, names: list[str], reward: Reward, chunk: int = 2000) -> dict[str, Any]:
+    """Returns, hits and spreads of a set of punches, features [punches, frames, F] (may be a memmap)."""
+    col = names.index
+    returns = np.concatenate([score(reward, np.asarray(features[i:i + chunk], dtype=np.float64), names)
+                              for i in range(0, len(features), chunk)])
+    fist = np.asarray(features[:, :, col("fist_r_pos_x"):col("fist_r_pos_z") + 1], dtype=np.float64)
+    hit, first = first_right_contact(features, names)
+    impacts = fist[np.flatnonzero(hit), first[hit]]
+    return {
+        "returns": returns,
+        "fist_paths": fist,
+        "impacts": impacts,
+        "hit_rate": float(hit.mean()),
+        # Mean over frames of the distance of each path from the mean path: how far punches wander apart.
+        "path_spread_m": float(np.linalg.norm(fist - fist.mean(axis=0), axis=-1).mean()),
+        "impact_spread_m": float(np.linalg.norm(impacts - impacts.mean(axis=0), axis=-1).mean()) if len(impacts) > 1 else 0.0,
+    }
+
+
+@dataclass
+class EvalArgs:
+    policy: Path
+    """the policy to measure (an exported .onnx)"""
+    scenario: str = "held_out"
+    """a shipped scenario's name (held_out, moving, sizes) or a scenario file (.toml; docs/evaluation.md)"""
+    baseline: Path | None = None
+    """a second policy measured on the same placements and conditions, side by side"""
+    placements: int | None = None
+    """held-out placements drawn from the reach volume (default: the scenario's)"""
+    seed: int | None = None
+    """seed of the placements (default: the scenario's, one no training stage uses)"""
+    sigmas: list[float] | None = None
+    """runtime noise sigmas (a,b,c or start:stop:step; default: the scenario's)"""
+    noisy_episodes: int | None = field(default=None, metadata=bounds(1, 1000))
+    """punches per placement at each sigma > 0 (sigma 0: one; default: the scenario's)"""
+    search_iterations: int | None = field(default=None, metadata=bounds(0, 100_000))
+    """iterations of the per-placement search (0: no search; fractions of the best are then left out; default: the
+    scenario's)"""
+    conditions: list[str] | None = None
+    """only these of the scenario's conditions, by name (default: all)"""
+    arms: list[tuple[float, float]] | None = field(default=None, metadata=bounds(*SEGMENT_SCALE_RANGE, max_items=1))
+    """the characters' arms (S, or UPPERxFOREARM), sized through PunchCharacter.size_arms, where a condition sets
+    none of its own (default: the scenario's, else the scene's)"""
+    scales: list[float] | None = field(default=None, metadata=bounds(*ARM_SCALE_RANGE, max_items=20))
+    """arm sizes to measure, one condition each (a,b,c): upper arm and forearm both times the scale, the shoulders as
+    they are (default: the scenario's)"""
+    proportions: list[tuple[float, float]] | None = field(default=None, metadata=bounds(*SEGMENT_SCALE_RANGE, max_items=20))
+    """rigs with other proportions than the scene's (UPPERxFOREARM,...), one condition each, after the scales
+    (default: the scenario's)"""
+    lead_s: float | None = None
+    """how long a moving character has been moving when it punches, s (default: the scenario's)"""
+    out: Path | None = None
+    """output directory (default: next to the policy, eval_<scenario>_<time>)"""
+    timeout_s: float = 3600.0
+    """how long Godot may take for one policy's punches"""
+
+
+def scenario_of(args: EvalArgs) -> Scenario:
+    """The scenario `args` name, with their values over the file's."""
+    for upper, forearm in [(s, s) for s in args.scales or []] + list(args.proportions or []) + list(args.arms or []):
+        check_arms(upper, forearm, "proportions" if upper != forearm else "arms")
+    data, source = read_scenario_data(args.scenario)
+    data = override(data, placements=args.placements, seed=args.seed, sigmas=args.sigmas, noisy_punches=args.noisy_episodes,
+                    search_iterations=args.search_iterations, lead_s=args.lead_s, arms=args.arms[0] if args.arms else None,
+                    conditions=args.conditions, scales=args.scales, proportions=args.proportions)
+    return build_scenario(data, source)
+
+
+@dataclass(frozen=True)
+class Group:
+    """The punches of one report row: a condition at one sigma, episodes start..start+count of a policy's run."""
+
+    condition: Condition
+    sigma: float
+    start: int
+    count: int
+
+
+def draw_placements(scenario: Scenario, reach: ReachVolume) -> tuple[list[BagPlacement], list[BagPlacement]]:
+    """The scenario's held-out placements at rest, and their swinging twins (the same places, the bag swinging at
+    a speed drawn up to the volume's largest, in a random direction), drawn after them from the same seed."""
+    rng = np.random.default_rng(scenario.seed)
+    still = reach.sample(rng, scenario.placements)
+    if not any(c.swinging for c in scenario.conditions):
+        return still, []
+    moving = reach.sample(rng, scenario.placements, moving=1.0)
+    swinging = [BagPlacement.from_wire({**bag.to_wire(), "distance_m": place.distance_m, "height_m": place.height_m,
+                                        "side_m": place.side_m}) for bag, place in zip(moving, still, strict=True)]
+    return still, swinging
+
+
+def episodes_of(scenario: Scenario, still: list[BagPlacement], swinging: list[BagPlacement]) -> tuple[list[dict[str, Any]], list[Group]]:
+    """evaluate.gd's episodes of a scenario, and the report rows they make. Episode e of sigma index s of a
+    condition plays placement e modulo their count with noise seed noise_seed * 1000003 + s * 100003 + e."""
+    episodes: list[dict[str, Any]] = []
+    groups = []
+    for condition in scenario.conditions:
+        places = swinging if condition.swinging else still
+        for index, sigma in enumerate(condition.sigmas):
+            count = len(places) * (1 if sigma == 0 else scenario.noisy_punches)
+            groups.append(Group(condition, sigma, len(episodes), count))
+            for e in range(count):
+                bag = places[e % len(places)]
+                episode: dict[str, Any] = {
+                    "placement": {key: getattr(bag, key) for key in ("distance_m", "height_m", "side_m",
+                                                                     "velocity_side_mps", "velocity_forward_mps")},
+                    "sigma": sigma, "noise_decisions": condition.noise_decisions,
+                    "seed": condition.noise_seed * SEED_STRIDE[0] + index * SEED_STRIDE[1] + e,
+                    "start": condition.start, "arms": list(condition.arms), "lead_s": condition.lead_s}
+                if condition.body is not None:
+                    episode["body"] = condition.body.to_wire()
+                if condition.target is not None:
+                    episode["target"] = condition.target.to_wire()
+                episodes.append(episode)
+    return episodes, groups
+
+
+def play_policy(policy: Path, episodes: list[dict[str, Any]], groups: list[Group], reward: Reward | None,
+                naturalness: bool, timeout_s: float, on_progress: Callable[[int], None] | None = None) -> dict[str, Any]:
+    """Every episode of one policy, and per group what its rows need: the punches' rows, and with `reward` (the
+    scenario's success is "return") their returns, success, impact spread and naturalness; the first group's
+    features and actions (for the plots and the search)."""
+    from punch_trainer.report.naturalness import punches_naturalness
+
+    record = reward is not None
+    physics_hz = float(read_policy_metadata(policy).physics_hz)
+    with tempfile.TemporaryDirectory(prefix="punch_eval_") as name:
+        directory = Path(name)
+        meta = run_episodes(policy, episodes, directory, record=record, timeout_s=timeout_s, on_progress=on_progress)
+        names = [str(n) for n in meta["feature_names"]]
+        results = []
+        for index, group in enumerate(groups):
+            rows = meta["rows"][group.start:group.start + group.count]
+            result: dict[str, Any] = {"rows": rows}
+            if reward is not None:
+                features = np.array(recorded(directory, meta, "features", group.start, group.count))
+                analysis = analyse_punches(features, names, reward)
+                result.update(returns=analysis["returns"], success=success(analysis["returns"], features, names),
+                              impact_spread_m=analysis["impact_spread_m"])
+                if naturalness and group.condition.name == groups[0].condition.name:
+                    result["naturalness"] = punches_naturalness(features, names, physics_hz)
+                if index == 0:
+                    result["features"] = features
+                    result["actions"] = np.array(recorded(directory, meta, "actions", group.start, group.count))
+            else:
+                result["success"] = np.array([row[0] > 0 for row in rows], dtype=bool)
+            results.append(result)
+    return {"groups": results, "feature_names": names, "physics_hz": physics_hz, "arm_scale_range": meta["arm_scale_range"]}
+
+
+def _play_from_bytes(policy_bytes: bytes, **kwargs: Any) -> dict[str, Any]:
+    """`play_policy` on a Ray worker's node, which may not hold the policy file: its bytes travel instead."""
+    with tempfile.TemporaryDirectory(prefix="punch_eval_policy_") as directory:
+        policy = Path(directory) / "policy.onnx"
+        policy.write_bytes(policy_bytes)
+        return play_policy(policy, **kwargs)
+
+
+def search_bests(policy_actions: np.ndarray, bags: list[BagPlacement], reward: Reward, smoothing_window: int,
+                 iterations: int, seed: int, backend: Backend) -> np.ndarray:
+    """The best return a short trajectory search finds at each placement, warm-started from `policy_actions`
+    [P, decisions, A] (the policy's own noise-free actions there)."""
+    from punch_trainer.learn.search import SearchArgs, placement_search
+    from punch_trainer.sim.rollouts import RolloutPool
+
+    args = SearchArgs(reward=reward.name, frames=reward.frames, seed=seed, iterations=iterations, rollouts=16,
+                      sigma_init=0.3, smoothing_window=smoothing_window, plateau_iterations=0)
+    with RolloutPool(1, 64, backend=backend) as pool:
+        results = placement_search(args, reward, pool, progress=False, placements=bags, init_mu=policy_actions, neighbours=0)
+    return np.array([r.best_return for r in results])
+
+
+def make_row(group: Group, result: dict[str, Any], placements: int, best: np.ndarray | None) -> dict[str, Any]:
+    """The report's one row type: a condition at one sigma."""
+    rows, won = result["rows"], result["success"]
+    placement = np.arange(group.count) % placements
+    in_reach = [i for i, row in enumerate(rows) if row[1] == 0]
+    lengths = np.median(np.array([row[5:8] for row in rows], dtype=float), axis=0)
+    fraction = None
+    if best is not None and "returns" in result:
+        scored = best[placement] > 0  # a placement where nothing scores has no fraction
+        fraction = float(np.mean(result["returns"][scored] / best[placement][scored])) if scored.any() else None
+    return {"condition": group.condition.name, "sigma": group.sigma, "punches": group.count,
+            "successes": int(won.sum()), "success_rate": float(won.mean()),
+            "success_interval": success_interval(int(won.sum()), group.count),
+            "hits": sum(1 for row in rows if row[0] > 0),
+            "out_of_reach": group.count - len(in_reach), "in_reach_successes": int(sum(won[i] for i in in_reach)),
+            "out_of_reach_m": sorted(float(row[2]) for row in rows if row[1] > 0),
+            "moved_m": float(np.median([float(row[4]) for row in rows])),
+            "arms": size_label(*group.condition.arms),
+            "arm_lengths_m": [round(float(v), 4) for v in lengths],
+            "missed_placements": sorted({int(p) for p, ok in zip(placement, won, strict=True) if not ok}),
+            "return_fraction_of_search_best": fraction,
+            "impact_spread_m": result.get("impact_spread_m")}
+
+
+def run_eval(args: EvalArgs, progress: bool = True, *, backend: Backend = LOCAL) -> tuple[Path, dict[str, Any]]:
+    """The whole `punch eval` command (and its shortcuts), every punch and search on `backend`: writes eval.json
+    and report.md in the output directory."""
+    started = time.perf_counter()
+    scenario = scenario_of(args)
+    policies = [Path(args.policy)] + ([Path(args.baseline)] if args.baseline else [])
+    metadata = [read_policy_metadata(policy) for policy in policies]
+    reward = None
+    if scenario.success == "return":
+        rewards = [metadata_reward(m.entries, str(p)) for m, p in zip(metadata, policies, strict=True)]
+        if any(r.name != rewards[0].name for r in rewards):
+            raise EvalError("--baseline must be trained for the same reward as --policy")
+        reward = rewards[0]
+    if scenario.volume == "spec":
+        from punch_trainer.sim.rollouts import RolloutPool
+
+        with RolloutPool(1, 1, backend=backend) as pool:
+            reach = ReachVolume.from_json(pool.info.reach_volume)
+    else:
+        reach = ReachVolume.from_json(metadata[0].reach_volume)
+    still, swinging = draw_placements(scenario, reach)
+    episodes, groups = episodes_of(scenario, still, swinging)
+    out = Path(args.out or Path(args.policy).parent / f"eval_{scenario.name}_{int(time.time())}")
+    out.mkdir(parents=True, exist_ok=True)
+    calls = [{"episodes": episodes, "groups": groups, "reward": reward, "naturalness": scenario.naturalness,
+              "timeout_s": args.timeout_s} for _ in policies]
+    if backend.shares_files:
+        with tqdm(total=len(episodes) * len(policies), desc=f"{scenario.name} punches (Godot)", unit="punch",
+                  disable=not progress) as bar:
+            runs = []
+            for index, (policy, call) in enumerate(zip(policies, calls, strict=True)):
+                def advance(done: int, offset: int = index * len(episodes)) -> None:
+                    bar.update(offset + done - bar.n)
+
+                runs.append(play_policy(policy, **call, on_progress=advance))
+    else:
+        runs = backend.map(_play_from_bytes, [{"policy_bytes": policy.read_bytes(), **call} for policy, call in zip(policies, calls, strict=True)])
+    best = None
+    if reward is not None and scenario.search_iterations > 0:
+        if progress:
+            print("searching the best punch at every placement ...", flush=True)
+        best = search_bests(runs[0]["groups"][0]["actions"], still, reward, metadata[0].smoothing_window,
+                            scenario.search_iterations, scenario.seed, backend)
+        best = np.max([best, *[run["groups"][0]["returns"] for run in runs]], axis=0)  # a policy may beat the short search
+    evaluations = [evaluation_of(policy, run, groups, scenario, reward, best) for policy, run in zip(policies, runs, strict=True)]
+    capture = None
+    if scenario.naturalness and reward is not None:
+        from punch_trainer.report.naturalness import capture_figures
+
+        capture = capture_figures()
+    report = {"scenario": scenario.to_json(), "seed": scenario.seed, "placements": [bag.to_wire() for bag in still],
+              "swinging_placements": [bag.to_wire() for bag in swinging], "reach": json.loads(reach.to_json()),
+              "arm_scale_range": runs[0]["arm_scale_range"], "search_best": best.tolist() if best is not None else None,
+              "evaluations": evaluations,
+              "captured_naturalness": [punch.to_json() for punch in capture] if capture else None,
+              "wall_s": round(time.perf_counter() - started, 1)}
+    (out / "eval.json").write_text(json.dumps(report, indent=2) + "\n")
+    write_report(out, args, scenario, report, runs, still, capture)
+    return out, report
+
+
+def evaluation_of(policy: Path, run: dict[str, Any], groups: list[Group], scenario: Scenario, reward: Reward | None,
+                  best: np.ndarray | None) -> dict[str, Any]:
+    """One policy's part of the report: its rows, and what the plots and naturalness tables read."""
+    from punch_trainer.report.naturalness import summarise
+
+    rows = [make_row(group, result, scenario.placements, best) for group, result in zip(groups, run["groups"], strict=True)]
+    first = run["groups"][0]
+    evaluation: dict[str, Any] = {"policy": str(policy), "reward": reward.name if reward else None, "rows": rows,
+                                  "success_at_sigma0": first["success"][:scenario.placements].tolist()}
+    if "naturalness" in first:
+        evaluation["naturalness"] = [{"sigma": group.sigma, **summarise(result["naturalness"]).to_json()}
+                                     for group, result in zip(groups, run["groups"], strict=True) if "naturalness" in result]
+        evaluation["naturalness_at_sigma0"] = [punch.to_json() for punch in first["naturalness"]]
+    return evaluation
+
+
+def markdown_rows(scenario: Scenario, rows: list[dict[str, Any]]) -> list[str]:
+    """The report's table of one policy: a line per condition and sigma; the columns a scenario has no use for
+    (a search's fraction, an impact spread, arm lengths, how far the body moved, targets out of reach) left out."""
+    returns = scenario.success == "return"
+    sized = any(c.arms != (1.0, 1.0) for c in scenario.conditions)
+    moves = any(c.moves() for c in scenario.conditions)
+    reach = any(row["out_of_reach"] for row in rows)
+    header = ["condition", "sigma", "punches", "success", "its 95% interval"]
+    header += ["return / best known", "impact spread (cm)"] if returns else []
+    header += ["upper arm / forearm / shoulders (m)"] if sized else []
+    header += ["moved (m)"] if moves else []
+    header += ["out of reach at the start (successes in reach)"] if reach else []
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for row in rows:
+        low, high = row["success_interval"]
+        cells = [row["condition"], f"{row['sigma']:.2f}", str(row["punches"]), f"{row['successes']} ({100 * row['success_rate']:.1f}%)",
+                 f"{100 * low:.1f}-{100 * high:.1f}%"]
+        if returns:
+            fraction = row["return_fraction_of_search_best"]
+            cells += [f"{fraction:.2f}" if fraction is not None else "-", f"{100 * row['impact_spread_m']:.1f}"]
+        if sized:
+            cells.append(" / ".join(f"{v:.3f}" for v in row["arm_lengths_m"]))
+        if moves:
+            cells.append(f"{row['moved_m']:.2f}")
+        if reach:
+            cells.append(f"{row['out_of_reach']} ({row['in_reach_successes']}/{row['punches'] - row['out_of_reach']})"
+                         if row["out_of_reach"] else "-")
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def write_report(out: Path, args: EvalArgs, scenario: Scenario, report: dict[str, Any], runs: list[dict[str, Any]],
+                 still: list[BagPlacement], capture: Any) -> None:
+    from punch_trainer.report.naturalness import NaturalnessSummary, naturalness_table
+    from punch_trainer.report.plots import plot_eval
+
+    measured = ("a positive return (the policy's reward) and the right fist touched the target"
+                if scenario.success == "return" else "the controller's `hit` signal on the target during the punch")
+    conditions = ", ".join(dict.fromkeys(c.name for c in scenario.conditions))
+    lines = [f"# punch eval: {args.policy}", "",
+             f"Scenario `{scenario.name}` ({scenario.source}): {scenario.description}.", "",
+             f"{scenario.placements} held-out placements drawn from the {scenario.volume}'s reach volume with seed "
+             f"{scenario.seed} (a seed no training stage uses); conditions: {conditions}; one punch per placement at "
+             f"sigma 0, {scenario.noisy_punches} at each sigma above it; every punch through PunchController in headless "
+             f"Godot ({report['wall_s']:.0f} s in all). Success: {measured}; its interval: Wilson's 95% score interval, "
+             "where the rate at other placements could lie."]
+    if scenario.success == "return":
+        lines += ["", f"Return: the mean of return / the best return known at that placement (a {scenario.search_iterations}-"
+                  "iteration search warm-started from the first policy's punch, or a policy's own noise-free punch if "
+                  "better); placements where nothing scores are left out."]
+    lines.append("")
+    for index, evaluation in enumerate(report["evaluations"]):
+        lines += [f"## {evaluation['policy']}" + (f" (reward `{evaluation['reward']}`)" if evaluation["reward"] else ""), "",
+                  *markdown_rows(scenario, evaluation["rows"]), ""]
+        if "naturalness" in evaluation:
+            lines += [f"Naturalness (docs/naturalness.md): medians over the punches of `{scenario.conditions[0].name}`; the "
+                      "captured punches' range from movement onset to full reach.", ""]
+            lines += naturalness_table([(f"sigma {row['sigma']:g}", NaturalnessSummary.from_json(row))
+                                        for row in evaluation["naturalness"]], capture)
+            first = runs[index]["groups"][0]
+            plots = plot_naturalness(out, first["features"], runs[index]["feature_names"], runs[index]["physics_hz"], still,
+                                     "" if index == 0 else "_baseline")
+            lines += ["", *[f"![{p.stem}]({p.name})" for p in plots], ""]
+    lines += [f"![{p.stem}]({p.name})" for p in plot_eval(out, report["placements"], report["evaluations"])]
+    (out / "report.md").write_text("\n".join(lines) + "\n")
+
+
+def plot_naturalness(out: Path, features: np.ndarray, names: list[str], physics_hz: float, placements: list[BagPlacement],
+                     suffix: str = "") -> list[Path]:
+    """Fig. 4 of a policy's punches (`features`, one per placement) against the capture, and the stick-figure strip
+    of its punch at the placement nearest the middle of `placements`."""
+    from punch_trainer.capture.bvh import DEFAULT_BVH
+    from punch_trainer.capture.punches import captured_punches
+    from punch_trainer.report.naturalness_plots import plot_capture_comparison, plot_stick_strip
+
+    capture = captured_punches(DEFAULT_BVH)
+    points = np.array([[p.distance_m, p.height_m, p.side_m] for p in placements])
+    spread = np.where(points.std(axis=0) > 0, points.std(axis=0), 1.0)
+    middle = int(np.argmin(np.linalg.norm((points - points.mean(axis=0)) / spread, axis=1)))
+    return [plot_capture_comparison(out, features, names, physics_hz, capture, file_name=f"naturalness_fig4{suffix}.png"),
+            plot_stick_strip(out, features[middle], names, physics_hz, capture[0], file_name=f"naturalness_strip{suffix}.png")]

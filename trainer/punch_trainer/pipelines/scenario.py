@@ -1,0 +1,349 @@
+"""Evaluation scenarios: what `punch eval` measures, as data (docs/evaluation.md).
+
+A scenario is a TOML file (the shipped ones in punch_trainer/scenarios/, or any file): held-out placements drawn
+from a reach volume, and a list of conditions, each a way to play a punch there (the noise, how the body and the
+target move, the arms' size, where the punch starts). Every condition is measured at each of its sigmas, one
+report row each; the evaluator (`pipelines/evaluation.py`) turns a scenario into episodes for the one Godot
+driver (godot_project/tools/evaluate.gd) and their results into rows.
+
+    name = "moving"                      # what the report calls it
+    description = "..."
+    success = "hit"                      # "hit": the controller's `hit` signal on the target; "return": a
+                                         # positive return (the policy's reward) and the right fist touched it
+    sigmas = [0.0, 0.3]                  # every condition's, unless it names its own ("noisy": those above 0)
+    lead_s = 0.5                         # any key of a condition here is every condition's default
+    [placements]
+    count = 32
+    seed = 2147483616                    # held out: no training stage uses it
+    volume = "policy"                    # "policy": the policy's reach volume; "spec": the game's
+    [[conditions]]
+    name = "forward 0.7 m/s"
+    body = { velocity_mps = [0.0, 0.0, 0.7] }
+
+A condition's keys: `name`, `sigmas`, `noise_decisions` (-1: every decision), `noise_seed` (default: the
+placements' seed), `start` ("guard" or "after_punch"), `arms` (a scale, or [upper arm, forearm]), `lead_s`,
+`body` (a motion of the character, its target riding along), `target` (a motion of the target's hook, or
+`{ swinging = true }`: the bag swinging at a speed drawn up to the volume's largest). A motion: `velocity_mps`
+[left, up, forward], `turn_dps`, `lunge_m`, `lunge_s`, `bob_m`, `bob_hz`. The scenario's own keys: `name`,
+`description`, `success`, `placements`, `noisy_punches` (punches per placement at each sigma above 0),
+`search_iterations` (with success "return": a short search for the best punch at each placement, for the
+"return / best known" column), `naturalness` (with success "return": the naturalness figures of the first
+condition), `conditions`. An unknown key is refused, so a new kind of condition is a new key here and in
+evaluate.gd, not a new harness.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+from typing import Any, Literal
+
+from punch_trainer.errors import PunchError
+from punch_trainer.sim.placement import ARM_SCALE_RANGE, SCENE_ARM_LENGTHS_M, SEGMENT_SCALE_RANGE, arm_scale
+
+SCENARIO_DIR = Path(__file__).resolve().parents[1] / "scenarios"
+"""the shipped scenarios, `punch eval --scenario NAME` (package data)"""
+SEED_STRIDE = (1_000_003, 100_003)
+"""noise seed of episode e at sigma index s of a condition: noise_seed * 1000003 + s * 100003 + e"""
+
+
+class ScenarioError(PunchError):
+    """A scenario cannot be evaluated: no such scenario, a key it does not know, or a value out of its range."""
+
+
+@dataclass(frozen=True)
+class Motion:
+    """How a node moves from the episode's start (a body) or the punch's (a target's hook), in its own frame at
+    the start (evaluate.gd plays it as a game moves a CharacterBody3D)."""
+
+    velocity_mps: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """[left, up, forward]"""
+    turn_dps: float = 0.0
+    """about the vertical through the character's root, positive to the left"""
+    lunge_m: float = 0.0
+    """forward over `lunge_s`, minimum-jerk, with the punch"""
+    lunge_s: float = 0.25
+    bob_m: float = 0.0
+    """vertical amplitude of a sine at `bob_hz`"""
+    bob_hz: float = 2.0
+
+    def to_wire(self) -> dict[str, Any]:
+        return {**asdict(self), "velocity_mps": list(self.velocity_mps)}
+
+
+@dataclass(frozen=True)
+class Condition:
+    """One way to play a punch at every placement; a report row at each of its sigmas."""
+
+    name: str
+    sigmas: tuple[float, ...]
+    noise_seed: int
+    noise_decisions: int = -1
+    start: Literal["guard", "after_punch"] = "guard"
+    arms: tuple[float, float] = (1.0, 1.0)
+    lead_s: float = 0.0
+    body: Motion | None = None
+    target: Motion | None = None
+    swinging: bool = False
+    """the bag swinging at the start (the placements' swinging twins)"""
+
+    def moves(self) -> bool:
+        return self.body is not None or self.target is not None
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    description: str
+    source: str
+    """the file it was read from"""
+    success: Literal["hit", "return"]
+    placements: int
+    seed: int
+    volume: Literal["policy", "spec"]
+    conditions: tuple[Condition, ...]
+    noisy_punches: int = 1
+    search_iterations: int = 0
+    naturalness: bool = False
+
+    def to_json(self) -> dict[str, Any]:
+        return asdict(self)
+
+    def episodes_per_policy(self) -> int:
+        return sum(self.placements * (1 if sigma == 0 else self.noisy_punches) for c in self.conditions for sigma in c.sigmas)
+
+
+CONDITION_KEYS = ("name", "sigmas", "noise_decisions", "noise_seed", "start", "arms", "lead_s", "body", "target")
+SCENARIO_KEYS = ("name", "description", "success", "placements", "noisy_punches", "search_iterations", "naturalness",
+                 "conditions")
+PLACEMENT_KEYS = ("count", "seed", "volume")
+MOTION_KEYS = tuple(field.name for field in fields(Motion))
+
+
+def shipped_scenarios() -> list[str]:
+    return sorted(path.stem for path in SCENARIO_DIR.glob("*.toml"))
+
+
+def scenario_path(name_or_file: str | Path) -> Path:
+    """A shipped scenario's file by its name, or the file named."""
+    text = str(name_or_file)
+    if text.endswith(".toml") or "/" in text:
+        path = Path(text)
+        if not path.is_file():
+            raise ScenarioError(f"scenario file not found: {path}")
+        return path
+    path = SCENARIO_DIR / f"{text}.toml"
+    if not path.is_file():
+        raise ScenarioError(f"no scenario named '{text}'; the shipped ones are {', '.join(shipped_scenarios())} (or name a .toml file)")
+    return path
+
+
+def read_scenario_data(name_or_file: str | Path) -> tuple[dict[str, Any], str]:
+    """A scenario's raw data (to override before `build_scenario`) and the file it came from."""
+    path = scenario_path(name_or_file)
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as error:
+        raise ScenarioError(f"{path}: not TOML ({error})") from None
+    return data, str(path)
+
+
+def load_scenario(name_or_file: str | Path) -> Scenario:
+    data, source = read_scenario_data(name_or_file)
+    return build_scenario(data, source)
+
+
+def _number(where: str, value: Any, low: float | None = None, high: float | None = None, whole: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or (whole and not isinstance(value, int)):
+        raise ScenarioError(f"{where} {value!r}: must be {'a whole number' if whole else 'a number'}")
+    if not math.isfinite(value) or (low is not None and value < low) or (high is not None and value > high):
+        bounds = " and ".join(part for part in (f"at least {low:g}" if low is not None else "",
+                                                 f"at most {high:g}" if high is not None else "") if part)
+        raise ScenarioError(f"{where} {value!r}: must be a finite number{', ' + bounds if bounds else ''}")
+    return value
+
+
+def _unknown(where: str, table: Mapping[str, Any], known: Sequence[str]) -> None:
+    unknown = [key for key in table if key not in known]
+    if unknown:
+        raise ScenarioError(f"{where}: unknown key(s) {', '.join(map(repr, unknown))}; known: {', '.join(known)}")
+
+
+def check_arms(upper: float, forearm: float, where: str = "arms") -> tuple[float, float]:
+    """The arms as given; ScenarioError when PunchCharacter.size_arms would refuse them (each length, or the
+    arm's), naming what it accepts."""
+    arm = arm_scale(upper, forearm)
+    segments_ok = all(SEGMENT_SCALE_RANGE[0] <= v <= SEGMENT_SCALE_RANGE[1] for v in (upper, forearm))
+    if not (segments_ok and ARM_SCALE_RANGE[0] <= arm <= ARM_SCALE_RANGE[1]):
+        if upper == forearm:
+            raise ScenarioError(f"arm scale {upper:g} is outside the range PunchCharacter.size_arms accepts: "
+                                f"{ARM_SCALE_RANGE[0]:g} to {ARM_SCALE_RANGE[1]:g} times the character scene's arm "
+                                f"(shoulder to fist centre {sum(SCENE_ARM_LENGTHS_M[:2]):.3f} m)")
+        raise ScenarioError(f"{where} {upper:g}x{forearm:g} are outside what PunchCharacter.size_arms accepts: each "
+                            f"length {SEGMENT_SCALE_RANGE[0]:g} to {SEGMENT_SCALE_RANGE[1]:g} times the scene's, the arm "
+                            f"{ARM_SCALE_RANGE[0]:g} to {ARM_SCALE_RANGE[1]:g} times (these make it {arm:.3f})")
+    return upper, forearm
+
+
+def size_label(upper: float, forearm: float) -> str:
+    """`0.75` for both lengths times 0.75, `0.7x0.85` for other proportions."""
+    return f"{upper:g}" if upper == forearm else f"{upper:g}x{forearm:g}"
+
+
+def _arms(where: str, value: Any) -> tuple[float, float]:
+    if isinstance(value, (list, tuple)) and len(value) == 2:
+        upper, forearm = (float(_number(where, v)) for v in value)
+    elif isinstance(value, (list, tuple)) and len(value) == 1:
+        upper = forearm = float(_number(where, value[0]))
+    else:
+        upper = forearm = float(_number(where, value))
+    return check_arms(upper, forearm, where)
+
+
+def _motion(where: str, value: Any) -> Motion:
+    if not isinstance(value, Mapping):
+        raise ScenarioError(f"{where}: a motion is a table ({', '.join(MOTION_KEYS)})")
+    _unknown(where, value, MOTION_KEYS)
+    velocity = value.get("velocity_mps", [0.0, 0.0, 0.0])
+    if not isinstance(velocity, list) or len(velocity) != 3:
+        raise ScenarioError(f"{where}.velocity_mps: three numbers, [left, up, forward] (m/s)")
+    scalars = {key: float(_number(f"{where}.{key}", value[key], 0.0 if key in ("lunge_s", "bob_hz", "bob_m") else None))
+               for key in MOTION_KEYS if key != "velocity_mps" and key in value}
+    if scalars.get("lunge_s", 0.25) <= 0:
+        raise ScenarioError(f"{where}.lunge_s: must be more than 0")
+    return Motion(velocity_mps=(float(_number(where, velocity[0])), float(_number(where, velocity[1])),
+                                float(_number(where, velocity[2]))), **scalars)
+
+
+def _sigmas(where: str, value: Any, scenario_sigmas: list[float]) -> tuple[float, ...]:
+    if value == "noisy":
+        return tuple(s for s in scenario_sigmas if s > 0)
+    if value == "all":
+        return tuple(scenario_sigmas)
+    if not isinstance(value, list):
+        raise ScenarioError(f"{where}: a list of sigmas, \"all\" (the scenario's) or \"noisy\" (the scenario's above 0)")
+    return tuple(float(_number(where, sigma, 0.0, 1.0)) for sigma in value)
+
+
+def _condition(index: int, table: Any, defaults: Mapping[str, Any], scenario_sigmas: list[float], seed: int) -> Condition:
+    where = f"condition {index + 1}"
+    if not isinstance(table, Mapping):
+        raise ScenarioError(f"{where}: a table ([[conditions]])")
+    _unknown(where, table, CONDITION_KEYS)
+    merged = {**defaults, **table}
+    name = merged.get("name")
+    if not isinstance(name, str) or not name:
+        raise ScenarioError(f"{where}: needs a name")
+    where = f"condition '{name}'"
+    start = merged.get("start", "guard")
+    if start not in ("guard", "after_punch"):
+        raise ScenarioError(f"{where}: start is \"guard\" or \"after_punch\", not {start!r}")
+    body = _motion(f"{where}: body", merged["body"]) if "body" in merged else None
+    target_table = merged.get("target")
+    swinging, target = False, None
+    if target_table is not None:
+        if not isinstance(target_table, Mapping):
+            raise ScenarioError(f"{where}: target is a motion table or {{ swinging = true }}")
+        swinging = bool(target_table.get("swinging", False))
+        rest = {k: v for k, v in target_table.items() if k != "swinging"}
+        if swinging and rest:
+            raise ScenarioError(f"{where}: a swinging target is not moved by its hook too")
+        target = None if swinging else _motion(f"{where}: target", rest)
+    if body is not None and target is not None:
+        raise ScenarioError(f"{where}: moves both the body and the target's hook; one of them at a time")
+    noise_seed = merged.get("noise_seed", seed)
+    return Condition(
+        name=name, sigmas=_sigmas(f"{where}: sigmas", merged.get("sigmas", "all"), scenario_sigmas),
+        noise_seed=int(_number(f"{where}: noise_seed", noise_seed, 0, 2**32 - 1, whole=True)),
+        noise_decisions=int(_number(f"{where}: noise_decisions", merged.get("noise_decisions", -1), -1, 10_000, whole=True)),
+        start=start, arms=_arms(f"{where}: arms", merged.get("arms", 1.0)),
+        lead_s=float(_number(f"{where}: lead_s", merged.get("lead_s", 0.0), 0.0, 10.0)),
+        body=body, target=target, swinging=swinging)
+
+
+def build_scenario(data: Mapping[str, Any], source: str) -> Scenario:
+    """The scenario of raw data (a file's, overridden by the command line), every key checked."""
+    defaults = {key: value for key, value in data.items() if key in CONDITION_KEYS and key != "name"}
+    _unknown(source, {k: v for k, v in data.items() if k not in defaults}, SCENARIO_KEYS)
+    placements = data.get("placements", {})
+    if not isinstance(placements, Mapping):
+        raise ScenarioError(f"{source}: [placements] is a table ({', '.join(PLACEMENT_KEYS)})")
+    _unknown(f"{source}: placements", placements, PLACEMENT_KEYS)
+    count = int(_number("placements.count", placements.get("count", 32), 1, 10_000, whole=True))
+    seed = int(_number("placements.seed", placements.get("seed", 0), 0, 2**32 - 1, whole=True))
+    volume = placements.get("volume", "policy")
+    if volume not in ("policy", "spec"):
+        raise ScenarioError(f"{source}: placements.volume is \"policy\" or \"spec\", not {volume!r}")
+    success = data.get("success", "hit")
+    if success not in ("hit", "return"):
+        raise ScenarioError(f"{source}: success is \"hit\" or \"return\", not {success!r}")
+    raw_sigmas = defaults.get("sigmas", [0.0])
+    if not isinstance(raw_sigmas, list):
+        raise ScenarioError(f"{source}: sigmas is a list of numbers")
+    scenario_sigmas = [float(_number("sigmas", s, 0.0, 1.0)) for s in raw_sigmas]
+    defaults["sigmas"] = "all"
+    tables = data.get("conditions", [])
+    if not isinstance(tables, list) or not tables:
+        raise ScenarioError(f"{source}: no [[conditions]]")
+    conditions = [_condition(i, table, defaults, scenario_sigmas, seed) for i, table in enumerate(tables)]
+    rows = [(c.name, sigma) for c in conditions for sigma in c.sigmas]
+    doubled = sorted({row for row in rows if rows.count(row) > 1})
+    if doubled:
+        raise ScenarioError(f"{source}: two conditions named '{doubled[0][0]}' at sigma {doubled[0][1]:g}")
+    conditions = [c for c in conditions if c.sigmas]
+    if not conditions:
+        raise ScenarioError(f"{source}: no condition has a sigma to play (sigmas {scenario_sigmas})")
+    name = data.get("name", Path(source).stem)
+    naturalness = data.get("naturalness", False)
+    if not isinstance(naturalness, bool):
+        raise ScenarioError(f"{source}: naturalness is true or false")
+    return Scenario(name=str(name), description=str(data.get("description", "")), source=source, success=success,
+                    placements=count, seed=seed, volume=volume, conditions=tuple(conditions),
+                    noisy_punches=int(_number("noisy_punches", data.get("noisy_punches", 1), 1, 1000, whole=True)),
+                    search_iterations=int(_number("search_iterations", data.get("search_iterations", 0), 0, 100_000, whole=True)),
+                    naturalness=naturalness)
+
+
+def override(data: Mapping[str, Any], *, placements: int | None = None, seed: int | None = None,
+             sigmas: list[float] | None = None, noisy_punches: int | None = None, search_iterations: int | None = None,
+             lead_s: float | None = None, arms: tuple[float, float] | None = None, conditions: list[str] | None = None,
+             scales: list[float] | None = None, proportions: list[tuple[float, float]] | None = None) -> dict[str, Any]:
+    """A scenario's raw data with the command line's values over the file's (None: the file's). `conditions`: only
+    those named; `scales` and `proportions`: the conditions of one arm size each (as the file's arm-size
+    conditions are made: every other key the first of them has), scales for equal proportions first."""
+    result = dict(data)
+    table = dict(result.get("placements", {}))
+    if placements is not None:
+        table["count"] = placements
+    if seed is not None:
+        table["seed"] = seed
+    result["placements"] = table
+    for key, value in [("sigmas", sigmas), ("noisy_punches", noisy_punches), ("search_iterations", search_iterations),
+                       ("lead_s", lead_s), ("arms", list(arms) if arms is not None else None)]:
+        if value is not None:
+            result[key] = value
+    tables = [dict(t) for t in result.get("conditions", []) if isinstance(t, Mapping)]
+    if scales is not None or proportions is not None:
+        sized = [t for t in tables if "arms" in t]
+        template = {k: v for k, v in (sized[0] if sized else {}).items() if k not in ("name", "arms")}
+
+        def equal(t: Mapping[str, Any]) -> bool:
+            arms_value = t["arms"]
+            return not isinstance(arms_value, list) or len(arms_value) == 1 or arms_value[0] == arms_value[-1]
+
+        equal_tables = [t for t in sized if equal(t)] if scales is None else \
+            [{**template, "name": size_label(s, s), "arms": [s, s]} for s in scales]
+        other_tables = [t for t in sized if not equal(t)] if proportions is None else \
+            [{**template, "name": size_label(u, f), "arms": [u, f]} for u, f in proportions]
+        tables = equal_tables + other_tables
+    if conditions is not None:
+        known = [str(t.get("name")) for t in tables]
+        unknown = [name for name in conditions if name not in known]
+        if unknown:
+            raise ScenarioError(f"unknown condition(s) {', '.join(map(repr, unknown))}; the scenario's are: {', '.join(known)}")
+        tables = [t for t in tables if t.get("name") in conditions]
+    result["conditions"] = tables
+    return result
