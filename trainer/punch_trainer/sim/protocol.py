@@ -1,11 +1,11 @@
 """Client side of the training-server wire format (docs/protocol.md): a JSON header and little-endian f32
-arrays, framed by two u32 lengths. The Rust side is punch_core::protocol."""
+arrays, framed by two u32 lengths (sim/framing.py, the trainer's one framing). The Rust side is punch_core's
+protocol."""
 
 from __future__ import annotations
 
 import json
 import socket
-import struct
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -13,15 +13,18 @@ from typing import Any
 import numpy as np
 
 from punch_trainer.errors import PunchError
+from punch_trainer.sim.framing import FrameError, FrameLimits, encode_frame, read_frame
 from punch_trainer.sim.placement import BagPlacement
 
 PROTOCOL_VERSION = 6
 MAX_HEADER_BYTES = 64 * 1024
 MAX_PAYLOAD_BYTES = 256 * 1024 * 1024
+LIMITS = FrameLimits(MAX_HEADER_BYTES, MAX_PAYLOAD_BYTES)
+"""the longest frame the trainer reads from a server"""
 
 
-class ProtocolError(PunchError):
-    """The byte stream broke the wire format."""
+class ProtocolError(FrameError):
+    """A frame's header or arrays broke the wire format (its lengths break it with `FrameTooLargeError`)."""
 
 
 class ServerError(PunchError):
@@ -44,13 +47,16 @@ class Message:
     fields: dict[str, Any] = field(default_factory=dict)
     arrays: dict[str, np.ndarray] = field(default_factory=dict)
 
-    def encode(self) -> bytes:
+    def parts(self) -> tuple[bytes, bytes]:
+        """The frame's header (JSON) and payload (the arrays, little-endian f32, in order)."""
         arrays = {name: np.ascontiguousarray(value, dtype="<f4") for name, value in self.arrays.items()}
         header = {"type": self.type, **self.fields,
                   "arrays": [{"name": name, "shape": list(value.shape)} for name, value in arrays.items()]}
-        header_bytes = json.dumps(header, separators=(",", ":")).encode()
-        payload = b"".join(value.tobytes() for value in arrays.values())
-        return struct.pack("<II", len(header_bytes), len(payload)) + header_bytes + payload
+        return json.dumps(header, separators=(",", ":")).encode(), b"".join(value.tobytes() for value in arrays.values())
+
+    def encode(self) -> bytes:
+        """The whole frame."""
+        return encode_frame(*self.parts())
 
     @classmethod
     def decode(cls, header_bytes: bytes, payload: bytes) -> Message:
@@ -142,11 +148,9 @@ def _receive_exactly(sock: socket.socket, count: int) -> bytes:
 
 
 def receive(sock: socket.socket) -> Message:
-    """Reads one message; an `error` reply raises ServerError."""
-    header_length, payload_length = struct.unpack("<II", _receive_exactly(sock, 8))
-    if not 0 < header_length <= MAX_HEADER_BYTES or payload_length > MAX_PAYLOAD_BYTES:
-        raise ProtocolError(f"bad frame lengths {header_length}, {payload_length}")
-    message = Message.decode(_receive_exactly(sock, header_length), _receive_exactly(sock, payload_length))
+    """Reads one message; an `error` reply raises ServerError, a frame over `LIMITS` FrameTooLargeError, a
+    malformed message ProtocolError (both FrameErrors)."""
+    message = Message.decode(*read_frame(lambda count: _receive_exactly(sock, count), LIMITS))
     if message.type == "error":
         raise ServerError(message.fields.get("message", "unknown server error"))
     return message

@@ -11,7 +11,7 @@ that died between calls is restarted. The worker has its own session (Ctrl-C goe
 dies with the trainer (PR_SET_PDEATHSIG). This is isolation of mistakes, not a security boundary: the
 reward is code the user chose to run, with the user's rights.
 
-Wire format, both ways: a 4-byte big-endian header length, a JSON header, then `nbytes` of raw array data.
+Wire format, both ways: the trainer's one framing (sim/framing.py): a JSON header and the raw array data.
 """
 
 from __future__ import annotations
@@ -23,7 +23,6 @@ import json
 import os
 import select
 import signal
-import struct
 import subprocess
 import sys
 import threading
@@ -37,10 +36,11 @@ from typing import Any
 import numpy as np
 
 from punch_trainer.errors import PunchError
+from punch_trainer.sim.framing import FrameError, FrameLimits, read_frame, write_frame
 
 STARTUP_ALLOWANCE_S = 30.0
 """Time a new worker may take to start Python and numpy, on top of the reward's own limit for its import."""
-_MAX_HEADER_BYTES = 1 << 20
+_LIMITS = FrameLimits(max_header_bytes=1 << 20)
 _MAX_TERMS = 256
 _MAX_MESSAGE_CHARS = 2000
 _FEATURE_DTYPES = {"<f4": np.float32, "<f8": np.float64}
@@ -158,20 +158,19 @@ def _read_exact(fd: int, size: int, deadline: float | None) -> bytes:
 
 
 def _send(fd: int, header: dict[str, Any], payload: bytes | memoryview, deadline: float) -> None:
-    text = json.dumps({**header, "nbytes": len(memoryview(payload).cast("B"))}).encode()
-    _write_all(fd, struct.pack(">I", len(text)) + text, deadline)
-    _write_all(fd, payload, deadline)
+    write_frame(lambda data: _write_all(fd, data, deadline), json.dumps(header).encode(), payload)
 
 
 def _receive(fd: int, deadline: float | None) -> tuple[dict[str, Any], bytes]:
-    """A header and its payload; ValueError for anything malformed (the other end may be the user's code)."""
-    (length,) = struct.unpack(">I", _read_exact(fd, 4, deadline))
-    if length > _MAX_HEADER_BYTES:
-        raise ValueError(f"a header of {length} bytes")
-    header = json.loads(_read_exact(fd, length, deadline))
-    if not isinstance(header, dict) or not isinstance(header.get("nbytes"), int) or not 0 <= header["nbytes"] < 1 << 40:
-        raise ValueError("a header without its size")
-    return header, _read_exact(fd, header["nbytes"], deadline)
+    """A header and its payload; FrameError for anything malformed (the other end may be the user's code)."""
+    header_bytes, payload = read_frame(lambda count: _read_exact(fd, count, deadline), _LIMITS)
+    try:
+        header = json.loads(header_bytes)
+    except ValueError as error:
+        raise FrameError(f"a header that is not JSON ({error})") from None
+    if not isinstance(header, dict):
+        raise FrameError("a header that is not a JSON object")
+    return header, payload
 
 
 def _stop(process: subprocess.Popen[bytes], fds: list[int]) -> None:
@@ -274,7 +273,7 @@ class IsolatedFunction:
                               "(set PUNCH_REWARD_TIME_LIMIT_S to allow more)") from None
         except _ClosedError:
             raise RewardError(self._death_message()) from None
-        except (ValueError, struct.error) as error:
+        except FrameError as error:
             self._kill()
             raise RewardError(f"reward '{self.spec}' garbled its worker's reply ({error}); a reward must only return "
                               "its values") from None

@@ -15,6 +15,7 @@ from typing import Self
 import numpy as np
 
 from punch_trainer.errors import GodotRunError, PunchError
+from punch_trainer.sim.framing import write_frame
 from punch_trainer.sim.godot import GODOT_PROJECT, start_godot, stop_godot
 from punch_trainer.sim.godot_output import GodotOutput
 from punch_trainer.sim.placement import BagPlacement
@@ -224,7 +225,7 @@ class TrainingServer(ServerConnection):
         if self._socket is None:
             raise PunchError("the training server is closed")
         self.last_request_s = time.monotonic()
-        self._socket.sendall(message.encode())
+        write_frame(self._socket.sendall, *message.parts())
 
     def receive(self) -> Message:
         if self._socket is None:

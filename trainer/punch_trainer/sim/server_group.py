@@ -13,12 +13,13 @@ from typing import TypeVar
 
 from punch_trainer.errors import PunchError
 from punch_trainer.sim.backend import LOCAL, Backend
-from punch_trainer.sim.protocol import ProtocolError, ServerClosedError, ServerTimeoutError
+from punch_trainer.sim.framing import FrameError
+from punch_trainer.sim.protocol import ServerClosedError, ServerTimeoutError
 from punch_trainer.sim.server import ServerBusyError, ServerConnection, ServerInfo
 
 # Failures that a fresh Godot process fixes (a server's error reply is not one of them: it would repeat). A
 # busy server is one whose connections other processes held: a fresh one is on another port.
-SIMULATOR_FAILURES = (ServerClosedError, ServerTimeoutError, ProtocolError, ConnectionError, ServerBusyError)
+SIMULATOR_FAILURES = (ServerClosedError, ServerTimeoutError, FrameError, ConnectionError, ServerBusyError)
 
 T = TypeVar("T")
 
