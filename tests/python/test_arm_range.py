@@ -6,7 +6,7 @@ import pytest
 
 from punch_trainer.learn.volume import ArmRange
 from punch_trainer.pipelines.train import arm_range
-from punch_trainer.sim.placement import ARM_SCALE_RANGE, SEGMENT_SCALE_RANGE, arm_scale
+from punch_trainer.sim.conditions import ARM_SCALE_RANGE, SEGMENT_SCALE_RANGE, arm_scale
 
 
 def draws(arms: ArmRange, count: int = 4000) -> np.ndarray:

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from punch_trainer.sim.placement import SCENE_ARM_LENGTHS_M, SCENE_BAG_RADIUS_M
+from punch_trainer.sim.conditions import SCENE_ARM_LENGTHS_M, SCENE_BAG_RADIUS_M
 from punch_trainer.sim.style import (
     STYLES,
     Style,

@@ -12,7 +12,7 @@ from punch_trainer.learn.a2c import collect_episodes
 from punch_trainer.learn.policy import SIGMA_MIN, ActorCritic
 from punch_trainer.learn.reach import HELD_OUT_SEED, ReachVolume, placement
 from punch_trainer.learn.search import SearchArgs
-from punch_trainer.learn.volume import EpisodeConditions, VolumeArgs
+from punch_trainer.learn.volume import ConditionSampler, VolumeArgs
 from punch_trainer.pipelines.evaluate import EvalArgs, run_eval
 from punch_trainer.pipelines.experiments import AfterPunchArgs, after_punch_headroom
 from punch_trainer.pipelines.search import run_search
@@ -97,14 +97,14 @@ def test_a_share_of_episodes_at_the_default_placement():
     """`default_share`: that share of A2C episodes has the bag still at the default placement, the rest are
     drawn from the volume as before, and a resumed run draws the same."""
     reach = ReachVolume((0.6, 0.85), (1.15, 1.55), (-0.25, 0.25), 1.0, True)
-    default = placement(0.7, 1.35, 0.0)  # a BagPlacement, as every drawn one, so equality is a real test
+    default = placement(0.7, 1.35, 0.0)  # a EpisodeConditions, as every drawn one, so equality is a real test
     punches = np.zeros((1, 10, 10), dtype=np.float32)
-    draw = EpisodeConditions(reach, punches, VolumeArgs(default_share=0.25), seed=5, default_bag=default)
+    draw = ConditionSampler(reach, punches, VolumeArgs(default_share=0.25), seed=5, default_bag=default)
     bags = [bag for update in range(1, 41) for bag in draw(32, update).bags]
     at_default = sum(bag == default for bag in bags) / len(bags)
     assert 0.2 < at_default < 0.3, at_default
     assert draw(32, 7) == draw(32, 7)
-    without = EpisodeConditions(reach, punches, VolumeArgs(), seed=5, default_bag=default)
+    without = ConditionSampler(reach, punches, VolumeArgs(), seed=5, default_bag=default)
     assert not any(bag == default for bag in without(32, 1).bags)
     assert type(without(32, 1).bags[0]) is type(default)
 

@@ -28,8 +28,8 @@ from tqdm import tqdm
 from punch_trainer.learn.checkpoint import CheckpointError, flag, load_checkpoint, number, save_checkpoint
 from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.volume import validate
+from punch_trainer.sim.conditions import EpisodeConditions, EpisodeStart
 from punch_trainer.sim.env import PunchVectorEnv
-from punch_trainer.sim.placement import BagPlacement, EpisodeStart
 from punch_trainer.sim.rewards import EpisodeScorer, Reward
 from punch_trainer.sim.server_group import SimulatorRestarts
 
@@ -195,7 +195,7 @@ def restore_a2c(saved: dict[str, Any], model: ActorCritic, optimizer: torch.opti
 def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVectorEnv, progress: bool = True,
               start_rollouts: int = 0, run_dir: Path | None = None, max_restarts: int = 3,
               conditions: Callable[[int, int], EpisodeStart] | None = None,
-              validation: list[BagPlacement] | None = None,
+              validation: list[EpisodeConditions] | None = None,
               on_snapshot: Callable[[int, ActorCritic], None] | None = None) -> tuple[ActorCritic, list[dict[str, Any]]]:
     """Trains in place and returns the parameters with the best noise-free return, with the history.
 

@@ -21,7 +21,7 @@ from punch_trainer.learn.reach import ReachVolume
 from punch_trainer.learn.search import SearchArgs, SearchResult
 from punch_trainer.policy_file import REACH_VOLUME
 from punch_trainer.sim.backend import LOCAL, Backend
-from punch_trainer.sim.placement import BagPlacement
+from punch_trainer.sim.conditions import EpisodeConditions
 from punch_trainer.sim.rewards import Reward, decision_rewards, score
 from punch_trainer.sim.server import ServerInfo
 from punch_trainer.sim.server_group import ServerGroup, SimulatorRestarts
@@ -36,7 +36,7 @@ def record_dataset(result: SearchResult, reward: Reward, args: SearchArgs, *, ba
     return record_datasets([result], reward, args, backend=backend)[0]
 
 
-def record_datasets(results: list[SearchResult], reward: Reward, args: SearchArgs, bags: list[BagPlacement] | None = None,
+def record_datasets(results: list[SearchResult], reward: Reward, args: SearchArgs, bags: list[EpisodeConditions] | None = None,
                     reach: ReachVolume | None = None, *, backend: Backend = LOCAL) -> list[dict[str, np.ndarray]]:
     """Steps through best trajectories one decision at a time, each in the slot it was found in, of a server
     of the same size as the search's (so that each is bitwise the same trajectory: docs/env.md, Episodes),
@@ -44,7 +44,7 @@ def record_datasets(results: list[SearchResult], reward: Reward, args: SearchArg
     recording must reproduce the search's features exactly. `reach` (default: the one placement) goes into
     each dataset's policy contract, so every policy trained on them states what it covers."""
     slot_count = args.characters_per_process
-    placed: list[BagPlacement | None] = list(bags) if bags else [None] * len(results)
+    placed: list[EpisodeConditions | None] = list(bags) if bags else [None] * len(results)
     recorded: list[dict[str, np.ndarray] | None] = [None] * len(results)
     pending = list(range(len(results)))
     group = ServerGroup(1, slot_count, args.decision_period, backend=backend)
@@ -81,7 +81,7 @@ class _Pass:
     frames: list[list[np.ndarray]]
 
 
-def _play_pass(group: ServerGroup, results: list[SearchResult], by_slot: dict[int, int], slot_bags: list[BagPlacement],
+def _play_pass(group: ServerGroup, results: list[SearchResult], by_slot: dict[int, int], slot_bags: list[EpisodeConditions],
                reward: Reward, args: SearchArgs) -> _Pass:
     """Plays the trajectories `by_slot` (slot -> result) decision by decision on the group's server."""
     group.replace_idle()
@@ -102,7 +102,7 @@ def _play_pass(group: ServerGroup, results: list[SearchResult], by_slot: dict[in
 
 
 def _dataset(result: SearchResult, reward: Reward, args: SearchArgs, info: ServerInfo, contract: dict[str, str],
-             bag: BagPlacement, observations: list[np.ndarray], executed: list[np.ndarray],
+             bag: EpisodeConditions, observations: list[np.ndarray], executed: list[np.ndarray],
              frames: list[np.ndarray]) -> dict[str, np.ndarray]:
     features = np.concatenate(frames)
     decisions = len(result.best_actions)

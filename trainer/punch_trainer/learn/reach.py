@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from punch_trainer.errors import PunchError
-from punch_trainer.sim.placement import BagPlacement
+from punch_trainer.sim.conditions import EpisodeConditions
 
 REACH_LIMIT_M = 3.0
 """No reach volume extends beyond this from the character (m): a human arm's reach is under 1 m."""
@@ -71,7 +71,7 @@ class ReachVolume:
             raise ReachError(f"malformed reach volume {str(value)[:200]!r}: {type(error).__name__}: {error}") from None
 
     @classmethod
-    def spot(cls, bag: BagPlacement) -> ReachVolume:
+    def spot(cls, bag: EpisodeConditions) -> ReachVolume:
         """A single placement, at rest, from the guard (the quickstart's reach)."""
         def at(value_m: float) -> tuple[float, float]:
             return round(float(value_m), 4), round(float(value_m), 4)
@@ -86,7 +86,7 @@ class ReachVolume:
     def is_spot(self) -> bool:
         return all(low == high for low, high in (self.distance_m, self.height_m, self.side_m))
 
-    def grid(self, counts: tuple[int, int, int] = (3, 3, 3)) -> list[BagPlacement]:
+    def grid(self, counts: tuple[int, int, int] = (3, 3, 3)) -> list[EpisodeConditions]:
         """Placements at rest on a grid over the box: `counts` points along distance, height and side
         (ends included), the centre first (where a search warm-starts from)."""
         axes = [np.linspace(low, high, count) if count > 1 else np.array([(low + high) / 2])
@@ -100,7 +100,7 @@ class ReachVolume:
         """Each axis's extent (1 where the box is flat), to measure distances between placements."""
         return np.array([max(high - low, 1e-6) for low, high in (self.distance_m, self.height_m, self.side_m)])
 
-    def sample(self, rng: np.random.Generator, count: int, *, moving: float = 0.0) -> list[BagPlacement]:
+    def sample(self, rng: np.random.Generator, count: int, *, moving: float = 0.0) -> list[EpisodeConditions]:
         """`count` placements drawn uniformly from the box; a share `moving` of them with the bag swinging at
         a speed drawn uniformly up to the volume's largest, in a random horizontal direction."""
         low = np.array([self.distance_m[0], self.height_m[0], self.side_m[0]])
@@ -113,11 +113,11 @@ class ReachVolume:
 
 
 def placement(distance_m: float, height_m: float, side_m: float, *, velocity_side_mps: float = 0.0,
-              velocity_forward_mps: float = 0.0) -> BagPlacement:
+              velocity_forward_mps: float = 0.0) -> EpisodeConditions:
     """A bag placement of plain floats (numpy's scalars become Python's, as the protocol writes them)."""
-    return BagPlacement(float(distance_m), float(height_m), float(side_m), float(velocity_side_mps), float(velocity_forward_mps))
+    return EpisodeConditions(float(distance_m), float(height_m), float(side_m), float(velocity_side_mps), float(velocity_forward_mps))
 
 
-def nearest(points: list[BagPlacement], bag: BagPlacement, scale: np.ndarray) -> int:
+def nearest(points: list[EpisodeConditions], bag: EpisodeConditions, scale: np.ndarray) -> int:
     """Index of the placement in `points` nearest to `bag` (distances measured in units of `scale`)."""
     return int(np.argmin([np.linalg.norm((p.position_m() - bag.position_m()) / scale) for p in points]))

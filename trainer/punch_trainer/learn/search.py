@@ -34,7 +34,7 @@ from tqdm import tqdm
 
 from punch_trainer.learn.checkpoint import CheckpointError, array, default_run_dir, flag, load_checkpoint, number, save_checkpoint
 from punch_trainer.options import bounds
-from punch_trainer.sim.placement import BagPlacement
+from punch_trainer.sim.conditions import EpisodeConditions
 from punch_trainer.sim.rewards import Reward, Terms, score_terms
 from punch_trainer.sim.rollouts import RolloutPool
 from punch_trainer.sim.style import MAX_WEIGHT as MAX_STYLE_WEIGHT
@@ -171,7 +171,7 @@ def trajectory_search(args: SearchArgs, reward: Reward, pool: RolloutPool, progr
 
 
 def placement_search(args: SearchArgs, reward: Reward, pool: RolloutPool, progress: bool = True,
-                     run_dir: Path | None = None, placements: list[BagPlacement] | None = None,
+                     run_dir: Path | None = None, placements: list[EpisodeConditions] | None = None,
                      init_mu: np.ndarray | None = None, neighbours: int = 4) -> list[SearchResult]:
     """Runs TTR at several bag placements at once (one table per placement, all rollouts in the same
     batches); None: the default placement only. Each placement's search may start from `init_mu` (a best

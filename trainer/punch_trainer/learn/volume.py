@@ -4,7 +4,7 @@
    at the default placement, each placement also trying its neighbours' best (`placement_search`).
 2. Every placement's best trajectory goes into one dataset; the actor-critic is pretrained on all of them,
    with observation statistics from the whole distribution of A2C's episodes (`distribution_observations`).
-3. A2C with every episode's conditions drawn from the volume (`EpisodeConditions`): a random placement and,
+3. A2C with every episode's conditions drawn from the volume (`ConditionSampler`): a random placement and,
    in some, the bag already swinging; the policy's own sampling noise (sigma from 0.3, never below A2C's
    `sigma_floor`, 0.2 by default here) is the training-time action noise it learns to correct: without the
    floor the learned sigma shrank to 0.03-0.44 and the policies corrected less (BENCHMARKS.md). Every
@@ -25,15 +25,15 @@ import torch
 
 from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.reach import ReachVolume
-from punch_trainer.sim.env import PunchVectorEnv
-from punch_trainer.sim.placement import (
+from punch_trainer.sim.conditions import (
     ARM_SCALE_RANGE,
     SEGMENT_SCALE_RANGE,
     UPPER_ARM_SHARE,
-    BagPlacement,
+    EpisodeConditions,
     EpisodeStart,
     arm_scale,
 )
+from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.rewards import EpisodeScorer, Reward, first_right_contact
 
 DISTRIBUTION_DRAWS = 10**9
@@ -71,7 +71,7 @@ class VolumeArgs:
 @dataclass(frozen=True)
 class MotionRange:
     """What A2C's episodes draw when characters punch on the move (docs/moving.md): the character's own walk,
-    turn, lunge and bob (`BagPlacement.body_*`, carried by the kinematic pelvis) and a target carried past it.
+    turn, lunge and bob (`EpisodeConditions.body_*`, carried by the kinematic pelvis) and a target carried past it.
     Each range reaches a little beyond the figures the policies promise (1.4 m/s, 120 degrees/s, 1 m/s), so
     those are inside what they trained on, not at its edge."""
 
@@ -97,7 +97,7 @@ class MotionRange:
     character and its opponent together, or two fighters circling: the target's place relative to the
     character hardly changes while both move)"""
 
-    def draw(self, rng: np.random.Generator, bags: list[BagPlacement]) -> list[BagPlacement]:
+    def draw(self, rng: np.random.Generator, bags: list[EpisodeConditions]) -> list[EpisodeConditions]:
         """`bags` with motions drawn for some of them (a swinging bag keeps its swing and gets no glide)."""
         out = []
         for bag in bags:
@@ -126,7 +126,7 @@ class MotionRange:
 
 @dataclass(frozen=True)
 class ArmRange:
-    """The arm sizes A2C's characters get (`BagPlacement.arms_*`), so one policy punches with arms sized to any
+    """The arm sizes A2C's characters get (`EpisodeConditions.arms_*`), so one policy punches with arms sized to any
     rig `PunchCharacter.size_arms` accepts (README, "Your own character"): the arm (shoulder to fist centre) 0.75 to
     1.25 times the scene's, each segment 0.65 to 1.35 times, the shoulders up to 4 cm wider or narrower each.
     Scales fall on a grid of `step`, so the training server builds each sized body once."""
@@ -138,7 +138,7 @@ class ArmRange:
     shoulder_shift_m: float = 0.04
     step: float = 0.05
 
-    def draw(self, rng: np.random.Generator, bags: list[BagPlacement]) -> list[BagPlacement]:
+    def draw(self, rng: np.random.Generator, bags: list[EpisodeConditions]) -> list[EpisodeConditions]:
         """`bags` with arm sizes drawn for some of them."""
         out = []
         for bag in bags:
@@ -168,11 +168,11 @@ class ArmRange:
                 return upper, forearm
 
 
-class EpisodeConditions:
+class ConditionSampler:
     """Draws the conditions of every A2C episode from the reach volume: `options` for `PunchVectorEnv.reset`."""
 
     def __init__(self, reach: ReachVolume, punches: np.ndarray, args: VolumeArgs, seed: int,
-                 default_bag: BagPlacement):
+                 default_bag: EpisodeConditions):
         """`punches`: raw action sequences [K, decisions, A] (the search's bests) that lead-ins replay;
         `default_bag`: the default placement, for `args.default_share`."""
         self.reach, self.punches, self.args, self.seed, self.default_bag = reach, punches, args, seed, default_bag
@@ -258,13 +258,13 @@ class Validation:
         return {"return": self.mean_return, "success": self.success_rate}
 
 
-def validate(model: ActorCritic, env: PunchVectorEnv, reward: Reward, placements: list[BagPlacement]) -> Validation:
+def validate(model: ActorCritic, env: PunchVectorEnv, reward: Reward, placements: list[EpisodeConditions]) -> Validation:
     """Noise-free mean return and success rate over fixed validation placements (one per character)."""
     returns, features = run_policy(model, env, reward, EpisodeStart(placements))
     return Validation(float(returns.mean()), float(success(returns, features, env.feature_names).mean()))
 
 
-def distribution_observations(env: PunchVectorEnv, conditions: EpisodeConditions, punches: np.ndarray,
+def distribution_observations(env: PunchVectorEnv, conditions: ConditionSampler, punches: np.ndarray,
                               batches: int = 2) -> np.ndarray:
     """Observations of the search's best punches replayed open loop under A2C's conditions (placements,
     swinging bags, lead-ins): what the policy will see, for its normalisation."""

@@ -44,8 +44,8 @@ from punch_trainer.pipelines.scenario import (
 )
 from punch_trainer.policy_file import read_policy_metadata
 from punch_trainer.sim.backend import LOCAL, Backend
+from punch_trainer.sim.conditions import ARM_SCALE_RANGE, SEGMENT_SCALE_RANGE, EpisodeConditions
 from punch_trainer.sim.godot import run_godot_tool
-from punch_trainer.sim.placement import ARM_SCALE_RANGE, SEGMENT_SCALE_RANGE, BagPlacement
 from punch_trainer.sim.rewards import Reward, first_right_contact, metadata_reward, score
 
 KINDS = ("features", "observations", "mean_actions", "actions")
@@ -197,7 +197,7 @@ class Group:
     count: int
 
 
-def draw_placements(scenario: Scenario, reach: ReachVolume) -> tuple[list[BagPlacement], list[BagPlacement]]:
+def draw_placements(scenario: Scenario, reach: ReachVolume) -> tuple[list[EpisodeConditions], list[EpisodeConditions]]:
     """The scenario's held-out placements at rest, and their swinging twins (the same places, the bag swinging at
     a speed drawn up to the volume's largest, in a random direction), drawn after them from the same seed."""
     rng = np.random.default_rng(scenario.seed)
@@ -205,12 +205,12 @@ def draw_placements(scenario: Scenario, reach: ReachVolume) -> tuple[list[BagPla
     if not any(c.swinging for c in scenario.conditions):
         return still, []
     moving = reach.sample(rng, scenario.placements, moving=1.0)
-    swinging = [BagPlacement.from_wire({**bag.to_wire(), "distance_m": place.distance_m, "height_m": place.height_m,
+    swinging = [EpisodeConditions.from_wire({**bag.to_wire(), "distance_m": place.distance_m, "height_m": place.height_m,
                                         "side_m": place.side_m}) for bag, place in zip(moving, still, strict=True)]
     return still, swinging
 
 
-def episodes_of(scenario: Scenario, still: list[BagPlacement], swinging: list[BagPlacement]) -> tuple[list[dict[str, Any]], list[Group]]:
+def episodes_of(scenario: Scenario, still: list[EpisodeConditions], swinging: list[EpisodeConditions]) -> tuple[list[dict[str, Any]], list[Group]]:
     """evaluate.gd's episodes of a scenario, and the report rows they make. Episode e of sigma index s of a
     condition plays placement e modulo their count with noise seed noise_seed * 1000003 + s * 100003 + e."""
     episodes: list[dict[str, Any]] = []
@@ -277,7 +277,7 @@ def _play_from_bytes(policy_bytes: bytes, **kwargs: Any) -> dict[str, Any]:
         return play_policy(policy, **kwargs)
 
 
-def search_bests(policy_actions: np.ndarray, bags: list[BagPlacement], reward: Reward, smoothing_window: int,
+def search_bests(policy_actions: np.ndarray, bags: list[EpisodeConditions], reward: Reward, smoothing_window: int,
                  iterations: int, seed: int, backend: Backend) -> np.ndarray:
     """The best return a short trajectory search finds at each placement, warm-started from `policy_actions`
     [P, decisions, A] (the policy's own noise-free actions there)."""
@@ -424,7 +424,7 @@ def markdown_rows(scenario: Scenario, rows: list[dict[str, Any]]) -> list[str]:
 
 
 def write_report(out: Path, args: EvalArgs, scenario: Scenario, report: dict[str, Any], runs: list[dict[str, Any]],
-                 still: list[BagPlacement], capture: Any) -> None:
+                 still: list[EpisodeConditions], capture: Any) -> None:
     from punch_trainer.report.naturalness import NaturalnessSummary, naturalness_table
     from punch_trainer.report.plots import plot_eval
 
@@ -459,7 +459,7 @@ def write_report(out: Path, args: EvalArgs, scenario: Scenario, report: dict[str
     (out / "report.md").write_text("\n".join(lines) + "\n")
 
 
-def plot_naturalness(out: Path, features: np.ndarray, names: list[str], physics_hz: float, placements: list[BagPlacement],
+def plot_naturalness(out: Path, features: np.ndarray, names: list[str], physics_hz: float, placements: list[EpisodeConditions],
                      suffix: str = "") -> list[Path]:
     """Fig. 4 of a policy's punches (`features`, one per placement) against the capture, and the stick-figure strip
     of its punch at the placement nearest the middle of `placements`."""

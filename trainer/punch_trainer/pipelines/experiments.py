@@ -31,8 +31,8 @@ from punch_trainer.learn.dataset import record_dataset, returns_to_go
 from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.pretrain import PretrainArgs, pretrain
 from punch_trainer.learn.search import SearchArgs, trajectory_search
+from punch_trainer.sim.conditions import EpisodeConditions, EpisodeStart
 from punch_trainer.sim.env import PunchEnv, PunchVectorEnv
-from punch_trainer.sim.placement import BagPlacement, EpisodeStart
 from punch_trainer.sim.rewards import Reward, load_reward
 from punch_trainer.sim.rollouts import RolloutPool
 from punch_trainer.sim.server_group import SimulatorRestarts
@@ -249,7 +249,7 @@ def after_punch_headroom(args: AfterPunchArgs, elites: int = 8) -> list[AfterPun
     dataset_path, iterations, rollouts, seed = args.dataset, args.iterations, args.rollouts, args.seed
     with np.load(dataset_path) as data:
         earlier = data["executed_actions"].astype(np.float32)
-        bag = BagPlacement.from_wire(json.loads(str(data["bag"])))
+        bag = EpisodeConditions.from_wire(json.loads(str(data["bag"])))
         reward = load_reward(str(data["reward"]), int(data["frames"]))
         frames, period, window = int(data["frames"]), int(data["decision_period"]), int(data["smoothing_window"])
     decisions, action_size = earlier.shape

@@ -42,7 +42,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from punch_trainer.errors import PunchError
-from punch_trainer.sim.placement import ARM_SCALE_RANGE, SCENE_ARM_LENGTHS_M, SEGMENT_SCALE_RANGE, arm_scale
+from punch_trainer.sim.conditions import ARM_SCALE_RANGE, SCENE_ARM_LENGTHS_M, SEGMENT_SCALE_RANGE, arm_scale
 
 SCENARIO_DIR = Path(__file__).resolve().parents[1] / "scenarios"
 """the shipped scenarios, `punch eval --scenario NAME` (package data)"""

@@ -27,7 +27,7 @@ from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.pretrain import PretrainArgs, fit_critic, pretrain
 from punch_trainer.learn.reach import ReachVolume
 from punch_trainer.learn.search import SearchArgs, SearchResult, placement_search
-from punch_trainer.learn.volume import ArmRange, EpisodeConditions, MotionRange, VolumeArgs, distribution_observations, validate
+from punch_trainer.learn.volume import ArmRange, ConditionSampler, MotionRange, VolumeArgs, distribution_observations, validate
 from punch_trainer.learn.warm_start import SNAPSHOT_KIND, warm_start
 from punch_trainer.options import bounds
 from punch_trainer.pipelines.search import run_search
@@ -36,8 +36,8 @@ from punch_trainer.report.a2c_report import write_a2c_report
 from punch_trainer.report.motion import motion_report
 from punch_trainer.report.naturalness import capture_figures, naturalness_table, punch_naturalness, summarise
 from punch_trainer.sim.backend import LOCAL, Backend
+from punch_trainer.sim.conditions import ARM_SCALE_RANGE
 from punch_trainer.sim.env import PunchVectorEnv
-from punch_trainer.sim.placement import ARM_SCALE_RANGE
 from punch_trainer.sim.rewards import EpisodeScorer, Reward, load_reward
 from punch_trainer.sim.rollouts import RolloutPool
 from punch_trainer.sim.server_group import SimulatorRestarts
@@ -242,7 +242,7 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
     # left idle by a long pretraining before their idle timeout ends them (PunchVectorEnv.reset).
     restarts = SimulatorRestarts(env.restart)
     try:
-        conditions = (EpisodeConditions(reach, punches, volume, seed=args.seed + 1, default_bag=env.info.default_bag)
+        conditions = (ConditionSampler(reach, punches, volume, seed=args.seed + 1, default_bag=env.info.default_bag)
                       if reach is not None else None)
         validation = reach.sample(np.random.default_rng(args.seed + 2), env.num_envs) if reach is not None else None
         if validation is not None and volume.motions is not None:

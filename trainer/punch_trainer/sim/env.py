@@ -9,7 +9,7 @@ Env card (full tables in docs/env.md)
 - Observation: 51 floats in the character's frame (+Z toward the bag, +X the character's left, +Y up):
   both fists' position and velocity, each fist's contact impulse on the bag, bag position and velocity,
   the 10 joint angles and speeds, the root's own velocity and turning (the character carried by its game, or
-  in training by a `BagPlacement`'s body motion), and the episode phase (decision / decisions per episode).
+  in training by a `EpisodeConditions`'s body motion), and the episode phase (decision / decisions per episode).
 - Features: every physics frame's 60 features (`feature_names`) come in `info["features"]`, shape
   [decision_period, 60]; rewards are computed from them in Python.
 - Episode: `frames` physics frames (50 or 100: 10 or 20 decisions), always from the same initial state.
@@ -31,7 +31,7 @@ import gymnasium as gym
 import numpy as np
 
 from punch_trainer.sim.backend import LOCAL, Backend
-from punch_trainer.sim.placement import BagPlacement, EpisodeStart
+from punch_trainer.sim.conditions import EpisodeConditions, EpisodeStart
 from punch_trainer.sim.protocol import reset_message, step_message
 from punch_trainer.sim.rewards import EpisodeScorer, Reward
 from punch_trainer.sim.server import ServerConnection, ServerInfo, TrainingServer, exchange
@@ -46,10 +46,10 @@ def _spaces(info: ServerInfo) -> tuple[gym.spaces.Box, gym.spaces.Box]:
 
 Options = EpisodeStart | dict[str, Any] | None
 """a reset's options: an `EpisodeStart`, or Gymnasium's dict of the same (`bag`: one placement or one per
-character, each a `BagPlacement` or a dict of some of its values over the default; `lead_in`)"""
+character, each a `EpisodeConditions` or a dict of some of its values over the default; `lead_in`)"""
 
 
-def _episode_start(options: Options, default: BagPlacement, rng: np.random.Generator, count: int,
+def _episode_start(options: Options, default: EpisodeConditions, rng: np.random.Generator, count: int,
                    jitter_m: float) -> EpisodeStart:
     """The options as an `EpisodeStart` for `count` characters (the spec's default placement, from the
     handshake, where they name none), plus uniform jitter of +-jitter_m on each position coordinate drawn
@@ -57,7 +57,7 @@ def _episode_start(options: Options, default: BagPlacement, rng: np.random.Gener
     if not isinstance(options, EpisodeStart):
         given = (options or {}).get("bag", default)
         listed = given if isinstance(given, list) else [given] * count
-        bags = [bag if isinstance(bag, BagPlacement) else default.over(bag) for bag in listed]
+        bags = [bag if isinstance(bag, EpisodeConditions) else default.over(bag) for bag in listed]
         options = EpisodeStart(bags, (options or {}).get("lead_in"))
     if len(options.bags) != count:
         raise ValueError(f"the reset's options list {len(options.bags)} placements for {count} characters")

@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 
 from punch_trainer.errors import PunchError
+from punch_trainer.sim.conditions import EpisodeConditions
 from punch_trainer.sim.framing import FrameError, FrameLimits, encode_frame, read_frame
-from punch_trainer.sim.placement import BagPlacement
 
 PROTOCOL_VERSION = 6
 MAX_HEADER_BYTES = 64 * 1024
@@ -89,16 +89,16 @@ class Message:
 
 
 # The requests, built in one place each (fields and arrays: docs/protocol.md, Messages).
-Placement = BagPlacement | Mapping[str, float]
+Placement = EpisodeConditions | Mapping[str, float]
 """a placement, or a JSON object of some of its values (the server takes the rest from its default)"""
 Bags = Sequence[Placement] | Placement | None
 
 
 def _wire_bags(bags: Sequence[Placement] | Placement) -> object:
     def wire(bag: Placement) -> dict[str, float]:
-        return bag.to_wire() if isinstance(bag, BagPlacement) else dict(bag)
+        return bag.to_wire() if isinstance(bag, EpisodeConditions) else dict(bag)
 
-    return wire(bags) if isinstance(bags, BagPlacement | Mapping) else [wire(bag) for bag in bags]
+    return wire(bags) if isinstance(bags, EpisodeConditions | Mapping) else [wire(bag) for bag in bags]
 
 
 def hello_message(secret: str) -> Message:

@@ -13,7 +13,7 @@ import functools
 import numpy as np
 
 from punch_trainer.sim.backend import LOCAL, Backend
-from punch_trainer.sim.placement import BagPlacement
+from punch_trainer.sim.conditions import EpisodeConditions
 from punch_trainer.sim.protocol import Message, rollout_message
 from punch_trainer.sim.server import ServerConnection, exchange
 from punch_trainer.sim.server_group import ServerGroup, SimulatorRestarts
@@ -41,7 +41,7 @@ class RolloutPool:
         return self._restarts.count
 
     def run(self, actions: np.ndarray, smoothing_window: int = 1,
-            bags: list[BagPlacement] | None = None) -> tuple[np.ndarray, np.ndarray]:
+            bags: list[EpisodeConditions] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Raw actions [M, decisions, 10] -> (features [M, frames, F], executed actions [M, decisions, 10]).
         `bags`: one placement per sequence (default: the spec's)."""
         actions = np.asarray(actions, dtype=np.float32)

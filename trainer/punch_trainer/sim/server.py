@@ -15,10 +15,10 @@ from typing import Self
 import numpy as np
 
 from punch_trainer.errors import GodotRunError, PunchError
+from punch_trainer.sim.conditions import EpisodeConditions
 from punch_trainer.sim.framing import write_frame
 from punch_trainer.sim.godot import GODOT_PROJECT, start_godot, stop_godot
 from punch_trainer.sim.godot_output import GodotOutput
-from punch_trainer.sim.placement import BagPlacement
 from punch_trainer.sim.protocol import (
     PROTOCOL_VERSION,
     Bags,
@@ -68,7 +68,7 @@ class ServerInfo:
     action_upper_rad: list[float]
     observation_names: list[str]
     feature_names: list[str]
-    default_bag: BagPlacement
+    default_bag: EpisodeConditions
     """where the bag hangs unless a reset says otherwise"""
     reach_volume: dict[str, object]
     """the target placements training covers by default (punch_core::spec::REACH_VOLUME)"""
@@ -214,7 +214,7 @@ class TrainingServer(ServerConnection):
         f = reply.fields
         return ServerInfo(f["slot_count"], f["decision_period"], f["physics_hz"], f["spec_hash"], f["spec_version"],
                           f["extension_version"], f["action_names"], f["action_lower_rad"], f["action_upper_rad"],
-                          f["observation_names"], f["feature_names"], BagPlacement.from_wire(f["default_bag"]), f["reach_volume"])
+                          f["observation_names"], f["feature_names"], EpisodeConditions.from_wire(f["default_bag"]), f["reach_volume"])
 
     @property
     def pid(self) -> int | None:

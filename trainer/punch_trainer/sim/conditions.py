@@ -1,7 +1,9 @@
-"""Typed records of how an episode starts: where the bag hangs, how it moves and how the character itself moves
-(`BagPlacement`), and a reset's
-options for every character (`EpisodeStart`). The wire writes a placement as a JSON object
-(docs/protocol.md, `reset`); these are the trainer's side of it."""
+"""Typed records of how an episode starts. `EpisodeConditions`, one character's (punch_core's struct of the same
+name): where the bag hangs and how it moves, how the character itself moves, and the sizes of its arms.
+`EpisodeStart`, a reset's options for every character: their conditions and the actions each plays before its
+episode. The wire writes a character's conditions as a JSON object, a reset's `bags` entry (docs/protocol.md,
+`reset`: the wire's names are unchanged); these are the trainer's side of it. learn/volume.py's
+`ConditionSampler` draws them for A2C."""
 
 from __future__ import annotations
 
@@ -13,8 +15,9 @@ import numpy as np
 
 
 @dataclass(frozen=True)
-class BagPlacement:
-    """The bag's centre in the character's frame and its velocity at the start of an episode."""
+class EpisodeConditions:
+    """One character's conditions at the start of an episode: the bag's centre in the character's frame and its
+    velocity, the character's own motion and its arm sizes (the fields' defaults: still, the scene's arms)."""
 
     distance_m: float
     """ahead of the character"""
@@ -49,7 +52,7 @@ class BagPlacement:
     """how far each shoulder sits further out than the scene's (negative: in)"""
 
     @classmethod
-    def from_wire(cls, value: Mapping[str, float | bool]) -> BagPlacement:
+    def from_wire(cls, value: Mapping[str, float | bool]) -> EpisodeConditions:
         """From the protocol's JSON object (the handshake's `default_bag`, a dataset's `bag`)."""
         converted: dict[str, Any] = {field.name: (bool if field.type == "bool" else float)(value[field.name])
                                      for field in fields(cls) if field.name in value}
@@ -67,9 +70,9 @@ class BagPlacement:
         """(distance, height, side)."""
         return np.array([self.distance_m, self.height_m, self.side_m])
 
-    def over(self, changes: Mapping[str, float | bool]) -> BagPlacement:
+    def over(self, changes: Mapping[str, float | bool]) -> EpisodeConditions:
         """This placement with some of its values replaced (a user's partial placement over the default)."""
-        return BagPlacement.from_wire({**self.to_wire(), **changes})
+        return EpisodeConditions.from_wire({**self.to_wire(), **changes})
 
 
 SCENE_ARM_LENGTHS_M = (0.282, 0.337, 0.36)
@@ -98,7 +101,7 @@ BODY_MOTION_FIELDS = ("body_side_mps", "body_forward_mps", "body_turn_rad_s", "b
 class EpisodeStart:
     """The start of one episode for every character: what `PunchVectorEnv.reset` takes as `options`."""
 
-    bags: list[BagPlacement]
+    bags: list[EpisodeConditions]
     """one placement per character"""
     lead_in: np.ndarray | None = None
     """raw actions [characters, decisions, A] each character plays before its episode (docs/protocol.md, `reset`)"""
