@@ -21,9 +21,9 @@ from punch_trainer.learn.volume import success_interval
 from punch_trainer.pipelines.evaluate import run_condition
 from punch_trainer.pipelines.replay import ReplayArgs, ReplayError, parse_sigmas, policy_metadata, replay_frames, run_replay
 from punch_trainer.pipelines.search import run_search
+from punch_trainer.sim.conditions import EpisodeConditions
 from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.godot import ADDON_POLICIES
-from punch_trainer.sim.placement import BagPlacement
 from punch_trainer.sim.rewards import load_reward, score
 
 SMOOTHING_WINDOW = 3
@@ -222,7 +222,7 @@ def test_a_hostile_model_file_ends_the_replay_with_one_error_at_once(tmp_path):
 
 @pytest.mark.parametrize("extra", [{"arms_upper_arm_scale": 0.8}, {"body_forward_mps": 0.7}, {"bag_rides": True}])
 def test_a_placement_a_replay_cannot_play_is_refused_not_run_at_the_scenes_standing_size(extra):
-    standing = BagPlacement(0.55, 1.3, 0.0, velocity_side_mps=0.4)
+    standing = EpisodeConditions(0.55, 1.3, 0.0, velocity_side_mps=0.4)
     with pytest.raises(ReplayError, match=next(iter(extra))):
         run_condition(SHIPPED_POLICY, [standing, standing.over(extra)], [0.0], load_reward("straight"))
 

@@ -30,8 +30,8 @@ from punch_trainer.errors import GodotRunError, PunchError
 from punch_trainer.learn.reach import ReachVolume
 from punch_trainer.options import SIGMA
 from punch_trainer.policy_file import PolicyMetadata, read_entries, read_policy_metadata
+from punch_trainer.sim.conditions import EpisodeConditions
 from punch_trainer.sim.godot import FATAL_LOG_PATTERNS, GODOT_PROJECT, start_godot, stop_godot, tail
-from punch_trainer.sim.placement import BagPlacement
 from punch_trainer.sim.rewards import Reward, first_right_contact, metadata_reward, score
 
 KINDS = ("features", "observations", "mean_actions", "actions")
@@ -104,7 +104,7 @@ def policy_metadata(path: Path) -> dict[str, str]:
     return read_entries(path)
 
 
-def policy_placements(policy: Path, count: int, seed: int) -> list[BagPlacement]:
+def policy_placements(policy: Path, count: int, seed: int) -> list[EpisodeConditions]:
     """`count` held-out placements at rest from the policy's reach volume (its metadata's), drawn by `ReachVolume.sample`
     as `punch eval` draws its held-out ones, from `seed`."""
     reach = ReachVolume.from_json(read_policy_metadata(policy).reach_volume)
