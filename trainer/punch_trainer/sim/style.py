@@ -6,7 +6,7 @@ A style has two parts, chosen by measurement (experiments/notebook.md, "A motion
 1. **A discount on what a punch earns.** Every frame has a style cost (fist speeds measured on the body, less
    the root's own walking and turning): the off (left) fist's distance from its guard and its speed, the waist's forward flexion, the punching fist's speed and, until it lands, its
    speed away from the target (a wind-up: captured punches go straight at it), each counted only
-   beyond a free range that captured punches stay within (../shared/data, CMU 143/23: the other hand moves
+   beyond a free range that captured punches stay within (punch_trainer/data, CMU 143/23: the other hand moves
    12-20 cm at 1.2-1.8 m/s, the trunk leans 7-17 degrees, the fist peaks at 6.3-8.4 m/s), and growing with the
    square of the excess. A frame's positive reward is multiplied by exp(-weight x the cost so far), and a
    tenth of every later frame's cost is taken from it too (so flailing after the fist lands is not free): a
@@ -78,7 +78,7 @@ class Style:
     turn the policies already speed up until contact (tried as `boxing_drive`: experiments/notebook.md)"""
     chain_peak_rad_s: tuple[float, float, float] = (3.0, 10.0, 18.0)
     """waist rotation, shoulder and elbow speeds the chain measures against: the captured punches' peaks
-    (../shared/data, CMU 143/23, from joint positions: the shoulder line's yaw 3.5-5.4, the upper arm's direction
+    (punch_trainer/data, CMU 143/23, from joint positions: the shoulder line's yaw 3.5-5.4, the upper arm's direction
     12.6-18.8, the elbow angle 23.7-30.8 rad/s, peaking in that order in 3 of 4 punches) scaled so that the
     elbow's is what the motors reach (18 rad/s)"""
     landing_zone_m: float = 0.3
