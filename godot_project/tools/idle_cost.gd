@@ -1,5 +1,5 @@
 ## What standing characters cost per physics frame, the engine's step included: N characters (no controller
-## punching), each in its physics world slot as replay.gd builds them, stand for a while, walking or not; the
+## punching), each in its physics world slot as evaluate.gd builds them, stand for a while, walking or not; the
 ## median wall time of a whole frame (headless with `--fixed-fps`, frames run back to back: every node's
 ## `_physics_process`, `PunchCharacter`'s carrying of its pelvis among them, and the physics step) is printed.
 ## For BENCHMARKS.md ("Punching on the move: cost"), run beside a build without the kinematic pelvis.

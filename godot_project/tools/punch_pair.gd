@@ -1,6 +1,6 @@
 ## A character, its sandbag and a PunchController, kept apart from other pairs in the same physics world by
 ## two collision layers of their own (one for the character, one for the bag, masks two-sided as in the
-## training world). Shared by the measuring tools (replay.gd, moving_hits.gd, sized_hits.gd, idle_cost.gd) and
+## training world). Shared by the measuring tools (evaluate.gd, the evaluator's one driver, and idle_cost.gd) and
 ## render.gd, with the command-line reading and the physics worlds they all use.
 extends RefCounted
 

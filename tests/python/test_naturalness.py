@@ -163,7 +163,7 @@ def test_the_capture_plots_are_written(tmp_path):
 
 @pytest.mark.godot
 def test_punch_eval_reports_the_naturalness_of_a_shipped_policy(tmp_path):
-    from punch_trainer.pipelines.evaluate import EvalArgs, run_eval
+    from punch_trainer.pipelines.evaluation import EvalArgs, run_eval
 
     policy = PROJECT_ROOT / "addons" / "punch_controller" / "policies" / "straight.onnx"
     args = EvalArgs(policy=policy, placements=3, sigmas=[0.0, 0.3], noisy_episodes=1, search_iterations=0, out=tmp_path)

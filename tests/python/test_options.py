@@ -178,7 +178,7 @@ def test_a_terminated_eval_leaves_no_temporary_files(tmp_path):
                                cwd=PROJECT_ROOT, env={**os.environ, "TMPDIR": str(scratch)}, stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 240
-    while not any(scratch.glob("punch_eval_*/features_*")) and time.monotonic() < deadline and process.poll() is None:
+    while not any(scratch.glob("punch_eval_*/features*")) and time.monotonic() < deadline and process.poll() is None:
         time.sleep(0.05)
     assert process.poll() is None, process.communicate()
     process.send_signal(signal.SIGTERM)

@@ -18,10 +18,9 @@ from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.pretrain import PretrainArgs, pretrain
 from punch_trainer.learn.search import SearchArgs
 from punch_trainer.learn.volume import success_interval
-from punch_trainer.pipelines.evaluate import run_condition
-from punch_trainer.pipelines.replay import ReplayArgs, ReplayError, parse_sigmas, policy_metadata, replay_frames, run_replay
+from punch_trainer.pipelines.evaluation import EvalError, parse_sigmas
+from punch_trainer.pipelines.replay import ReplayArgs, ReplayError, policy_metadata, replay_frames, run_replay
 from punch_trainer.pipelines.search import run_search
-from punch_trainer.sim.conditions import EpisodeConditions
 from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.godot import ADDON_POLICIES
 from punch_trainer.sim.rewards import load_reward, score
@@ -47,7 +46,7 @@ def trained(tmp_path_factory):
 def test_sigmas_parse_as_ranges_or_lists():
     assert parse_sigmas("0.1:0.9:0.1") == pytest.approx([0.1 * i for i in range(1, 10)])
     assert parse_sigmas("0,0.5") == [0.0, 0.5]
-    with pytest.raises(ReplayError, match="bad --sigmas"):
+    with pytest.raises(EvalError, match="bad --sigmas"):
         parse_sigmas("0.1:x")
 
 
@@ -218,13 +217,6 @@ def test_a_hostile_model_file_ends_the_replay_with_one_error_at_once(tmp_path):
         assert len(errors) == 1 and "Traceback" not in result.stderr, (name, result.stderr[-2000:])
         assert expected[name] in result.stderr, (name, result.stderr[-2000:])
         assert not (tmp_path / name).exists(), name
-
-
-@pytest.mark.parametrize("extra", [{"arms_upper_arm_scale": 0.8}, {"body_forward_mps": 0.7}, {"bag_rides": True}])
-def test_a_placement_a_replay_cannot_play_is_refused_not_run_at_the_scenes_standing_size(extra):
-    standing = EpisodeConditions(0.55, 1.3, 0.0, velocity_side_mps=0.4)
-    with pytest.raises(ReplayError, match=next(iter(extra))):
-        run_condition(SHIPPED_POLICY, [standing, standing.over(extra)], [0.0], load_reward("straight"))
 
 
 def test_the_success_interval_is_wilsons_and_narrows_with_more_punches():

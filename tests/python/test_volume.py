@@ -13,7 +13,7 @@ from punch_trainer.learn.policy import SIGMA_MIN, ActorCritic
 from punch_trainer.learn.reach import HELD_OUT_SEED, ReachVolume, placement
 from punch_trainer.learn.search import SearchArgs
 from punch_trainer.learn.volume import ConditionSampler, VolumeArgs
-from punch_trainer.pipelines.evaluate import EvalArgs, run_eval
+from punch_trainer.pipelines.evaluation import EvalArgs, run_eval
 from punch_trainer.pipelines.experiments import AfterPunchArgs, after_punch_headroom
 from punch_trainer.pipelines.search import run_search
 from punch_trainer.pipelines.train import TrainArgs, run_train

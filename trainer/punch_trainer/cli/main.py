@@ -199,9 +199,9 @@ def _eval(args: argparse.Namespace) -> int:
     """`punch eval` and its shortcuts `eval-moving` and `eval-sizes` (their scenario set by the parser)."""
     from punch_trainer.pipelines.evaluation import run_eval, scenario_of
 
-    values = {name: getattr(args, name, None) for name in ("arms", "scales", "proportions")}
     # Before the options' own bounds check: it names size_arms's range and why.
-    scenario_of(EvalArgs(policy=args.policy, scenario=args.scenario, **values))
+    scenario_of(EvalArgs(policy=args.policy, scenario=args.scenario, arms=getattr(args, "arms", None),
+                         scales=getattr(args, "scales", None), proportions=getattr(args, "proportions", None)))
     with backend_for(getattr(args, "ray", None)) as backend:
         out, _ = run_eval(dataclass_from_arguments(EvalArgs, args), backend=backend)
     print((out / "report.md").read_text())

@@ -434,13 +434,13 @@ def bench_inference(args: BenchInferenceArgs, sigma: float = 0.3) -> list[Infere
     rig = skeleton_bench_rig() if set(characters) & set(args.skeleton_characters) else None
     import tempfile
 
-    from punch_trainer.pipelines.replay import ReplayArgs, run_godot_replay
+    from punch_trainer.pipelines.evaluation import run_episodes
 
     rows = []
     for count in tqdm(characters, desc="bench inference", unit="config"):
         with tempfile.TemporaryDirectory() as frames_dir:
-            replay_args = ReplayArgs(policy=policy, sigmas=[sigma], episodes=count * batches, characters=count)
-            meta = run_godot_replay(replay_args, Path(frames_dir), progress=False, idle_frames=IDLE_FRAMES)
+            episodes = [{"sigma": sigma, "seed": episode} for episode in range(count * batches)]
+            meta = run_episodes(policy, episodes, Path(frames_dir), record=True, characters=count, idle_frames=IDLE_FRAMES)
         inference = meta["inference"]
         frame_usec = float(np.mean(meta["controller_frame_usec_per_batch"]))
         # Per frame: the median, as a rare frame in which the OS took the thread away outweighs a mean of ~1 µs.

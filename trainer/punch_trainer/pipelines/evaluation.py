@@ -96,7 +96,8 @@ def parse_scales(text: str) -> list[float]:
 
 def run_episodes(policy: Path, episodes: list[dict[str, Any]], directory: Path, *, record: bool = False,
                  characters: int = 64, characters_per_world: int = 16, idle_frames: int = 0, timeout_s: float = 3600.0,
-                 on_progress: Callable[[int], None] | None = None) -> dict[str, Any]:
+                 on_progress: Callable[[int], None] | None = None,
+                 timeout_error: Callable[[str], PunchError] = EvalError) -> dict[str, Any]:
     """Plays `episodes` (evaluate.gd's episode objects) for `policy` in headless Godot, writing into `directory`;
     returns evaluate.gd's episodes.json (a row per episode, feature names, inference counts, ...). With `record`,
     `directory` also holds every punch's features, observations and actions (`recorded`)."""
@@ -105,7 +106,7 @@ def run_episodes(policy: Path, episodes: list[dict[str, Any]], directory: Path, 
     run_godot_tool("evaluate", {"policy": Path(policy).resolve(), "episodes": (directory / "episodes_in.json").resolve(),
                                 "out": directory.resolve(), "record": int(record), "characters": characters,
                                 "characters-per-world": characters_per_world, "idle-frames": idle_frames},
-                   what="the punches", timeout_s=timeout_s, on_progress=on_progress, timeout_error=EvalError)
+                   what="the punches", timeout_s=timeout_s, on_progress=on_progress, timeout_error=timeout_error)
     meta: dict[str, Any] = json.loads((directory / "episodes.json").read_text())
     return meta
 
@@ -339,7 +340,7 @@ def run_eval(args: EvalArgs, progress: bool = True, *, backend: Backend = LOCAL)
     episodes, groups = episodes_of(scenario, still, swinging)
     out = Path(args.out or Path(args.policy).parent / f"eval_{scenario.name}_{int(time.time())}")
     out.mkdir(parents=True, exist_ok=True)
-    calls = [{"episodes": episodes, "groups": groups, "reward": reward, "naturalness": scenario.naturalness,
+    calls: list[dict[str, Any]] = [{"episodes": episodes, "groups": groups, "reward": reward, "naturalness": scenario.naturalness,
               "timeout_s": args.timeout_s} for _ in policies]
     if backend.shares_files:
         with tqdm(total=len(episodes) * len(policies), desc=f"{scenario.name} punches (Godot)", unit="punch",

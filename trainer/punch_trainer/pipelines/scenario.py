@@ -178,7 +178,7 @@ def check_arms(upper: float, forearm: float, where: str = "arms") -> tuple[float
     arm = arm_scale(upper, forearm)
     segments_ok = all(SEGMENT_SCALE_RANGE[0] <= v <= SEGMENT_SCALE_RANGE[1] for v in (upper, forearm))
     if not (segments_ok and ARM_SCALE_RANGE[0] <= arm <= ARM_SCALE_RANGE[1]):
-        if upper == forearm:
+        if upper == forearm or (math.isnan(upper) and math.isnan(forearm)):
             raise ScenarioError(f"arm scale {upper:g} is outside the range PunchCharacter.size_arms accepts: "
                                 f"{ARM_SCALE_RANGE[0]:g} to {ARM_SCALE_RANGE[1]:g} times the character scene's arm "
                                 f"(shoulder to fist centre {sum(SCENE_ARM_LENGTHS_M[:2]):.3f} m)")

@@ -125,9 +125,9 @@ def run_godot_tool(script: str, options: dict[str, object], *, what: str, timeou
                    on_progress: Callable[[int], None] | None = None,
                    timeout_error: Callable[[str], PunchError] = GodotRunError) -> str:
     """Runs one of godot_project/tools' measuring scripts headless at 120 Hz (`script`: its name, as
-    `moving_hits`), passing `options` as `--name=value`, and returns its log. The script reports progress with
+    `evaluate`), passing `options` as `--name=value`, and returns its log. The script reports progress with
     lines `<NAME>_PROGRESS done total` (`on_progress` gets `done`), ends with a line `<NAME>_DONE`, where NAME is
-    the script's first word in capitals (`MOVING` for `moving_hits`), and says what went wrong in a line
+    the script's first word in capitals (`EVALUATE` for `evaluate`), and says what went wrong in a line
     `error: <script>: ...`. The deadline is kept by the clock, not by Godot's output: a Godot that hangs silently
     is stopped too, with `timeout_error`; a non-zero exit, a fatal or error line, or no DONE line raise
     GodotRunError, naming `what` ("the moving punches") and the log's tail."""
