@@ -3,9 +3,12 @@ shipped with the trainer (punch_trainer/data)."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
+import punch_trainer
 from punch_trainer.capture.prior import CapturePriorError, captured_actions, captured_joint_angles
 from punch_trainer.capture.punches import captured_punches
 from punch_trainer.learn.reach import placement
@@ -63,3 +66,19 @@ def test_played_open_loop_most_captured_punches_reach_the_bag_and_the_guard_hold
             contact_s = (first_right_contact(punch, names)[1] + 1) / info.physics_hz
             assert 0.1 < contact_s < 0.25
             assert punch[:, column("fist_r_pos_z")].max() - punch[0, column("fist_r_pos_z")] > 0.05
+
+
+def test_the_capture_ships_inside_the_package_with_its_credit() -> None:
+    """The file is package data (an installed `punch` reads it too), unchanged from the CMU conversion, credited."""
+    import hashlib
+    import tomllib
+
+    from punch_trainer.capture.bvh import DEFAULT_BVH
+
+    package = Path(punch_trainer.__file__).parent
+    assert DEFAULT_BVH.is_relative_to(package) and DEFAULT_BVH.is_file()
+    patterns = tomllib.loads((package.parent / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]["punch_trainer"]
+    assert any(DEFAULT_BVH.relative_to(package).match(pattern) for pattern in patterns)
+    readme = (DEFAULT_BVH.parent / "README.md").read_text()
+    assert hashlib.sha256(DEFAULT_BVH.read_bytes()).hexdigest() in readme
+    assert "The data used in this project was obtained from mocap.cs.cmu.edu" in readme
