@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+from conftest import PROJECT_ROOT
 from punch_trainer.cli import main as cli_main
 from punch_trainer.errors import GodotRunError
 from punch_trainer.learn.reach import ReachVolume
@@ -188,13 +189,14 @@ def test_eval_moving_sizes_the_arms_it_is_given(tmp_path):
 
 @pytest.mark.godot
 def test_a_scenario_file_of_ones_own_runs_a_new_condition(tmp_path):
-    """docs/evaluation.md's example: a file, not a harness: after an earlier punch while walking, and against a
-    target swinging, through the same driver."""
+    """docs/evaluation.md's example, as the doc gives it: a file, not a harness: after an earlier punch while
+    walking, and against a target swinging, through the same driver (on 2 placements at sigma 0 here)."""
+    doc = (PROJECT_ROOT / "docs" / "evaluation.md").read_text()
+    example = doc.split("# after_walking.toml\n")[1].split("```")[0]
     scenario = tmp_path / "after_walking.toml"
-    scenario.write_text('name = "after_walking"\nsuccess = "hit"\n[placements]\ncount = 2\nseed = 7\n'
-                        '[[conditions]]\nname = "after a punch, walking"\nstart = "after_punch"\nbody = { velocity_mps = [0.0, 0.0, 0.5] }\n'
-                        '[[conditions]]\nname = "swinging"\ntarget = { swinging = true }\n')
-    run = punch("eval", "--policy", str(POLICY), "--scenario", str(scenario), "--out", str(tmp_path / "out"))
+    scenario.write_text(example)
+    run = punch("eval", "--policy", str(POLICY), "--scenario", str(scenario), "--placements", "2", "--sigmas", "0",
+                "--out", str(tmp_path / "out"))
     assert run.returncode == 0, run.stderr[-3000:]
     rows = json.loads((tmp_path / "out" / "eval.json").read_text())["evaluations"][0]["rows"]
     assert [(r["condition"], r["punches"]) for r in rows] == [("after a punch, walking", 2), ("swinging", 2)]
