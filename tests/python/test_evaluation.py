@@ -12,7 +12,7 @@ import pytest
 
 from conftest import PROJECT_ROOT
 from punch_trainer.cli import main as cli_main
-from punch_trainer.errors import GodotRunError
+from punch_trainer.errors import GodotRunError, PunchError
 from punch_trainer.learn.reach import ReachVolume
 from punch_trainer.pipelines.evaluation import (
     EvalArgs,
@@ -220,7 +220,7 @@ def test_a_godot_past_its_deadline_is_stopped_with_the_commands_error(tmp_path):
 
 
 def test_a_policy_whose_file_is_missing_is_refused_before_godot(tmp_path):
-    with pytest.raises(Exception, match="policy file not found"):
+    with pytest.raises(PunchError, match="policy file not found"):
         run_eval(EvalArgs(policy=tmp_path / "missing.onnx", scenario="sizes"), progress=False)
     assert read_policy_metadata(POLICY).physics_hz == 120
     assert Path(POLICY).is_file()

@@ -150,7 +150,8 @@ class EvalArgs:
     placements: int | None = None
     """held-out placements drawn from the reach volume (default: the scenario's)"""
     seed: int | None = None
-    """seed of the placements (default: the scenario's, one no training stage uses)"""
+    """seed of the placements, and of the noise where the scenario names no noise_seed (default: the scenario's, one
+    no training stage uses)"""
     sigmas: list[float] | None = None
     """runtime noise sigmas (a,b,c or start:stop:step; default: the scenario's)"""
     noisy_episodes: int | None = field(default=None, metadata=bounds(1, 1000))
@@ -431,11 +432,10 @@ def write_report(out: Path, args: EvalArgs, scenario: Scenario, report: dict[str
 
     measured = ("a positive return (the policy's reward) and the right fist touched the target"
                 if scenario.success == "return" else "the controller's `hit` signal on the target during the punch")
-    conditions = ", ".join(dict.fromkeys(c.name for c in scenario.conditions))
     lines = [f"# punch eval: {args.policy}", "",
              f"Scenario `{scenario.name}` ({scenario.source}): {scenario.description}.", "",
              f"{scenario.placements} held-out placements drawn from the {scenario.volume}'s reach volume with seed "
-             f"{scenario.seed} (a seed no training stage uses); conditions: {conditions}; one punch per placement at "
+             f"{scenario.seed} (a seed no training stage uses); one punch per placement and condition at "
              f"sigma 0, {scenario.noisy_punches} at each sigma above it; every punch through PunchController in headless "
              f"Godot ({report['wall_s']:.0f} s in all). Success: {measured}; its interval: Wilson's 95% score interval, "
              "where the rate at other placements could lie."]

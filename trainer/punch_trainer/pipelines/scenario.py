@@ -1,35 +1,10 @@
-"""Evaluation scenarios: what `punch eval` measures, as data (docs/evaluation.md).
-
-A scenario is a TOML file (the shipped ones in punch_trainer/scenarios/, or any file): held-out placements drawn
-from a reach volume, and a list of conditions, each a way to play a punch there (the noise, how the body and the
-target move, the arms' size, where the punch starts). Every condition is measured at each of its sigmas, one
-report row each; the evaluator (`pipelines/evaluation.py`) turns a scenario into episodes for the one Godot
-driver (godot_project/tools/evaluate.gd) and their results into rows.
-
-    name = "moving"                      # what the report calls it
-    description = "..."
-    success = "hit"                      # "hit": the controller's `hit` signal on the target; "return": a
-                                         # positive return (the policy's reward) and the right fist touched it
-    sigmas = [0.0, 0.3]                  # every condition's, unless it names its own ("noisy": those above 0)
-    lead_s = 0.5                         # any key of a condition here is every condition's default
-    [placements]
-    count = 32
-    seed = 2147483616                    # held out: no training stage uses it
-    volume = "policy"                    # "policy": the policy's reach volume; "spec": the game's
-    [[conditions]]
-    name = "forward 0.7 m/s"
-    body = { velocity_mps = [0.0, 0.0, 0.7] }
-
-A condition's keys: `name`, `sigmas`, `noise_decisions` (-1: every decision), `noise_seed` (default: the
-placements' seed), `start` ("guard" or "after_punch"), `arms` (a scale, or [upper arm, forearm]), `lead_s`,
-`body` (a motion of the character, its target riding along), `target` (a motion of the target's hook, or
-`{ swinging = true }`: the bag swinging at a speed drawn up to the volume's largest). A motion: `velocity_mps`
-[left, up, forward], `turn_dps`, `lunge_m`, `lunge_s`, `bob_m`, `bob_hz`. The scenario's own keys: `name`,
-`description`, `success`, `placements`, `noisy_punches` (punches per placement at each sigma above 0),
-`search_iterations` (with success "return": a short search for the best punch at each placement, for the
-"return / best known" column), `naturalness` (with success "return": the naturalness figures of the first
-condition), `conditions`. An unknown key is refused, so a new kind of condition is a new key here and in
-evaluate.gd, not a new harness.
+"""Evaluation scenarios: what `punch eval` measures, as data. A scenario is a TOML file (the shipped ones in
+punch_trainer/scenarios/, or any file): held-out placements drawn from a reach volume, and a list of conditions,
+each a way to play a punch there (the noise, how the body and the target move, the arms' size, where the punch
+starts), measured at each of its sigmas, one report row each. The format, key by key: docs/evaluation.md. Every
+key is checked here before Godot starts, and an unknown one is refused, so a new kind of condition is a new key
+(`CONDITION_KEYS`, `Condition`, then evaluate.gd's `_add_episode`), not a new harness. The evaluator
+(`pipelines/evaluation.py`) turns a scenario into episodes for the one Godot driver and their results into rows.
 """
 
 from __future__ import annotations
