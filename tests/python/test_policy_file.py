@@ -34,8 +34,7 @@ TRAINER = PROJECT_ROOT / "trainer" / "punch_trainer"
 
 def rust_contract_source() -> str:
     """punch_core's contract (the file that holds `pub mod keys`, wherever the crate's folders put it)."""
-    sources = [path for path in (PROJECT_ROOT / "gdextension").rglob("*.rs")
-               if "target" not in path.parts and "pub mod keys" in path.read_text()]
+    sources = [path for path in (PROJECT_ROOT / "gdextension").glob("*/src/**/*.rs") if "pub mod keys" in path.read_text()]
     assert len(sources) == 1, sources
     return sources[0].read_text()
 
