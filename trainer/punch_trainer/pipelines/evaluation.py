@@ -21,7 +21,7 @@ import math
 import tempfile
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -50,8 +50,6 @@ from punch_trainer.sim.rewards import Reward, first_right_contact, metadata_rewa
 
 KINDS = ("features", "observations", "mean_actions", "actions")
 """what evaluate.gd records of every punch with --record=1"""
-ROW_FIELDS = ("hits", "out_of_reach", "out_of_reach_m", "ended", "moved_m", "upper_arm_m", "forearm_m", "shoulder_width_m")
-"""the columns of evaluate.gd's row of one punch"""
 
 
 class EvalError(PunchError):
@@ -293,8 +291,46 @@ def search_bests(policy_actions: np.ndarray, bags: list[EpisodeConditions], rewa
     return np.array([r.best_return for r in results])
 
 
-def make_row(group: Group, result: dict[str, Any], placements: int, best: np.ndarray | None) -> dict[str, Any]:
-    """The report's one row type: a condition at one sigma."""
+@dataclass(frozen=True)
+class Row:
+    """The report's one row type: a condition at one sigma, over every punch of it (eval.json holds them as
+    objects, `to_json`)."""
+
+    condition: str
+    sigma: float
+    punches: int
+    successes: int
+    """punches that succeeded, as the scenario's `success` counts them"""
+    success_rate: float
+    success_interval: tuple[float, float]
+    """Wilson's 95% score interval of the rate: where the rate at other placements could lie"""
+    hits: int
+    """punches during which the controller's `hit` signal named the target"""
+    out_of_reach: int
+    """punches that started with the target outside the policy's reach volume (`target_out_of_reach`)"""
+    in_reach_successes: int
+    out_of_reach_m: list[float]
+    """how far outside the volume the target was, for each of those (m)"""
+    moved_m: float
+    """how far the moved node (the body, or the target's hook) went, median (m)"""
+    arms: str
+    """the arms' scales, `S` or `UPPERxFOREARM`"""
+    arm_lengths_m: list[float]
+    """upper arm, forearm and shoulder width as the sized character reported them, median (m)"""
+    missed_placements: list[int]
+    """the placements (indices into eval.json's) of the punches that did not succeed"""
+    return_fraction_of_search_best: float | None = None
+    """success "return": the mean of return / the best known at that placement (None without a search)"""
+    impact_spread_m: float | None = None
+    """success "return": the mean distance of the first contacts from their mean (m)"""
+
+    def to_json(self) -> dict[str, Any]:
+        return {**asdict(self), "success_interval": list(self.success_interval)}
+
+
+def make_row(group: Group, result: dict[str, Any], placements: int, best: np.ndarray | None) -> Row:
+    """The row of one group's punches (`play_policy`'s result for it; evaluate.gd's row of a punch: hits,
+    out-of-reach signals, metres out of reach, how it ended, metres moved, upper arm, forearm, shoulders)."""
     rows, won = result["rows"], result["success"]
     placement = np.arange(group.count) % placements
     in_reach = [i for i, row in enumerate(rows) if row[1] == 0]
@@ -303,18 +339,15 @@ def make_row(group: Group, result: dict[str, Any], placements: int, best: np.nda
     if best is not None and "returns" in result:
         scored = best[placement] > 0  # a placement where nothing scores has no fraction
         fraction = float(np.mean(result["returns"][scored] / best[placement][scored])) if scored.any() else None
-    return {"condition": group.condition.name, "sigma": group.sigma, "punches": group.count,
-            "successes": int(won.sum()), "success_rate": float(won.mean()),
-            "success_interval": success_interval(int(won.sum()), group.count),
-            "hits": sum(1 for row in rows if row[0] > 0),
-            "out_of_reach": group.count - len(in_reach), "in_reach_successes": int(sum(won[i] for i in in_reach)),
-            "out_of_reach_m": sorted(float(row[2]) for row in rows if row[1] > 0),
-            "moved_m": float(np.median([float(row[4]) for row in rows])),
-            "arms": size_label(*group.condition.arms),
-            "arm_lengths_m": [round(float(v), 4) for v in lengths],
-            "missed_placements": sorted({int(p) for p, ok in zip(placement, won, strict=True) if not ok}),
-            "return_fraction_of_search_best": fraction,
-            "impact_spread_m": result.get("impact_spread_m")}
+    return Row(condition=group.condition.name, sigma=group.sigma, punches=group.count, successes=int(won.sum()),
+               success_rate=float(won.mean()), success_interval=success_interval(int(won.sum()), group.count),
+               hits=sum(1 for row in rows if row[0] > 0), out_of_reach=group.count - len(in_reach),
+               in_reach_successes=int(sum(won[i] for i in in_reach)),
+               out_of_reach_m=sorted(float(row[2]) for row in rows if row[1] > 0),
+               moved_m=float(np.median([float(row[4]) for row in rows])), arms=size_label(*group.condition.arms),
+               arm_lengths_m=[round(float(v), 4) for v in lengths],
+               missed_placements=sorted({int(p) for p, ok in zip(placement, won, strict=True) if not ok}),
+               return_fraction_of_search_best=fraction, impact_spread_m=result.get("impact_spread_m"))
 
 
 def run_eval(args: EvalArgs, progress: bool = True, *, backend: Backend = LOCAL) -> tuple[Path, dict[str, Any]]:
@@ -383,7 +416,7 @@ def evaluation_of(policy: Path, run: dict[str, Any], groups: list[Group], scenar
     """One policy's part of the report: its rows, and what the plots and naturalness tables read."""
     from punch_trainer.report.naturalness import summarise
 
-    rows = [make_row(group, result, scenario.placements, best) for group, result in zip(groups, run["groups"], strict=True)]
+    rows = [make_row(group, result, scenario.placements, best).to_json() for group, result in zip(groups, run["groups"], strict=True)]
     first = run["groups"][0]
     evaluation: dict[str, Any] = {"policy": str(policy), "reward": reward.name if reward else None, "rows": rows,
                                   "success_at_sigma0": first["success"][:scenario.placements].tolist()}
@@ -395,7 +428,7 @@ def evaluation_of(policy: Path, run: dict[str, Any], groups: list[Group], scenar
 
 
 def markdown_rows(scenario: Scenario, rows: list[dict[str, Any]]) -> list[str]:
-    """The report's table of one policy: a line per condition and sigma; the columns a scenario has no use for
+    """The report's table of one policy (its `Row`s, as eval.json holds them): a line per condition and sigma; the columns a scenario has no use for
     (a search's fraction, an impact spread, arm lengths, how far the body moved, targets out of reach) left out."""
     returns = scenario.success == "return"
     sized = any(c.arms != (1.0, 1.0) for c in scenario.conditions)
