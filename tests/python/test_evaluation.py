@@ -224,3 +224,23 @@ def test_a_policy_whose_file_is_missing_is_refused_before_godot(tmp_path):
         run_eval(EvalArgs(policy=tmp_path / "missing.onnx", scenario="sizes"), progress=False)
     assert read_policy_metadata(POLICY).physics_hz == 120
     assert Path(POLICY).is_file()
+
+
+@pytest.mark.godot
+def test_an_evaluation_writes_its_table_into_the_results_file_with_its_command(tmp_path, monkeypatch, capsys):
+    """`--benchmarks SECTION`: the figures the docs link to are the evaluator's own output, never copied by hand; a
+    second run replaces its section."""
+    from punch_trainer.pipelines import bench
+
+    results = tmp_path / "BENCHMARKS.md"
+    results.write_text("# Benchmarks\n\nkept\n")
+    monkeypatch.setattr(bench, "BENCHMARKS_FILE", results)
+    arguments = ["eval-moving", "--policy", str(POLICY), "--placements", "2", "--sigmas", "0", "--cases", "standing",
+                 "--out", str(tmp_path / "out"), "--benchmarks", "Standing, two placements"]
+    for _ in range(2):
+        assert cli_main.main(arguments) == 0
+    text = results.read_text()
+    assert text.count("## Standing, two placements") == 1 and "kept" in text
+    assert f"Command: `punch {' '.join(arguments[:-1])} 'Standing, two placements'`" in text
+    assert "| standing | 0.00 | 2 |" in text and "![" not in text
+    capsys.readouterr()

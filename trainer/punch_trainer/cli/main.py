@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+import shlex
 import signal
 import sys
 import threading
@@ -202,10 +203,19 @@ def _eval(args: argparse.Namespace) -> int:
     # Before the options' own bounds check: it names size_arms's range and why.
     scenario_of(EvalArgs(policy=args.policy, scenario=args.scenario, arms=getattr(args, "arms", None),
                          scales=getattr(args, "scales", None), proportions=getattr(args, "proportions", None)))
+    eval_args = dataclass_from_arguments(EvalArgs, args)
     with backend_for(getattr(args, "ray", None)) as backend:
-        out, _ = run_eval(dataclass_from_arguments(EvalArgs, args), backend=backend)
-    print((out / "report.md").read_text())
+        out, _ = run_eval(eval_args, backend=backend)
+    report = (out / "report.md").read_text()
+    print(report)
     print(f"report: {out / 'report.md'}")
+    if eval_args.benchmarks:
+        from punch_trainer.pipelines.bench import write_section
+
+        # The tables and their explanation, one heading level down; the plots stay with the run.
+        body = [("#" + line if line.startswith("## ") else line) for line in report.splitlines()[1:] if not line.startswith("![")]
+        command = shlex.join(["punch", *args.argv])
+        print(f"written to {write_section(eval_args.benchmarks, command, chr(10).join(body).strip())}")
     return 0
 
 
@@ -460,6 +470,7 @@ def _interrupt(signum: int, _frame: object) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)  # the command as given, for the results it writes
     if threading.current_thread() is threading.main_thread():
         for number in (signal.SIGTERM, signal.SIGHUP):
             signal.signal(number, _interrupt)

@@ -174,6 +174,9 @@ class EvalArgs:
     """output directory (default: next to the policy, eval_<scenario>_<time>)"""
     timeout_s: float = 3600.0
     """how long Godot may take for one policy's punches"""
+    benchmarks: str = ""
+    """also write the report's tables as this section of BENCHMARKS.md, with the command and the machine (the one
+    results file the docs link to; a section of that name is replaced): a figure is generated, never copied"""
 
 
 def scenario_of(args: EvalArgs) -> Scenario:
