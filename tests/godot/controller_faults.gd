@@ -65,6 +65,10 @@ func _bad_files() -> void:
 	controller.set("policy", load(_args.policy))
 	controller.set("decision_period", 4)  # read-only: it stays the policy's
 	refused["decision_period_read_only"] = controller.get("decision_period") == 5
+	# A mirrored character (a game's left-handed variant by scale.x = -1) cannot land: refused, saying why.
+	_character.scale = Vector3(-1, 1, 1)
+	refused["mirrored"] = not controller.call("punch")
+	_character.scale = Vector3.ONE
 	refused["good_policy_afterwards_punches"] = controller.call("punch")
 	_report["refused"] = refused
 	if _args.has("incomplete"):

@@ -93,12 +93,13 @@ def test_controller_faults_give_clear_errors_and_the_game_goes_on(policy, tmp_pa
     assert line, f"the game did not reach its end:\n{run.log[-3000:]}"
     report = json.loads(line[len("FAULTS "):])
     assert report["refused"] == {"missing": True, "corrupt": True, "incompatible": True, "empty": True,
-                                 "other_spec": True, "decision_period_read_only": True,
+                                 "other_spec": True, "decision_period_read_only": True, "mirrored": True,
                                  "good_policy_afterwards_punches": True}
     for message in ["model file not found: res://no/such/policy.onnx", "invalid ONNX model",
                     "its input is '", "no policy set",
                     "incompatible policy: it was trained for spec", "returned NaN", "the target was freed",
-                    "the character was freed", "noise_sigma 5 is outside 0..1; using 1"]:
+                    "the character was freed", "noise_sigma 5 is outside 0..1; using 1",
+                    "is mirrored (a negative scale on it or a parent)"]:
         assert message in run.log, message
     assert report["nan_started"] and report["nan_stopped"]
     # The punch that stopped on the error still finished, and says how it ended.

@@ -644,6 +644,23 @@ fn live<T: GodotClass>(node: &Option<Gd<T>>) -> Option<Gd<T>> {
 /// The character's rest geometry where it stands now.
 fn geometry_of(character: &Gd<PunchCharacter>) -> Result<CharacterGeometry, String> {
     let root = character.get_global_transform();
+    // A mirrored body's left and right are not the policy's, and a body without size has no frame: neither can
+    // land, so say why instead of punching into nothing.
+    let determinant = root.basis.determinant();
+    if !determinant.is_finite() || determinant.abs() < 1e-6 {
+        return Err(format!(
+            "character '{}' has no size or no valid transform (the determinant of its global basis is \
+             {determinant}): give it (and its parents) a scale that is not 0 before it punches",
+            character.get_name()
+        ));
+    }
+    if determinant < 0.0 {
+        return Err(format!(
+            "character '{}' is mirrored (a negative scale on it or a parent): its left and right are no longer the \
+             policy's, so it cannot land; face it the other way with a rotation instead of a negative scale",
+            character.get_name()
+        ));
+    }
     let geometry = character.bind().rig().map(|rig| rig.geometry_at(root));
     geometry.ok_or_else(|| "the character is not ready (is it in the scene tree?)".into())
 }
