@@ -9,10 +9,9 @@
 ## (`punch render --scene moving_duel`). The other character circles you at 0.7-1.1 m/s, steps in when it is
 ## ready, and punches when your torso is within its policy's reach.
 ##
-## Arguments after `--`: `--autoplay` (the autopilot keeps your side; keys are ignored), `--seconds=N` (after N
-## seconds of physics time, print `MOVING_DUEL <json>`: per side how far its mover and its simulated pelvis
-## went and turned, its punches, those that struck the opponent and those that struck its trunk; then quit),
-## and `--straight=PATH`, `--hook=PATH`, `--swing=PATH` (other policy files than the addon's).
+## Arguments after `--`: `--autoplay` (the autopilot keeps your side; keys are ignored) and `--straight=PATH`,
+## `--hook=PATH`, `--swing=PATH` (other policy files than the addon's). tests/godot/moving_duel_run.gd plays this
+## scene and measures it from outside.
 extends Node3D
 
 const CHARACTER_SCENE := preload("res://addons/punch_controller/scenes/punch_character.tscn")
@@ -37,8 +36,6 @@ const MOVER_LAYER := 1 << 7
 
 var _fighters: Array[Fighter] = []
 var _autoplay_only := false
-var _report_after_frames := 0
-var _frames := 0
 var _policies := {}
 var _reaches := {}
 var _label := Label.new()
@@ -70,15 +67,6 @@ class Fighter:
 	var punches := 0
 	var hits := 0
 	var hits_on_body := 0
-	var out_of_reach := 0
-	var by_style := {}
-	var path_m := 0.0
-	var turned_rad := 0.0
-	var pelvis_path_m := 0.0
-	var pelvis_turned_rad := 0.0
-	var last_position := Vector3.ZERO
-	var last_yaw := 0.0
-	var last_pelvis := Transform3D.IDENTITY
 
 	## The opponent's torso in this character's frame (+Z ahead, +Y up, +X its left).
 	func target_offset() -> Vector3:
@@ -87,10 +75,6 @@ class Fighter:
 	func distance() -> float:
 		var between := opponent.mover.global_position - mover.global_position
 		return Vector2(between.x, between.z).length()
-
-	func pelvis_pose() -> Transform3D:
-		var pelvis: PhysicsBody3D = character.get_node("Pelvis")
-		return PhysicsServer3D.body_get_state(pelvis.get_rid(), PhysicsServer3D.BODY_STATE_TRANSFORM)
 
 
 func _ready() -> void:
@@ -101,8 +85,6 @@ func _ready() -> void:
 		var parts := argument.trim_prefix("--").split("=", true, 1)
 		if parts[0] == "autoplay":
 			_autoplay_only = true
-		elif parts[0] == "seconds" and parts.size() == 2:
-			_report_after_frames = roundi(float(parts[1]) * Engine.physics_ticks_per_second)
 		elif parts[0] in STYLES and parts.size() == 2:
 			paths[parts[0]] = parts[1]
 	for style in STYLES:
@@ -169,17 +151,12 @@ func _add_fighter(fighter_name: String, where: Vector3, yaw: float, seed: int, c
 		if body != null and fighter.opponent.character.is_ancestor_of(body):
 			fighter.hit = true
 			fighter.on_body = fighter.on_body or body == fighter.controller.target)
-	controller.target_out_of_reach.connect(func(_offset, _nearest): fighter.out_of_reach += 1)
 	controller.punch_finished.connect(func(_metrics):
 		fighter.punches += 1
 		fighter.hits += int(fighter.hit)
 		fighter.hits_on_body += int(fighter.on_body)
-		fighter.by_style[fighter.style] = fighter.by_style.get(fighter.style, 0) + 1
 		if fighter.plan == "punch":
 			_start_plan(fighter, "back_off", 0.7))
-	fighter.last_position = mover.global_position
-	fighter.last_yaw = mover.rotation.y
-	fighter.last_pelvis = Transform3D.IDENTITY
 	_fighters.append(fighter)
 	return fighter
 
@@ -200,16 +177,11 @@ func _unhandled_key_input(event: InputEvent) -> void:
 
 
 func _physics_process(delta: float) -> void:
-	_frames += 1
 	for fighter in _fighters:
 		var wanted: Vector3 = _keys_velocity(fighter) if fighter.driver == "keys" else _ai_velocity(fighter, delta)
 		_move(fighter, wanted, delta)
-	for fighter in _fighters:
-		_measure(fighter)
 	_follow_with_camera(delta)
 	_show_score()
-	if _report_after_frames > 0 and _frames == _report_after_frames:
-		_report()
 
 
 ## Walks the mover toward `wanted` (global, m/s) and turns it toward its opponent, as a game moves a
@@ -328,21 +300,6 @@ func _punch(fighter: Fighter) -> bool:
 	return fighter.controller.punch()
 
 
-## How far the mover and the simulated pelvis went and turned (the pelvis read from the physics server).
-func _measure(fighter: Fighter) -> void:
-	var position := fighter.mover.global_position
-	fighter.path_m += position.distance_to(fighter.last_position)
-	fighter.turned_rad += absf(angle_difference(fighter.last_yaw, fighter.mover.rotation.y))
-	fighter.last_position = position
-	fighter.last_yaw = fighter.mover.rotation.y
-	var pelvis := fighter.pelvis_pose()
-	if _frames > 1:
-		fighter.pelvis_path_m += pelvis.origin.distance_to(fighter.last_pelvis.origin)
-		var turn := fighter.last_pelvis.basis.get_rotation_quaternion().angle_to(pelvis.basis.get_rotation_quaternion())
-		fighter.pelvis_turned_rad += turn
-	fighter.last_pelvis = pelvis
-
-
 ## The camera stands still (so the circling shows against the floor) above and to the side of where the fight
 ## started, looking down at the fighters; it walks after them once their middle is more than 1.2 m from where it
 ## looks.
@@ -374,19 +331,6 @@ func _exit_tree() -> void:
 	# The fighters point at each other: let go, so that they are freed.
 	for fighter in _fighters:
 		fighter.opponent = null
-
-
-func _report() -> void:
-	var sides := {}
-	for fighter in _fighters:
-		sides[fighter.name] = {
-			"path_m": fighter.path_m, "turned_rad": fighter.turned_rad, "pelvis_path_m": fighter.pelvis_path_m,
-			"pelvis_turned_rad": fighter.pelvis_turned_rad, "punches": fighter.punches, "hits": fighter.hits,
-			"hits_on_body": fighter.hits_on_body, "out_of_reach": fighter.out_of_reach, "by_style": fighter.by_style,
-		}
-	print("MOVING_DUEL ", JSON.stringify({"seconds": float(_frames) / Engine.physics_ticks_per_second,
-		"policies": _policies.keys(), "sides": sides}))
-	get_tree().quit()
 
 
 func _build_stage() -> void:

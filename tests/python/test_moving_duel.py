@@ -13,7 +13,8 @@ pytestmark = pytest.mark.godot
 def test_the_moving_duel_circles_turns_and_lands_punches_on_both_sides():
     """Ten seconds with both sides on the autopilot: each mover walks and turns (and the simulated pelvis with
     it, read from the physics server), each side punches only with the opponent in reach, and each strikes the other (its trunk or its guard)."""
-    run = run_godot(["--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), "res://demo/moving_duel.tscn",
+    script = PROJECT_ROOT / "tests" / "godot" / "moving_duel_run.gd"  # the demo measured from outside it
+    run = run_godot(["--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), "--script", str(script),
                      "--", "--autoplay", "--seconds=10"], check=False, timeout_s=300)
     assert "ERROR" not in run.log and run.fatal_lines() == [], run.log[-3000:]
     line = next((line for line in run.log.splitlines() if line.startswith("MOVING_DUEL ")), None)
