@@ -79,8 +79,8 @@ def test_a_style_caps_the_sampling_sigma_of_the_guard_where_it_narrows_the_searc
 
     from punch_trainer.learn.a2c import style_sigma_cap
     from punch_trainer.learn.policy import ActorCritic
-    from punch_trainer.sim.rewards import load_reward
-    from punch_trainer.sim.style import style_named
+    from punch_trainer.reward.rewards import load_reward
+    from punch_trainer.reward.style import style_named
 
     model = ActorCritic(54, 10, seed=0)
     obs = torch.zeros(3, 54)

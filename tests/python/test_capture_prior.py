@@ -12,7 +12,7 @@ import punch_trainer
 from punch_trainer.capture.prior import CapturePriorError, captured_actions, captured_joint_angles
 from punch_trainer.capture.punches import captured_punches
 from punch_trainer.learn.reach import placement
-from punch_trainer.sim.rewards import first_right_contact
+from punch_trainer.reward.rewards import first_right_contact
 from punch_trainer.sim.rollouts import RolloutPool
 
 NAMES = ["waist_flexion", "waist_rotation", "shoulder_r_flexion", "shoulder_r_rotation", "shoulder_r_abduction",

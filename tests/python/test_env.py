@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
+from punch_trainer.reward.rewards import Reward
 from punch_trainer.sim.env import PunchEnv, PunchVectorEnv
-from punch_trainer.sim.rewards import Reward
 from punch_trainer.sim.server import TrainingServer
 
 pytestmark = pytest.mark.godot

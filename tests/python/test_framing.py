@@ -1,4 +1,4 @@
-"""The trainer's one framing (sim/framing.py): the training server's socket and a reward worker's pipes frame with
+"""The trainer's one framing (framing.py): the training server's socket and a reward worker's pipes frame with
 `write_frame`/`read_frame`, which refuse a frame over the reader's limits before reading it, with a typed error."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from conftest import PROJECT_ROOT
-from punch_trainer.sim.framing import PREFIX, FrameError, FrameLimits, FrameTooLargeError, encode_frame, read_frame, write_frame
+from punch_trainer.framing import PREFIX, FrameError, FrameLimits, FrameTooLargeError, encode_frame, read_frame, write_frame
 from punch_trainer.sim.protocol import LIMITS, Message, ProtocolError, ServerClosedError, receive
 
 TRAINER = PROJECT_ROOT / "trainer" / "punch_trainer"
@@ -83,7 +83,7 @@ def test_the_server_protocol_frames_with_it():
 
 
 def test_no_module_of_the_trainer_frames_bytes_itself():
-    """Lengths are packed and unpacked only in sim/framing.py."""
+    """Lengths are packed and unpacked only in framing.py."""
     packing = sorted(f"{path.relative_to(TRAINER)}:{node.lineno}" for path in TRAINER.rglob("*.py") if path.name != "framing.py"
                      for node in ast.walk(ast.parse(path.read_text()))
                      if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id == "struct")

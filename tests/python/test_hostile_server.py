@@ -19,10 +19,10 @@ import pytest
 
 from punch_trainer.learn.search import SearchArgs, trajectory_search
 from punch_trainer.pipelines import train as train_pipeline
+from punch_trainer.reward.rewards import load_reward
 from punch_trainer.sim import server as server_module
 from punch_trainer.sim.env import PunchEnv
 from punch_trainer.sim.protocol import hello_message
-from punch_trainer.sim.rewards import load_reward
 from punch_trainer.sim.rollouts import RolloutPool
 from punch_trainer.sim.server import TrainingServer
 

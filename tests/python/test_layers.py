@@ -1,6 +1,7 @@
-"""The trainer's layers: each subpackage imports only itself and those below it (capture <- sim <- learn <-
-report <- pipelines <- cli, where `capture`, the motion capture and its reading, needs no other layer;
-`errors.py`, `options.py`, `policy_file.py` and the package itself are shared), every import counted, at the top
+"""The trainer's layers: each subpackage imports only itself and those below it (capture <- reward <- sim <- learn
+<- report <- pipelines <- cli, where `capture`, the motion capture and its reading, needs no other layer, and
+`reward`, what a punch earns, only the capture's; `errors.py`, `options.py`, `policy_file.py`, `framing.py`,
+`scene.py` and the package itself are shared), every import counted, at the top
 of a module or inside a function; and no modules import one another in a circle. That every Godot process is
 started in one place (sim/godot.py) is checked by test_godot_launcher.py."""
 
@@ -11,7 +12,7 @@ from pathlib import Path
 from conftest import PROJECT_ROOT
 
 PACKAGE = PROJECT_ROOT / "trainer" / "punch_trainer"
-LAYERS = ["capture", "sim", "learn", "report", "pipelines", "cli"]
+LAYERS = ["capture", "reward", "sim", "learn", "report", "pipelines", "cli"]
 
 
 def module_name(path: Path, package: Path) -> str:
@@ -44,7 +45,7 @@ def imported_modules(path: Path, package: Path) -> list[str]:
 def layer_violations(package: Path, layers: list[str]) -> list[str]:
     """'<module> imports <module>' for every import of a layer above the importer's own, of a module outside
     every layer, and for every module that is itself outside every layer and not shared."""
-    shared = {package.name, f"{package.name}.errors", f"{package.name}.options", f"{package.name}.policy_file"}
+    shared = {package.name, *(f"{package.name}.{name}" for name in ("errors", "options", "policy_file", "framing", "scene"))}
     violations = []
     for path in sorted(package.rglob("*.py")):
         own = module_name(path, package)

@@ -18,9 +18,9 @@ from conftest import godot_processes, ray_processes
 from punch_trainer.cli.main import main
 from punch_trainer.learn.search import SearchArgs, trajectory_search
 from punch_trainer.pipelines.train import TrainArgs, run_train
+from punch_trainer.reward.rewards import load_reward
 from punch_trainer.sim.cluster import RayTrainingServer, ray_cluster, simulated_cluster
 from punch_trainer.sim.godot import ADDON_POLICIES
-from punch_trainer.sim.rewards import load_reward
 from punch_trainer.sim.rollouts import RolloutPool
 
 WORKER_NODES = 3

@@ -11,7 +11,7 @@ import pytest
 from punch_trainer.cli.main import main
 from punch_trainer.pipelines.recipe import RecipeError, SoupStage, TrainStage, load_recipe, run_recipe
 from punch_trainer.policy_file import read_policy_metadata
-from punch_trainer.sim.style import style_named
+from punch_trainer.reward.style import style_named
 
 ROOT = Path(__file__).resolve().parents[2]
 RECIPES = sorted((ROOT / "recipes").glob("*.toml"))

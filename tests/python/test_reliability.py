@@ -15,7 +15,7 @@ import pytest
 
 from conftest import PROJECT_ROOT, godot_processes
 from punch_trainer.learn.search import SearchArgs, trajectory_search
-from punch_trainer.sim.rewards import load_reward
+from punch_trainer.reward.rewards import load_reward
 from punch_trainer.sim.rollouts import RolloutPool
 from punch_trainer.sim.server import TrainingServer
 

@@ -21,9 +21,9 @@ from punch_trainer.learn.volume import success_interval
 from punch_trainer.pipelines.evaluation import EvalError, parse_sigmas
 from punch_trainer.pipelines.replay import ReplayArgs, ReplayError, policy_metadata, replay_frames, run_replay
 from punch_trainer.pipelines.search import run_search
+from punch_trainer.reward.rewards import load_reward, score
 from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.godot import ADDON_POLICIES
-from punch_trainer.sim.rewards import load_reward, score
 
 SMOOTHING_WINDOW = 3
 SHIPPED_POLICY = ADDON_POLICIES / "straight.onnx"

@@ -21,8 +21,8 @@ from punch_trainer.learn.checkpoint import CHECKPOINT_FILE, CheckpointError, loa
 from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.search import SearchArgs
 from punch_trainer.pipelines.search import run_search
+from punch_trainer.reward.rewards import load_reward
 from punch_trainer.sim.env import PunchVectorEnv
-from punch_trainer.sim.rewards import load_reward
 
 pytestmark = [pytest.mark.godot, pytest.mark.expensive]
 

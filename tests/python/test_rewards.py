@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from punch_trainer.sim.rewards import RewardError, evaluate, load_reward, total
+from punch_trainer.reward.rewards import RewardError, evaluate, load_reward, total
 
 NAMES = ["fist_r_bag_distance", "fist_r_vel_x", "fist_r_vel_z", "fist_r_vel_y", "exploit_flags"]
 
@@ -60,7 +60,7 @@ def test_bad_rewards_are_named_in_the_error(tmp_path, body, message):
 @pytest.mark.parametrize("spec, message", [
     ("nonsense", "unknown reward"),
     ("missing_file.py:r", "not found"),
-    ("punch_trainer.sim.rewards:no_such_function", "has no function"),
+    ("punch_trainer.reward.rewards:no_such_function", "has no function"),
 ])
 def test_unloadable_rewards(spec, message):
     with pytest.raises(RewardError, match=message):
@@ -83,7 +83,7 @@ def test_unloadable_rewards(spec, message):
 def test_misbehaving_user_rewards_get_an_error_naming_them(tmp_path, monkeypatch, body, message):
     """A reward that hangs, exits the process, writes into its features or returns no numbers ends with an
     error that names it; the features are untouched and the process goes on."""
-    import punch_trainer.sim.rewards as rewards
+    import punch_trainer.reward.rewards as rewards
 
     monkeypatch.setattr(rewards, "REWARD_TIME_LIMIT_S", 0.5)
     (tmp_path / "bad.py").write_text(f"def reward(f):\n    {body}\n")
@@ -128,8 +128,8 @@ ENDS_THE_WORKER = {"os._exit bound at import", "bare except retry loop", "SIGALR
 def test_reward_attacks_end_only_their_worker(tmp_path, monkeypatch, name):
     """Each way a reward could end, hang or corrupt the run ends with a RewardError saying what it did; the
     caller's features are unchanged and the trainer goes on (the worker is gone)."""
-    import punch_trainer.sim.reward_worker as worker
-    import punch_trainer.sim.rewards as rewards
+    import punch_trainer.reward.rewards as rewards
+    import punch_trainer.reward.sandbox as worker
 
     source, message = ATTACKS[name]
     monkeypatch.setattr(rewards, "REWARD_TIME_LIMIT_S", 0.5)
@@ -154,7 +154,7 @@ def test_reward_attacks_end_only_their_worker(tmp_path, monkeypatch, name):
 def test_a_reward_that_forks_then_exits_is_named_and_its_child_is_gone(tmp_path, monkeypatch):
     """A child process the reward started keeps the worker's pipes open after the worker exits: the error still
     says what the reward did (not a time-out), and the child goes with the worker (its process group)."""
-    import punch_trainer.sim.rewards as rewards
+    import punch_trainer.reward.rewards as rewards
 
     monkeypatch.setattr(rewards, "REWARD_TIME_LIMIT_S", 0.5)
     child_file = tmp_path / "child"
@@ -196,7 +196,7 @@ def test_a_worker_that_died_is_replaced_and_results_match_in_process(tmp_path):
 
 
 def test_reward_source_is_fingerprinted(tmp_path):
-    from punch_trainer.sim.rewards import reward_fingerprint
+    from punch_trainer.reward.rewards import reward_fingerprint
 
     path = tmp_path / "mine.py"
     path.write_text("def reward(f):\n    return f['fist_r_vel_z']\n")
@@ -208,7 +208,7 @@ def test_reward_source_is_fingerprinted(tmp_path):
 
 @pytest.mark.parametrize("frames", ["0", "1201", "99999999999", "-5", "5.0", "\u0663"])
 def test_a_policy_frame_count_of_no_sense_is_refused(frames):
-    from punch_trainer.sim.rewards import metadata_reward
+    from punch_trainer.reward.rewards import metadata_reward
 
     assert metadata_reward({"punch_frames": "100", "punch_reward": "straight"}, "p.onnx").frames == 100
     with pytest.raises(RewardError, match="is not a frame count"):

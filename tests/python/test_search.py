@@ -68,7 +68,7 @@ def test_capture_clip_reads_as_a_punch():
 @pytest.mark.expensive
 def test_baselines_run_on_the_same_environment():
     from punch_trainer.learn.baselines import cem, cma_es
-    from punch_trainer.sim.rewards import load_reward
+    from punch_trainer.reward.rewards import load_reward
     from punch_trainer.sim.rollouts import RolloutPool
 
     args = SearchArgs(iterations=3, rollouts=16, characters_per_process=16)

@@ -1,4 +1,4 @@
-"""The motion style (punch_trainer.sim.style): what it costs, how it discounts a reward, its names."""
+"""The motion style (punch_trainer.reward.style): what it costs, how it discounts a reward, its names."""
 
 from __future__ import annotations
 
@@ -7,8 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from punch_trainer.sim.conditions import SCENE_ARM_LENGTHS_M, SCENE_BAG_RADIUS_M
-from punch_trainer.sim.style import (
+from punch_trainer.reward.style import (
     STYLES,
     Style,
     StyleError,
@@ -19,6 +18,7 @@ from punch_trainer.sim.style import (
     style_label,
     style_named,
 )
+from punch_trainer.scene import SCENE_ARM_LENGTHS_M, SCENE_BAG_RADIUS_M
 
 FRAMES = 50
 NAMES = [f"{stem}_{axis}" for stem in ("fist_l_pos", "fist_l_vel", "fist_r_vel", "fist_r_pos", "fist_r_impulse",
@@ -151,7 +151,7 @@ def test_the_order_charge_is_nothing_exactly_when_the_naturalness_report_counts_
     """The charge trained with and the order measured (report/naturalness.py) read the same speeds to the same
     contact, so a policy cannot be trained to one order and measured by another."""
     from punch_trainer.report.naturalness import in_proximal_to_distal_order
-    from punch_trainer.sim.style import chain_speeds
+    from punch_trainer.reward.style import chain_speeds
 
     order = Style("order", order_cost_per_frame=1.0)
     rng = np.random.default_rng(5)
@@ -472,7 +472,7 @@ def test_the_search_sigma_cap_has_one_value_per_degree_of_freedom() -> None:
 def test_a_reward_with_a_style_is_scored_with_it() -> None:
     from dataclasses import replace
 
-    from punch_trainer.sim.rewards import load_reward, score_terms
+    from punch_trainer.reward.rewards import load_reward, score_terms
 
     names = [*NAMES, "fist_r_bag_distance", "exploit_flags"]
     values = np.zeros((2, FRAMES, len(names)))
@@ -491,7 +491,7 @@ def test_an_episode_scored_decision_by_decision_adds_up_to_its_return_with_and_w
     far, so the decisions' rewards must add up to the return the search gives the whole episode."""
     from dataclasses import replace
 
-    from punch_trainer.sim.rewards import (
+    from punch_trainer.reward.rewards import (
         EpisodeScorer,
         decision_rewards,
         load_reward,
@@ -539,7 +539,7 @@ def test_a_search_with_the_boxing_style_keeps_the_guard_hand_and_the_trunk_in(tm
     from punch_trainer.learn.search import SearchArgs
     from punch_trainer.pipelines.search import run_search
     from punch_trainer.report.naturalness import punch_naturalness
-    from punch_trainer.sim.rewards import first_right_contact
+    from punch_trainer.reward.rewards import first_right_contact
 
     figures, touched = {}, {}
     for style in ("none", "boxing"):

@@ -9,9 +9,9 @@ import pytest
 
 from punch_trainer.pipelines.train import TrainArgs, run_exported_policy, run_train
 from punch_trainer.policy_file import read_entries
+from punch_trainer.reward.rewards import load_reward, score
+from punch_trainer.reward.style import style_named
 from punch_trainer.sim.env import PunchVectorEnv
-from punch_trainer.sim.rewards import load_reward, score
-from punch_trainer.sim.style import style_named
 
 pytestmark = [pytest.mark.godot, pytest.mark.expensive]
 

@@ -18,8 +18,8 @@ from punch_trainer.pipelines.experiments import AfterPunchArgs, after_punch_head
 from punch_trainer.pipelines.search import run_search
 from punch_trainer.pipelines.train import TrainArgs, run_train
 from punch_trainer.policy_file import read_policy_metadata
+from punch_trainer.reward.rewards import load_reward
 from punch_trainer.sim.env import PunchVectorEnv
-from punch_trainer.sim.rewards import load_reward
 from punch_trainer.sim.server import TrainingServer
 
 BUDGET = dict(reward="straight", seed=3, search_iterations=15, search_rollouts=32, pretrain_epochs=600,

@@ -174,7 +174,7 @@ def _check_resumed_reward(run_dir: Path, recorded: str, named: str | None) -> No
     `--reward` naming it again (and the search checks its source's SHA-256 against the run's); a --reward
     that is not the run's is refused."""
     from punch_trainer.learn.checkpoint import CheckpointError
-    from punch_trainer.sim.rewards import PRESETS
+    from punch_trainer.reward.rewards import PRESETS
 
     if named is not None and named != recorded:
         raise CheckpointError(f"{run_dir} is a run of the reward {recorded!r}; --resume continues it with that reward, "

@@ -28,9 +28,9 @@ from tqdm import tqdm
 from punch_trainer.learn.checkpoint import CheckpointError, flag, load_checkpoint, number, save_checkpoint
 from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.volume import validate
+from punch_trainer.reward.rewards import EpisodeScorer, Reward
 from punch_trainer.sim.conditions import EpisodeConditions, EpisodeStart
 from punch_trainer.sim.env import PunchVectorEnv
-from punch_trainer.sim.rewards import EpisodeScorer, Reward
 from punch_trainer.sim.server_group import SimulatorRestarts
 
 
@@ -53,7 +53,7 @@ class A2CArgs:
     sigma_floor: float = 0.0
     """the least sigma actions are sampled with, in collection and in the update: keeps exploring and
     keeps the policy seeing (and correcting) noisy decisions after its learned sigma has shrunk. A reward's
-    style caps it where the style narrows the search (sim/style.py: the guard arm and the waist's flexion),
+    style caps it where the style narrows the search (reward/style.py: the guard arm and the waist's flexion),
     since noise there alone costs a styled punch everything it earns."""
     time_budget_s: float | None = None
     seed: int = 0
@@ -89,7 +89,7 @@ class EpisodeBatch:
     """[T, N]: the critic's value of each observation"""
     rewards: torch.Tensor
     """[T, N]: each decision's reward, the reward function's score of the frames it played (with a style, given
-    the episode's frames before them: sim/rewards.py, EpisodeScorer)"""
+    the episode's frames before them: reward/rewards.py, EpisodeScorer)"""
     term_rewards: dict[str, torch.Tensor]
     """the reward function's term name -> [T, N]: that term's part of `rewards`"""
 

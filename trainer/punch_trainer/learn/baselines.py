@@ -11,7 +11,7 @@ import numpy as np
 from cmaes import CMA, SepCMA
 
 from punch_trainer.learn.search import SearchArgs, evaluate_actions
-from punch_trainer.sim.rewards import Reward
+from punch_trainer.reward.rewards import Reward
 from punch_trainer.sim.rollouts import RolloutPool
 
 CEM_ELITE_FRACTION = 0.1

@@ -20,9 +20,9 @@ from punch_trainer.errors import PunchError
 from punch_trainer.learn.reach import ReachVolume
 from punch_trainer.learn.search import SearchArgs, SearchResult
 from punch_trainer.policy_file import REACH_VOLUME
+from punch_trainer.reward.rewards import Reward, decision_rewards, score
 from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.conditions import EpisodeConditions
-from punch_trainer.sim.rewards import Reward, decision_rewards, score
 from punch_trainer.sim.server import ServerInfo
 from punch_trainer.sim.server_group import ServerGroup, SimulatorRestarts
 

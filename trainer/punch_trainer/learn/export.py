@@ -25,7 +25,7 @@ from punch_trainer.errors import ExportError
 from punch_trainer.learn.policy import Actor, ActorCritic
 from punch_trainer.learn.reach import ReachVolume
 from punch_trainer.policy_file import REACH_VOLUME, policy_entries
-from punch_trainer.sim.style import Style, style_label
+from punch_trainer.reward.style import Style, style_label
 
 EXPORT_TOLERANCE = 1e-5
 

@@ -34,10 +34,10 @@ from tqdm import tqdm
 
 from punch_trainer.learn.checkpoint import CheckpointError, array, default_run_dir, flag, load_checkpoint, number, save_checkpoint
 from punch_trainer.options import bounds
+from punch_trainer.reward.rewards import Reward, Terms, score_terms
+from punch_trainer.reward.style import MAX_WEIGHT as MAX_STYLE_WEIGHT
 from punch_trainer.sim.conditions import EpisodeConditions
-from punch_trainer.sim.rewards import Reward, Terms, score_terms
 from punch_trainer.sim.rollouts import RolloutPool
-from punch_trainer.sim.style import MAX_WEIGHT as MAX_STYLE_WEIGHT
 
 
 @dataclass
@@ -187,7 +187,7 @@ def placement_search(args: SearchArgs, reward: Reward, pool: RolloutPool, progre
     clip_epsilon = args.clip_epsilon if args.clip_epsilon is not None else reward.search_clip_epsilon
     decisions = reward.frames // args.decision_period
     action_size = pool.info.action_size
-    # A style narrows the search around the guard for the degrees of freedom a punch moves least (sim/style.py).
+    # A style narrows the search around the guard for the degrees of freedom a punch moves least (reward/style.py).
     sigma_cap = reward.style.search_sigma_cap(action_size) if reward.style is not None else None
     count = 1 if placements is None else len(placements)
     scale = np.ptp([p.position_m() for p in placements], axis=0) + 1e-6 if placements else np.ones(3)

@@ -25,6 +25,7 @@ import torch
 
 from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.reach import ReachVolume
+from punch_trainer.reward.rewards import EpisodeScorer, Reward, first_right_contact
 from punch_trainer.sim.conditions import (
     ARM_SCALE_RANGE,
     SEGMENT_SCALE_RANGE,
@@ -34,7 +35,6 @@ from punch_trainer.sim.conditions import (
     arm_scale,
 )
 from punch_trainer.sim.env import PunchVectorEnv
-from punch_trainer.sim.rewards import EpisodeScorer, Reward, first_right_contact
 
 DISTRIBUTION_DRAWS = 10**9
 """the first "update" number of the draws for the observation statistics (A2C updates count from 1)"""

@@ -320,7 +320,7 @@ def bench_search(args: BenchSearchArgs, plot_path: Path, characters_per_process:
     presets, seeds, iterations, rollouts = args.presets, args.seeds, args.iterations, args.rollouts
     from punch_trainer.learn.baselines import cem, cma_es
     from punch_trainer.learn.search import SearchArgs, trajectory_search
-    from punch_trainer.sim.rewards import load_reward
+    from punch_trainer.reward.rewards import load_reward
     from punch_trainer.sim.rollouts import RolloutPool
 
     methods = {"TTR": lambda a, r, p: trajectory_search(a, r, p, progress=False).history, "CEM": cem, "CMA-ES": cma_es}

@@ -43,10 +43,10 @@ from punch_trainer.pipelines.scenario import (
     size_label,
 )
 from punch_trainer.policy_file import read_policy_metadata
+from punch_trainer.reward.rewards import Reward, first_right_contact, metadata_reward, score
 from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.conditions import ARM_SCALE_RANGE, SEGMENT_SCALE_RANGE, EpisodeConditions
 from punch_trainer.sim.godot import run_godot_tool
-from punch_trainer.sim.rewards import Reward, first_right_contact, metadata_reward, score
 
 KINDS = ("features", "observations", "mean_actions", "actions")
 """what evaluate.gd records of every punch with --record=1"""

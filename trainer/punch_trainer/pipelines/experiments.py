@@ -31,9 +31,9 @@ from punch_trainer.learn.dataset import record_dataset, returns_to_go
 from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.pretrain import PretrainArgs, pretrain
 from punch_trainer.learn.search import SearchArgs, trajectory_search
+from punch_trainer.reward.rewards import Reward, load_reward
 from punch_trainer.sim.conditions import EpisodeConditions, EpisodeStart
 from punch_trainer.sim.env import PunchEnv, PunchVectorEnv
-from punch_trainer.sim.rewards import Reward, load_reward
 from punch_trainer.sim.rollouts import RolloutPool
 from punch_trainer.sim.server_group import SimulatorRestarts
 

@@ -45,8 +45,8 @@ from punch_trainer.learn.checkpoint import CONFIG_FILE, stored_config
 from punch_trainer.learn.soup import soup
 from punch_trainer.pipelines.train import TrainArgs, run_train
 from punch_trainer.policy_file import read_policy_metadata
+from punch_trainer.reward.style import STYLES
 from punch_trainer.sim.backend import LOCAL, Backend
-from punch_trainer.sim.style import STYLES
 
 STYLE_FILE = "styles.toml"
 """the recipe's own styles, beside the recipe files"""
@@ -180,7 +180,7 @@ def _read_stage(path: Path, table: Any, common: Mapping[str, Any], earlier: list
 
 
 def _has_recipe_style(path: Path, name: str) -> bool:
-    from punch_trainer.sim.style import load_style_file
+    from punch_trainer.reward.style import load_style_file
 
     styles = path.parent / STYLE_FILE
     return styles.is_file() and name in load_style_file(styles)

@@ -26,7 +26,7 @@ from tqdm import tqdm
 
 from punch_trainer.pipelines.evaluation import KINDS, EvalError, analyse_punches, recorded, run_episodes
 from punch_trainer.policy_file import PolicyMetadata, read_entries, read_policy_metadata
-from punch_trainer.sim.rewards import metadata_reward
+from punch_trainer.reward.rewards import metadata_reward
 
 # Paths drawn per sigma in the Fig. 11 plot.
 PLOTTED_PATHS = 40

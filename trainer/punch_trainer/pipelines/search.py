@@ -10,10 +10,10 @@ from punch_trainer.learn.dataset import record_dataset
 from punch_trainer.learn.search import SearchArgs, SearchResult, trajectory_search
 from punch_trainer.report.motion import motion_report
 from punch_trainer.report.search_report import write_search_run
+from punch_trainer.reward.rewards import load_reward, reward_fingerprint
+from punch_trainer.reward.style import style_named
 from punch_trainer.sim.backend import LOCAL, Backend
-from punch_trainer.sim.rewards import load_reward, reward_fingerprint
 from punch_trainer.sim.rollouts import RolloutPool
-from punch_trainer.sim.style import style_named
 
 
 def run_search(args: SearchArgs, progress: bool = True, resume: bool = False, *,

@@ -1,4 +1,4 @@
-"""`punch experiment style`: what the motion style (sim/style.py) does to the trajectory search's punches.
+"""`punch experiment style`: what the motion style (reward/style.py) does to the trajectory search's punches.
 
 Each style searches at the same placements inside the shipped policies' reach volume, with the same seeds and
 budget; the table gives the naturalness figures (docs/naturalness.md) of every placement's best punch, as
@@ -14,9 +14,9 @@ from punch_trainer.learn.reach import placement
 from punch_trainer.learn.search import SearchArgs, placement_search
 from punch_trainer.options import bounds
 from punch_trainer.report.naturalness import capture_figures, naturalness_table, punch_naturalness, summarise
-from punch_trainer.sim.rewards import first_right_contact, load_reward, score
+from punch_trainer.reward.rewards import first_right_contact, load_reward, score
+from punch_trainer.reward.style import style_label, style_named
 from punch_trainer.sim.rollouts import RolloutPool
-from punch_trainer.sim.style import style_label, style_named
 
 PLACEMENTS_M = ((0.72, 1.35, 0.0), (0.62, 1.2, -0.2), (0.82, 1.5, 0.2), (0.7, 1.45, -0.1))
 """distance, height and side (m) of the bag, inside the shipped policies' reach volume: its middle, near and

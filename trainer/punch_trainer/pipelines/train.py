@@ -35,14 +35,14 @@ from punch_trainer.policy_file import SPEC_HASH
 from punch_trainer.report.a2c_report import write_a2c_report
 from punch_trainer.report.motion import motion_report
 from punch_trainer.report.naturalness import capture_figures, naturalness_table, punch_naturalness, summarise
+from punch_trainer.reward.rewards import EpisodeScorer, Reward, load_reward
+from punch_trainer.reward.style import MAX_WEIGHT as MAX_STYLE_WEIGHT
+from punch_trainer.reward.style import style_label, style_named
 from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.conditions import ARM_SCALE_RANGE
 from punch_trainer.sim.env import PunchVectorEnv
-from punch_trainer.sim.rewards import EpisodeScorer, Reward, load_reward
 from punch_trainer.sim.rollouts import RolloutPool
 from punch_trainer.sim.server_group import SimulatorRestarts
-from punch_trainer.sim.style import MAX_WEIGHT as MAX_STYLE_WEIGHT
-from punch_trainer.sim.style import style_label, style_named
 
 
 @dataclass(frozen=True)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from punch_trainer.sim.rewards import first_right_contact
+from punch_trainer.reward.rewards import first_right_contact
 
 
 def motion_report(dataset: dict[str, np.ndarray]) -> dict[str, float | list[float] | None]:

@@ -18,8 +18,8 @@ import numpy as np
 
 from punch_trainer.capture.bvh import DEFAULT_BVH
 from punch_trainer.capture.punches import CapturedPunch, angle_between, captured_punches, speeds_from_positions
-from punch_trainer.sim.rewards import first_right_contact
-from punch_trainer.sim.style import chain_speeds
+from punch_trainer.reward.rewards import first_right_contact
+from punch_trainer.reward.style import chain_speeds
 
 
 @dataclass(frozen=True)
@@ -132,7 +132,7 @@ def punch_naturalness(features: np.ndarray, names: list[str], physics_hz: float)
     fist, off, off_velocity = vector("fist_r_pos"), vector("fist_l_pos"), vector("fist_l_vel")
     fist_speed = np.linalg.norm(vector("fist_r_vel"), axis=1)
     off_speed = np.linalg.norm(off_velocity, axis=1)
-    # The chain's speeds as the order style reads them in training (sim/style.py), so the two cannot drift.
+    # The chain's speeds as the order style reads them in training (reward/style.py), so the two cannot drift.
     waist, shoulder, elbow = chain_speeds(lambda name: f[:, col(name)])
     return PunchNaturalness(
         path_over_chord=path_over_chord(fist[until]) if end > 0 else 1.0,

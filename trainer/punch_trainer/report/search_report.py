@@ -15,7 +15,7 @@ from punch_trainer.learn.checkpoint import write_config
 from punch_trainer.learn.search import SearchArgs, SearchResult
 from punch_trainer.report.mocap import plot_against_capture
 from punch_trainer.report.plots import plot_search
-from punch_trainer.sim.rewards import Reward
+from punch_trainer.reward.rewards import Reward
 from punch_trainer.sim.server import ServerInfo
 
 

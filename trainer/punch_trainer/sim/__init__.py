@@ -1,2 +1,2 @@
 """The simulator layer: starting Godot, the wire protocol, training servers and their restarts, open-loop
-rollout pools, rewards, and the Gymnasium envs. Imports nothing else of the trainer (but `errors`)."""
+rollout pools, episode conditions, and the Gymnasium envs, which score their steps with the reward layer below."""

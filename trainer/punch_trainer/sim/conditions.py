@@ -13,6 +13,9 @@ from typing import Any
 
 import numpy as np
 
+from punch_trainer.scene import SCENE_ARM_LENGTHS_M as SCENE_ARM_LENGTHS_M
+from punch_trainer.scene import SCENE_BAG_RADIUS_M as SCENE_BAG_RADIUS_M
+
 
 @dataclass(frozen=True)
 class EpisodeConditions:
@@ -75,10 +78,6 @@ class EpisodeConditions:
         return EpisodeConditions.from_wire({**self.to_wire(), **changes})
 
 
-SCENE_ARM_LENGTHS_M = (0.282, 0.337, 0.36)
-"""the character scene's own upper arm, forearm (elbow to fist centre) and shoulder width, m"""
-SCENE_BAG_RADIUS_M = 0.175
-"""the sandbag scene's radius, m (an upright cylinder)"""
 ARM_SCALE_RANGE = (0.75, 1.25)
 """the arms (shoulder to fist centre) a placement's `arms_*` and `PunchCharacter.size_arms` accept, as fractions of
 the scene's (punch_core::arm_size::ARM_SCALE_RANGE)"""

@@ -14,7 +14,7 @@ Env card (full tables in docs/env.md)
   [decision_period, 60]; rewards are computed from them in Python.
 - Episode: `frames` physics frames (50 or 100: 10 or 20 decisions), always from the same initial state.
   At the last decision `terminated` is True, or `truncated` if the physics guard saw a joint come apart.
-- Reward: a `Reward` (punch_trainer.sim.rewards: a preset, or a function of the features loaded with
+- Reward: a `Reward` (punch_trainer.reward.rewards: a preset, or a function of the features loaded with
   `load_reward`, with a motion style or none), scored on each decision's frames by `EpisodeScorer` (which a
   style's discount needs: it depends on the episode so far), so the step rewards add up to what `score` gives
   the whole episode; 0 when none is given.
@@ -30,10 +30,10 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from punch_trainer.reward.rewards import EpisodeScorer, Reward
 from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.conditions import EpisodeConditions, EpisodeStart
 from punch_trainer.sim.protocol import reset_message, step_message
-from punch_trainer.sim.rewards import EpisodeScorer, Reward
 from punch_trainer.sim.server import ServerConnection, ServerInfo, TrainingServer, exchange
 from punch_trainer.sim.server_group import ServerGroup
 

@@ -1,5 +1,5 @@
 """Client side of the training-server wire format (docs/protocol.md): a JSON header and little-endian f32
-arrays, framed by two u32 lengths (sim/framing.py, the trainer's one framing). The Rust side is punch_core's
+arrays, framed by two u32 lengths (framing.py, the trainer's one framing). The Rust side is punch_core's
 protocol."""
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 
 from punch_trainer.errors import PunchError
+from punch_trainer.framing import FrameError, FrameLimits, encode_frame, read_frame
 from punch_trainer.sim.conditions import EpisodeConditions
-from punch_trainer.sim.framing import FrameError, FrameLimits, encode_frame, read_frame
 
 PROTOCOL_VERSION = 6
 MAX_HEADER_BYTES = 64 * 1024

@@ -15,8 +15,8 @@ from typing import Self
 import numpy as np
 
 from punch_trainer.errors import GodotRunError, PunchError
+from punch_trainer.framing import write_frame
 from punch_trainer.sim.conditions import EpisodeConditions
-from punch_trainer.sim.framing import write_frame
 from punch_trainer.sim.godot import GODOT_PROJECT, start_godot, stop_godot
 from punch_trainer.sim.godot_output import GodotOutput
 from punch_trainer.sim.protocol import (

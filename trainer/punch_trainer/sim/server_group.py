@@ -12,8 +12,8 @@ from collections.abc import Callable
 from typing import TypeVar
 
 from punch_trainer.errors import PunchError
+from punch_trainer.framing import FrameError
 from punch_trainer.sim.backend import LOCAL, Backend
-from punch_trainer.sim.framing import FrameError
 from punch_trainer.sim.protocol import ServerClosedError, ServerTimeoutError
 from punch_trainer.sim.server import ServerBusyError, ServerConnection, ServerInfo
 

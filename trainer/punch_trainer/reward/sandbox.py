@@ -1,8 +1,8 @@
 """A user's reward runs in its own worker process, where it cannot end, hang or corrupt the run.
 
-`load_reward` (sim/rewards.py) gives a reward named by a file or module an `IsolatedFunction`: the user's
+`load_reward` (reward/rewards.py) gives a reward named by a file or module an `IsolatedFunction`: the user's
 module is imported, and the function called, in a child Python process (`python -m
-punch_trainer.sim.reward_worker`). Each call sends a copy of the features (bytes over a pipe: nothing of the
+punch_trainer.reward.sandbox`). Each call sends a copy of the features (bytes over a pipe: nothing of the
 run's memory, `.base` included, is reachable from the reward) and reads back plain float64 arrays, checked
 here for names, shape and size, never unpickled. The trainer waits with a deadline and kills the worker
 (SIGKILL, which no handler can catch) when it passes, so `os._exit` however bound, a bare `except:` retry
@@ -11,7 +11,7 @@ that died between calls is restarted. The worker has its own session (Ctrl-C goe
 dies with the trainer (PR_SET_PDEATHSIG). This is isolation of mistakes, not a security boundary: the
 reward is code the user chose to run, with the user's rights.
 
-Wire format, both ways: the trainer's one framing (sim/framing.py): a JSON header and the raw array data.
+Wire format, both ways: the trainer's one framing (framing.py): a JSON header and the raw array data.
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from punch_trainer.errors import PunchError
-from punch_trainer.sim.framing import FrameError, FrameLimits, read_frame, write_frame
+from punch_trainer.framing import FrameError, FrameLimits, read_frame, write_frame
 
 STARTUP_ALLOWANCE_S = 30.0
 """Time a new worker may take to start Python and numpy, on top of the reward's own limit for its import."""
@@ -241,7 +241,7 @@ class IsolatedFunction:
         environment = {k: v for k, v in os.environ.items() if "SECRET" not in k}
         environment["PYTHONPATH"] = os.pathsep.join(filter(None, [package_root, environment.get("PYTHONPATH")]))
         try:
-            process = subprocess.Popen([sys.executable, "-m", "punch_trainer.sim.reward_worker", str(request_read), str(reply_write)],
+            process = subprocess.Popen([sys.executable, "-m", "punch_trainer.reward.sandbox", str(request_read), str(reply_write)],
                                        pass_fds=(request_read, reply_write), stdin=subprocess.DEVNULL, env=environment,
                                        start_new_session=True)
         finally:

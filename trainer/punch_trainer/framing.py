@@ -1,5 +1,5 @@
 """The one framing of every byte stream the trainer speaks: the training server's socket (sim/protocol.py, the
-wire format of docs/protocol.md and punch_core's protocol) and a reward worker's pipes (sim/reward_worker.py).
+wire format of docs/protocol.md and punch_core's protocol) and a reward worker's pipes (reward/sandbox.py).
 
 A frame is two little-endian u32 lengths, the header's and the payload's, then the header (JSON text) and the
 payload (raw bytes). `write_frame` and `read_frame` are the pair; they take the stream as a function that writes

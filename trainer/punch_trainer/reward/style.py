@@ -35,13 +35,13 @@ from typing import Any
 import numpy as np
 
 from punch_trainer.errors import PunchError
-from punch_trainer.sim.conditions import SCENE_ARM_LENGTHS_M, SCENE_BAG_RADIUS_M
+from punch_trainer.scene import SCENE_ARM_LENGTHS_M, SCENE_BAG_RADIUS_M
 
 CONTACT_IMPULSE_NS = 1e-3
 """A right-fist impulse on the bag above this (N s) counts as contact."""
 
 FramesLike = Callable[[str], np.ndarray]
-"""`frames[name]` of punch_trainer.sim.rewards.Frames: a feature's values [..., frames]"""
+"""`frames[name]` of punch_trainer.reward.rewards.Frames: a feature's values [..., frames]"""
 
 
 

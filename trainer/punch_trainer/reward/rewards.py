@@ -25,11 +25,11 @@ import numpy as np
 
 from punch_trainer.options import BOUNDS
 from punch_trainer.policy_file import FRAMES, REWARD
-from punch_trainer.sim.reward_worker import Frames as Frames
-from punch_trainer.sim.reward_worker import IsolatedFunction, result_terms
-from punch_trainer.sim.reward_worker import RewardError as RewardError
-from punch_trainer.sim.reward_worker import Terms as Terms
-from punch_trainer.sim.style import CONTACT_IMPULSE_NS, Style
+from punch_trainer.reward.sandbox import Frames as Frames
+from punch_trainer.reward.sandbox import IsolatedFunction, result_terms
+from punch_trainer.reward.sandbox import RewardError as RewardError
+from punch_trainer.reward.sandbox import Terms as Terms
+from punch_trainer.reward.style import CONTACT_IMPULSE_NS, Style
 
 
 def first_right_contact(features: np.ndarray, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
@@ -76,7 +76,7 @@ class Reward:
     # 0.1 gave a best return of 338 against 251 for 0.2, while 0.2 was better for hook and straight100.
     search_clip_epsilon: float = 0.2
     style: Style | None = None
-    """the motion style the product adds to the reward (sim/style.py); None: the reward alone"""
+    """the motion style the product adds to the reward (reward/style.py); None: the reward alone"""
 
 
 PRESETS = {
@@ -89,7 +89,7 @@ PRESETS = {
 
 def load_reward(spec: str, frames: int | None = None, style: Style | None = None) -> Reward:
     """A preset name, `path/to/file.py:function` or `package.module:function`; `frames` overrides the
-    preset's episode length (default 50 for user rewards); `style`: the motion style added to it (sim/style.py)."""
+    preset's episode length (default 50 for user rewards); `style`: the motion style added to it (reward/style.py)."""
     if spec in PRESETS:
         preset = PRESETS[spec]
         return Reward(preset.name, preset.function, frames or preset.frames, preset.search_clip_epsilon, style)
@@ -101,7 +101,7 @@ def load_reward(spec: str, frames: int | None = None, style: Style | None = None
         if not path.is_file():
             raise RewardError(f"reward file not found: {path}")
         location = str(path.resolve())
-    # The user's code is imported and called in a worker process, never in the trainer (sim/reward_worker.py).
+    # The user's code is imported and called in a worker process, never in the trainer (reward/sandbox.py).
     function = IsolatedFunction(spec, location, function_name, reward_time_limit_s)
     function.load()
     return Reward(spec, function, frames or 50, style=style)
@@ -203,7 +203,7 @@ def score(reward: Reward, features: np.ndarray, feature_names: list[str]) -> np.
 class EpisodeScorer:
     """Scores episodes decision by decision, as they are played: each decision's reward (and terms) of its own
     frames [..., period, F]. A reward alone is per frame, so a decision's frames are scored on their own, as
-    always. A style (sim/style.py) discounts by the cost of the whole episode so far and measures the guard from
+    always. A style (reward/style.py) discounts by the cost of the whole episode so far and measures the guard from
     the episode's first frame, so then the episode so far is scored and the decision's frames taken from it: the
     decisions' rewards add up to exactly the episode's return, as the search scores it."""
 
