@@ -45,7 +45,7 @@ from punch_trainer.learn.checkpoint import CONFIG_FILE, stored_config
 from punch_trainer.learn.soup import soup
 from punch_trainer.pipelines.train import TrainArgs, run_train
 from punch_trainer.policy_file import read_policy_metadata
-from punch_trainer.reward.style import STYLES
+from punch_trainer.reward.style import STYLES, StyleError, style_named
 from punch_trainer.sim.backend import LOCAL, Backend
 
 STYLE_FILE = "styles.toml"
@@ -161,9 +161,11 @@ def _read_stage(path: Path, table: Any, common: Mapping[str, Any], earlier: list
         raise RecipeError(f"{where}: a2c_updates must be a whole number >= 1 (a recipe fixes its updates, so a stage "
                           "run again gives the same policy)")
     style = args.get("style", TrainArgs.style)
-    if not isinstance(style, str) or (style not in STYLES and ":" not in style and not _has_recipe_style(path, style)):
+    try:
+        style_named(recipe_style(path, style))
+    except (StyleError, TypeError):
         raise RecipeError(f"{where}: style {style!r} is neither a product style ({', '.join(STYLES)}) nor one of "
-                          f"{path.parent / STYLE_FILE}")
+                          f"{path.parent / STYLE_FILE}") from None
     if "init_from" in table and "init_from_policy" in table:
         raise RecipeError(f"{where}: start from init_from or init_from_policy, not both")
     start = table.get("init_from", table.get("init_from_policy"))
@@ -179,19 +181,15 @@ def _read_stage(path: Path, table: Any, common: Mapping[str, Any], earlier: list
     return TrainStage(name, args, start_source, "init_from_policy" in table, take)
 
 
-def _has_recipe_style(path: Path, name: str) -> bool:
-    from punch_trainer.reward.style import load_style_file
-
-    styles = path.parent / STYLE_FILE
-    return styles.is_file() and name in load_style_file(styles)
+def recipe_style(recipe_path: Path, style: str) -> str:
+    """The `--style` of a recipe's style: a product style or `FILE.toml:NAME` as it is, any other name a table of
+    the recipe's styles.toml."""
+    return style if style in STYLES or ":" in style else f"{recipe_path.parent / STYLE_FILE}:{style}"
 
 
 def stage_train_args(recipe: Recipe, stage: TrainStage, run_dir: Path, sources: Mapping[str, Path]) -> TrainArgs:
     """The `punch train` arguments of a training stage, given the folders or files its sources were made in."""
-    args = dict(stage.args)
-    style = args.get("style")
-    if isinstance(style, str) and style not in STYLES and ":" not in style:
-        args["style"] = f"{recipe.path.parent / STYLE_FILE}:{style}"
+    args = {**stage.args, "style": recipe_style(recipe.path, stage.args.get("style", TrainArgs.style))}
     init_from = None
     if stage.source is not None:
         made = sources.get(stage.source)
@@ -262,9 +260,11 @@ def run_recipe(recipe: Recipe, run_dir: Path, *, use: Mapping[str, Path] | None 
             out = run_dir / stage.name / "policy.onnx"
             command = f"punch soup {' '.join(map(str, files))} --out {out}"
             say(f"{heading}: {command}")
-            reused = out.is_file() and _soup_ingredients(out) == [_sha256(file) for file in files] if not dry_run else False
-            if not dry_run and not reused:
-                soup(files, out)
+            reused = False
+            if not dry_run:
+                reused = out.is_file() and _soup_ingredients(out) == [_sha256(file) for file in files]
+                if not reused:
+                    soup(files, out)
             made[stage.name] = out
             results.append(StageResult(stage.name, command, out, time.perf_counter() - started, reused))
         else:
@@ -274,12 +274,12 @@ def run_recipe(recipe: Recipe, run_dir: Path, *, use: Mapping[str, Path] | None 
             say(f"{heading}: {command}")
             reused = False
             if not dry_run:
-                reused = _already_made(args, output)
+                started_before = (run_dir / stage.name / CONFIG_FILE).is_file()
+                if started_before:
+                    _check_same_options(args)
+                reused = started_before and policy_file(output).is_file() and (run_dir / stage.name / "report.md").is_file()
                 if not reused:
-                    resume = (run_dir / stage.name / CONFIG_FILE).is_file()
-                    if resume:
-                        _check_same_options(args)
-                    run_train(args, progress=progress, resume=resume, backend=backend)
+                    run_train(args, progress=progress, resume=started_before, backend=backend)
                     if not policy_file(output).is_file():
                         raise RecipeError(f"stage '{stage.name}' ended without {policy_file(output)}")
             made[stage.name] = output
@@ -312,13 +312,6 @@ def needed_stages(recipe: Recipe, target: str, handed_in: set[str]) -> set[str]:
 def policy_file(output: Path) -> Path:
     """The policy file of a stage's result (a file handed in, a soup's, or a run's or snapshot's folder)."""
     return output if output.suffix == ".onnx" else output / "policy.onnx"
-
-
-def _already_made(args: TrainArgs, output: Path) -> bool:
-    if not (args.out is not None and (args.out / CONFIG_FILE).is_file()):
-        return False
-    _check_same_options(args)
-    return policy_file(output).is_file() and (args.out / "report.md").is_file()
 
 
 def _check_same_options(args: TrainArgs) -> None:

@@ -36,8 +36,8 @@ from punch_trainer.report.a2c_report import write_a2c_report
 from punch_trainer.report.motion import motion_report
 from punch_trainer.report.naturalness import capture_figures, naturalness_table, punch_naturalness, summarise
 from punch_trainer.reward.rewards import EpisodeScorer, Reward, load_reward
+from punch_trainer.reward.style import DEFAULT_STYLE, style_label, style_named
 from punch_trainer.reward.style import MAX_WEIGHT as MAX_STYLE_WEIGHT
-from punch_trainer.reward.style import style_label, style_named
 from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.conditions import ARM_SCALE_RANGE
 from punch_trainer.sim.env import PunchVectorEnv
@@ -76,7 +76,7 @@ def reach_default_notes() -> dict[str, str]:
 class TrainArgs:
     reward: str = SearchArgs.reward
     """a preset (straight, straight100, hook, swing) or FILE.py:FUNCTION"""
-    style: str = "boxing"
+    style: str = DEFAULT_STYLE
     """the motion style added to the reward in every stage (docs/style.md): boxing, a human's punch; none, the reward
     alone (the paper's); or FILE.toml:NAME, a style of a file (recipes/styles.toml: the shipped policies')"""
     style_weight: float = field(default=SearchArgs.style_weight, metadata=bounds(0.0, MAX_STYLE_WEIGHT))

@@ -288,6 +288,7 @@ alone. Every other style is data: a table of a style file (`load_style_file`), n
 the shipped policies' recipes use are in recipes/styles.toml; the ones experiments tried, in experiments/styles.toml."""
 STYLE_FILE_SUFFIX = ".toml"
 DEFAULT_STYLE = "boxing"
+"""`punch train`'s style"""
 MAX_WEIGHT = 100.0
 
 
@@ -346,9 +347,10 @@ def style_named(name: str, weight: float = 1.0) -> Style | None:
         raise StyleError(f"style weight {weight} must be a number from 0 to {MAX_WEIGHT:g}")
     file, separator, table = name.rpartition(":")
     if separator and file.endswith(STYLE_FILE_SUFFIX):
-        style: Style | None = load_style_file(Path(file)).get(table)
-        if style is None:
-            raise StyleError(f"{file} has no style '{table}' (it has {', '.join(load_style_file(Path(file))) or 'none'})")
+        in_file = load_style_file(Path(file))
+        if table not in in_file:
+            raise StyleError(f"{file} has no style '{table}' (it has {', '.join(in_file) or 'none'})")
+        style: Style | None = in_file[table]
     elif name in STYLES:
         style = STYLES[name]
     else:
