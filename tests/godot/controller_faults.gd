@@ -69,6 +69,14 @@ func _bad_files() -> void:
 	_character.scale = Vector3(-1, 1, 1)
 	refused["mirrored"] = not controller.call("punch")
 	_character.scale = Vector3.ONE
+	# ... and so is one mirrored by a parent, turned and moved as a game places it.
+	var pivot := Node3D.new()
+	root.add_child(pivot)
+	_character.reparent(pivot, false)
+	pivot.transform = Transform3D(Basis(Vector3.UP, 0.7).scaled(Vector3(1, 1, -1)), Vector3(2, 0, -1))
+	refused["mirrored_by_parent"] = not controller.call("punch")
+	_character.reparent(root, false)
+	pivot.free()
 	refused["good_policy_afterwards_punches"] = controller.call("punch")
 	_report["refused"] = refused
 	if _args.has("incomplete"):

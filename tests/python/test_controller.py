@@ -94,6 +94,7 @@ def test_controller_faults_give_clear_errors_and_the_game_goes_on(policy, tmp_pa
     report = json.loads(line[len("FAULTS "):])
     assert report["refused"] == {"missing": True, "corrupt": True, "incompatible": True, "empty": True,
                                  "other_spec": True, "decision_period_read_only": True, "mirrored": True,
+                                 "mirrored_by_parent": True,
                                  "good_policy_afterwards_punches": True}
     for message in ["model file not found: res://no/such/policy.onnx", "invalid ONNX model",
                     "its input is '", "no policy set",
