@@ -28,9 +28,6 @@ from punch_trainer.pipelines.evaluation import KINDS, EvalError, analyse_punches
 from punch_trainer.policy_file import PolicyMetadata, read_entries, read_policy_metadata
 from punch_trainer.reward.rewards import metadata_reward
 
-# Paths drawn per sigma in the Fig. 11 plot.
-PLOTTED_PATHS = 40
-
 
 class ReplayError(EvalError):
     """The replay could not run: a bad policy file, bad arguments, or Godot failed."""

@@ -87,9 +87,6 @@ class Scenario:
     def to_json(self) -> dict[str, Any]:
         return asdict(self)
 
-    def episodes_per_policy(self) -> int:
-        return sum(self.placements * (1 if sigma == 0 else self.noisy_punches) for c in self.conditions for sigma in c.sigmas)
-
 
 CONDITION_KEYS = ("name", "sigmas", "noise_decisions", "noise_seed", "start", "arms", "lead_s", "body", "target")
 SCENARIO_KEYS = ("name", "description", "success", "placements", "noisy_punches", "search_iterations", "naturalness",
