@@ -1,11 +1,14 @@
 """punch_trainer: trains physics-based punching policies in headless Godot/Jolt.
 
 Layers (each imports only those below it; ARCHITECTURE.md has the picture):
-- `sim`: the simulator: starting Godot, the wire protocol, training servers, rollout pools, rewards and
-  the Gymnasium envs.
+- `capture`: the motion capture (CMU 143/23, package data), its punches and the prior searches start from.
+- `reward`: what a punch earns: the reward presets and scoring, the sandbox a user's reward runs in, the style.
+- `sim`: the simulator: starting Godot, the wire protocol, training servers, rollout pools, episode conditions
+  and the Gymnasium envs.
 - `learn`: trajectory search, datasets, the actor-critic, pretraining, A2C, checkpoints and ONNX export.
 - `report`: what a run did, for people: motion analysis, plots, the motion-capture comparison, Markdown.
-- `pipelines`: the long-running work behind each command (search, train, evaluate, replay, render, bench, ...).
+- `pipelines`: the long-running work behind each command (search, train, recipe, evaluation, replay, render,
+  bench, ...).
 - `cli`: the `punch` command: options generated from the `*Args` dataclasses, the backend (`--ray`), output.
 """
 
