@@ -198,7 +198,7 @@ def _resume_hint(command: str, out: Path | None) -> Iterator[None]:
 
 def _eval(args: argparse.Namespace) -> int:
     """`punch eval` and its shortcuts `eval-moving` and `eval-sizes` (their scenario set by the parser)."""
-    from punch_trainer.pipelines.evaluation import run_eval, scenario_of
+    from punch_trainer.pipelines.evaluation import benchmarks_body, run_eval, scenario_of
 
     # Before the options' own bounds check: it names size_arms's range and why.
     scenario_of(EvalArgs(policy=args.policy, scenario=args.scenario, arms=getattr(args, "arms", None),
@@ -212,8 +212,7 @@ def _eval(args: argparse.Namespace) -> int:
     if eval_args.benchmarks:
         from punch_trainer.pipelines.bench import write_section
 
-        # The tables and their explanation, one heading level down; the plots stay with the run.
-        body = [("#" + line if line.startswith("## ") else line) for line in report.splitlines()[1:] if not line.startswith("![")]
+        body = benchmarks_body(report)
         command = shlex.join(["punch", *args.argv])
         print(f"written to {write_section(eval_args.benchmarks, command, chr(10).join(body).strip())}")
     return 0
@@ -315,6 +314,23 @@ def _recipe(args: argparse.Namespace) -> int:
     return 0
 
 
+def _results(args: argparse.Namespace) -> int:
+    import shlex
+
+    from punch_trainer.pipelines.recipe import load_recipe
+    from punch_trainer.pipelines.results import measure, shipped_recipes, write_results
+
+    recipes = [load_recipe(path) for path in args.recipes] if args.recipes else shipped_recipes()
+    with backend_for(args.ray) as backend:
+        reports = measure(recipes, args.out, backend=backend)
+    if args.no_write:
+        print(f"reports in {args.out}")
+        return 0
+    for path in write_results(recipes, reports, shlex.join(["punch", *args.argv])):
+        print(f"written: {path}")
+    return 0
+
+
 def _replay(args: argparse.Namespace) -> int:
     from punch_trainer.pipelines.replay import run_replay
 
@@ -386,6 +402,16 @@ def build_parser() -> argparse.ArgumentParser:
                                                                "(the addon's policies/)")
     add_ray_option(recipe)
     recipe.set_defaults(run=_recipe)
+
+    results = commands.add_parser("results", help="measure every shipped policy with the evaluator and write the figures the "
+                                  "docs show (BENCHMARKS.md, the policies' README)")
+    results.add_argument("recipes", type=Path, nargs="*", help="the recipes whose policies to measure (default: every "
+                                                               "recipe in recipes/)")
+    results.add_argument("--out", type=Path, default=Path("runs") / "results", help="where the reports and plots go "
+                                                                                    "(default runs/results)")
+    results.add_argument("--no-write", action="store_true", help="measure only; leave BENCHMARKS.md and the README alone")
+    add_ray_option(results)
+    results.set_defaults(run=_results)
 
     evaluation = commands.add_parser("eval", help="success of a policy in an evaluation scenario (held-out placements, noise, "
                                                   "moving bodies and targets, arm sizes; docs/evaluation.md), through "

@@ -10,7 +10,7 @@
    floor the learned sigma shrank to 0.03-0.44 and the policies corrected less (BENCHMARKS.md). Every
    episode starts from the guard: a punch asked for in another pose (after an earlier punch, mid-recovery)
    goes to guard first in the game (`PunchController.guard_first`), which measured better than teaching the
-   policy those starts (BENCHMARKS.md, "Target-aware policies").
+   policy those starts (experiments/measurements.md, "Target-aware policies").
    Episodes that start after a lead-in of real actions remain an option (`lead_in_every`).
 
 Success (`success`): a positive return and the right fist touched the bag, as `punch eval` counts it.

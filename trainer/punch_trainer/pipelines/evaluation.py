@@ -461,6 +461,12 @@ def markdown_rows(scenario: Scenario, rows: list[dict[str, Any]]) -> list[str]:
     return lines
 
 
+def benchmarks_body(report_md: str, depth: int = 1) -> list[str]:
+    """A report.md as a BENCHMARKS.md section holds it: the tables and their explanation, its headings `depth` levels
+    down, without its title and plots (they stay with the run)."""
+    return [("#" * depth + line if line.startswith("## ") else line) for line in report_md.splitlines()[1:] if not line.startswith("![")]
+
+
 def write_report(out: Path, args: EvalArgs, scenario: Scenario, report: dict[str, Any], runs: list[dict[str, Any]],
                  still: list[EpisodeConditions], capture: Any) -> None:
     from punch_trainer.report.naturalness import NaturalnessSummary, naturalness_table

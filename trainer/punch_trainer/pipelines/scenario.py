@@ -120,7 +120,9 @@ def read_scenario_data(name_or_file: str | Path) -> tuple[dict[str, Any], str]:
         data = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as error:
         raise ScenarioError(f"{path}: not TOML ({error})") from None
-    return data, str(path)
+    shipped = path.resolve().is_relative_to(SCENARIO_DIR.resolve())
+    # A shipped scenario is named by its place in the repository, the same on every machine.
+    return data, str(path.resolve().relative_to(SCENARIO_DIR.resolve().parents[2])) if shipped else str(path)
 
 
 def load_scenario(name_or_file: str | Path) -> Scenario:

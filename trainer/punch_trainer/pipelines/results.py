@@ -1,0 +1,151 @@
+"""`punch results`: every shipped policy measured by the one evaluator, written where the docs read it.
+
+The figures the docs give of the shipped policies are made here, never copied: each recipe's policy is played through
+the evaluator's scenarios below, the reports go into BENCHMARKS.md (one section per policy) and a summary table of
+them into BENCHMARKS.md's "The shipped policies" and into the policies' README (between its `punch results`
+markers). Run it again after a policy changes (`punch recipe ... --install`).
+"""
+
+from __future__ import annotations
+
+import re
+import shlex
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from punch_trainer.errors import PunchError
+from punch_trainer.pipelines.evaluation import EvalArgs, benchmarks_body, run_eval
+from punch_trainer.pipelines.recipe import Recipe, load_recipe
+from punch_trainer.sim.backend import LOCAL, Backend
+from punch_trainer.sim.godot import PROJECT_ROOT
+
+RECIPES_DIR = PROJECT_ROOT / "recipes"
+POLICIES_README = PROJECT_ROOT / "addons" / "punch_controller" / "policies" / "README.md"
+SUMMARY_SECTION = "The shipped policies"
+SUMMARY_MARKERS = ("<!-- punch results:start -->", "<!-- punch results:end -->")
+
+
+class ResultsError(PunchError):
+    """A shipped policy that cannot be measured: no recipe, or its policy file missing."""
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """One evaluator run of every shipped policy: a scenario and the options that size it."""
+
+    scenario: str
+    options: dict[str, Any] = field(default_factory=dict)
+    """EvalArgs fields beside the scenario's own"""
+
+    def args(self, policy: Path, out: Path) -> EvalArgs:
+        return EvalArgs(policy=policy, scenario=self.scenario, out=out, **self.options)
+
+    def command(self, policy: Path) -> str:
+        words = ["punch", "eval", "--policy", str(policy), "--scenario", self.scenario]
+        for key, value in self.options.items():
+            flag = "--" + key.replace("_", "-")
+            words += [flag, *value] if isinstance(value, list) and key == "conditions" else \
+                     [flag, ",".join(f"{v:g}" for v in value) if isinstance(value, list) else str(value)]
+        return shlex.join(words)
+
+
+MEASUREMENTS = (
+    # Success under noise and the naturalness figures, over 2,048 placements of the reach volume no stage trained on.
+    Measurement("held_out", {"placements": 2048, "seed": 2025, "sigmas": [0.0, 0.3], "search_iterations": 0,
+                             "conditions": ["every decision"]}),
+    Measurement("moving"),
+    Measurement("sizes", {"placements": 256}),
+)
+
+
+def shipped_recipes(recipes_dir: Path = RECIPES_DIR) -> list[Recipe]:
+    """The recipes of the shipped policies, by name."""
+    recipes = [load_recipe(path) for path in sorted(recipes_dir.glob("*.toml")) if path.name != "styles.toml"]
+    if not recipes:
+        raise ResultsError(f"no recipe in {recipes_dir}")
+    return recipes
+
+
+def measure(recipes: list[Recipe], out: Path, *, progress: bool = True, backend: Backend = LOCAL) -> dict[str, list[dict[str, Any]]]:
+    """Every measurement of every recipe's policy: {recipe name: [the evaluator's report, one per measurement]}.
+    Each run's report.md and plots stay in `out/<name>/<scenario>`."""
+    reports: dict[str, list[dict[str, Any]]] = {}
+    for recipe in recipes:
+        policy = PROJECT_ROOT / recipe.policy
+        if not policy.is_file():
+            raise ResultsError(f"{recipe.path}: its policy {recipe.policy} is missing (make it: punch recipe {recipe.path} --install)")
+        reports[recipe.name] = []
+        for measurement in MEASUREMENTS:
+            run_dir, report = run_eval(measurement.args(policy, out / recipe.name / measurement.scenario), progress, backend=backend)
+            reports[recipe.name].append({"measurement": measurement, "report": report, "markdown": (run_dir / "report.md").read_text()})
+    return reports
+
+
+def _rows(report: dict[str, Any]) -> list[dict[str, Any]]:
+    rows: list[dict[str, Any]] = report["evaluations"][0]["rows"]
+    return rows
+
+
+def summary_row(recipe: Recipe, runs: list[dict[str, Any]]) -> list[str]:
+    """The figures that matter of one policy, from its reports: held-out success at sigma 0 and 0.3, the share in
+    proximal-to-distal order and the fist's peak speed at sigma 0, the weakest arm size and the hits on the move."""
+    held_out, moving, sizes = (run["report"] for run in runs)
+
+    def success(rows: list[dict[str, Any]], sigma: float) -> tuple[int, int]:
+        chosen = [row for row in rows if abs(row["sigma"] - sigma) < 1e-9]
+        return sum(row["successes"] for row in chosen), sum(row["punches"] for row in chosen)
+
+    def percent(counts: tuple[int, int]) -> str:
+        return f"{100 * counts[0] / counts[1]:.1f}% of {counts[1]:,}"
+
+    natural = next(n for n in held_out["evaluations"][0]["naturalness"] if n["sigma"] == 0.0)
+    weakest = min((row for row in _rows(sizes) if row["sigma"] == 0.0), key=lambda row: row["success_rate"])
+    moved = success(_rows(moving), 0.0)
+    return [f"`{recipe.policy.name}`", f"[{recipe.path.relative_to(PROJECT_ROOT).as_posix()}]",
+            percent(success(_rows(held_out), 0.0)), percent(success(_rows(held_out), 0.3)),
+            f"{100 * natural['proximal_to_distal_share']:.0f}%", f"{natural['medians']['fist_peak_speed_mps']:.2f} m/s",
+            f"{100 * weakest['success_rate']:.1f}% (arms {weakest['condition']})", f"{moved[0]:,} of {moved[1]:,}"]
+
+
+SUMMARY_HEADER = ["file", "recipe", "lands at sigma 0 (held out)", "at sigma 0.3", "in proximal-to-distal order, sigma 0",
+                  "fist peak speed, sigma 0", "weakest arm size, sigma 0", "hits on the move, sigma 0"]
+
+
+def summary_table(rows: list[list[str]], link_prefix: str) -> str:
+    """The summary as Markdown; the recipe cells link through `link_prefix` (the path from the file that shows it
+    to the repository root)."""
+    lines = ["| " + " | ".join(SUMMARY_HEADER) + " |", "|" + "---|" * len(SUMMARY_HEADER)]
+    for row in rows:
+        recipe = row[1].strip("[]")
+        lines.append("| " + " | ".join([row[0], f"[{recipe}]({link_prefix}{recipe})", *row[2:]]) + " |")
+    return "\n".join(lines)
+
+
+def write_results(recipes: list[Recipe], reports: dict[str, list[dict[str, Any]]], command: str) -> list[Path]:
+    """BENCHMARKS.md's summary and per-policy sections, and the policies' README table."""
+    from punch_trainer.pipelines.bench import machine_description, write_section
+
+    rows = [summary_row(recipe, reports[recipe.name]) for recipe in recipes]
+    scenarios = ", ".join(f"`{m.command(Path('POLICY'))}`" for m in MEASUREMENTS)
+    explained = (f"Each shipped policy through the evaluator (docs/evaluation.md): {scenarios}. Held out: a hit and a "
+                 "positive return, one punch per placement at sigma 0 and two at 0.3; on the move: the controller's "
+                 "`hit` over every condition of the `moving` scenario; arm sizes: the fewest hits over the `sizes` "
+                 "scenario's arms. The reports of each policy follow, one section each.")
+    write_section(SUMMARY_SECTION, command, explained + "\n\n" + summary_table(rows, ""))
+    for recipe in recipes:
+        body = []
+        for run in reports[recipe.name]:
+            body += [f"### `{run['measurement'].command(recipe.policy)}`", "", *benchmarks_body(run["markdown"], depth=1), ""]
+        write_section(f"The shipped {recipe.name}", command, "\n".join(body).strip())
+    text = POLICIES_README.read_text()
+    start, end = SUMMARY_MARKERS
+    pattern = re.compile(rf"{re.escape(start)}.*?{re.escape(end)}", re.S)
+    if not pattern.search(text):
+        raise ResultsError(f"{POLICIES_README}: no {start} ... {end} markers for the table")
+    table = (f"{start}\n{summary_table(rows, '../../../')}\n\nMeasured by `{command}` on {machine_description()}; every "
+             f"report: [BENCHMARKS.md, \"{SUMMARY_SECTION}\"](../../../BENCHMARKS.md#the-shipped-policies).\n{end}")
+    POLICIES_README.write_text(pattern.sub(lambda _: table, text))
+    from punch_trainer.pipelines.bench import BENCHMARKS_FILE
+
+    return [BENCHMARKS_FILE, POLICIES_README]
