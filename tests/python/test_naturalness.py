@@ -22,7 +22,7 @@ from punch_trainer.report.naturalness import (
 )
 
 HZ = 120.0
-NAMES = [f"{stem}_{axis}" for stem in ("fist_r_pos", "fist_r_vel", "fist_l_pos", "fist_l_vel", "fist_r_impulse") for axis in "xyz"]
+NAMES = [f"{stem}_{axis}" for stem in ("fist_r_pos", "fist_r_vel", "fist_l_pos", "fist_l_vel", "fist_r_impulse", "bag_pos") for axis in "xyz"]
 NAMES += ["fist_r_bag_distance"]
 NAMES += [f"angle_{dof}" for dof in ("waist_flexion", "waist_rotation", "shoulder_r_flexion", "shoulder_r_rotation", "shoulder_r_abduction",
                                      "elbow_r_extension", "shoulder_l_flexion", "shoulder_l_rotation", "shoulder_l_abduction", "elbow_l_extension")]
@@ -41,6 +41,7 @@ def made_up_punch(frames=40, contact=20, fist_speed=5.0, peaks=(5, 8, 12)):
     f[:, col("fist_r_vel_z")] = fist_speed
     f[:, col("fist_r_bag_distance")] = np.abs(0.8 - f[:, col("fist_r_pos_z")])
     f[contact, col("fist_r_impulse_z")] = 1.0
+    f[:, col("bag_pos_y")], f[:, col("bag_pos_z")] = 1.5, 0.8
     drift = np.where(t <= contact, 0.1 * t / contact, 0.1 + 0.2 * (t - contact) / (frames - 1 - contact))
     f[:, col("fist_l_pos_x")] = 0.18 + drift
     f[:, col("fist_l_vel_x")] = np.where(t <= contact, 0.1 * HZ / contact, 0.2 * HZ / (frames - 1 - contact))
@@ -48,6 +49,12 @@ def made_up_punch(frames=40, contact=20, fist_speed=5.0, peaks=(5, 8, 12)):
     for name, peak in zip(("speed_waist_rotation", "speed_shoulder_r_flexion", "speed_elbow_r_extension"), peaks, strict=True):
         f[:, col(name)] = np.exp(-((t - peak) / 2.0) ** 2)
     return f
+
+
+def upright(features):
+    """The made-up punch with the trunk held upright (its shoulder where the scene has it)."""
+    features[:, NAMES.index("angle_waist_flexion")] = 0.0
+    return features
 
 
 def test_a_straight_path_has_ratio_one_and_no_distance_from_its_chord():
@@ -92,6 +99,55 @@ def test_the_figures_of_a_made_up_punch():
     assert punch.proximal_to_distal
     assert punch.time_to_contact_s == pytest.approx(21 / HZ)
     assert not punch_naturalness(made_up_punch(peaks=(12, 8, 5)), NAMES, HZ).proximal_to_distal
+    # Straight ahead from the middle, the trunk upright: the line from the right shoulder (18 cm to the right) to the
+    # bag is 12.7° off it.
+    punch = punch_naturalness(upright(made_up_punch()), NAMES, HZ)
+    assert punch.side_angle_at_contact_deg == pytest.approx(math.degrees(math.atan2(0.18, 0.8)))
+    assert punch.rise_share_at_contact == 0.0
+    assert punch.elbow_bend_at_contact_deg == pytest.approx(120.0), "the guard's bend: the elbow never straightened"
+
+
+def test_the_shape_figures_of_a_hook_and_an_uppercut():
+    """A fist arriving sideways (moving to the character's left, +X) comes in 90° - 12.7° off the shoulder's line; one
+    rising at 45° has 0.71 of its speed upward; an elbow straightened 30° from the guard is bent 90°."""
+    hook = upright(made_up_punch())
+    col = NAMES.index
+    hook[:, col("fist_r_vel_x")], hook[:, col("fist_r_vel_z")] = 5.0, 0.0
+    hook[:, col("angle_elbow_r_extension")] = math.radians(30.0)
+    punch = punch_naturalness(hook, NAMES, HZ)
+    assert punch.side_angle_at_contact_deg == pytest.approx(90.0 - math.degrees(math.atan2(0.18, 0.8)))
+    assert punch.elbow_bend_at_contact_deg == pytest.approx(90.0)
+    uppercut = made_up_punch()
+    uppercut[:, col("fist_r_vel_y")] = 5.0
+    assert punch_naturalness(uppercut, NAMES, HZ).rise_share_at_contact == pytest.approx(math.sqrt(0.5))
+
+
+def test_the_shoulder_turns_with_the_waist_as_the_scene_has_it():
+    """At the guard the shoulder is where the character scene's joint is; the trunk turned 90° left brings the right
+    shoulder forward, leaned 90° forward brings it down to the waist's height, in front."""
+    import re
+
+    from punch_trainer.report.naturalness import shoulder_positions
+    from punch_trainer.scene import SCENE_SHOULDER_HEIGHT_M, SCENE_WAIST_HEIGHT_M
+
+    scene = (PROJECT_ROOT / "addons" / "punch_controller" / "scenes" / "punch_character.tscn").read_text()
+
+    def joint_origin(name):
+        found = re.search(rf'\[node name="{name}" type="Generic6DOFJoint3D"[^\]]*\]\ntransform = Transform3D\(([^)]*)\)', scene)
+        assert found, name
+        return [float(v) for v in found.group(1).split(",")][9:]
+
+    assert joint_origin("ShoulderR") == pytest.approx([-0.18, SCENE_SHOULDER_HEIGHT_M, 0.0])
+    assert joint_origin("ShoulderL") == pytest.approx([0.18, SCENE_SHOULDER_HEIGHT_M, 0.0])
+    assert joint_origin("Waist") == pytest.approx([0.0, SCENE_WAIST_HEIGHT_M, 0.0])
+    col = NAMES.index
+    frames = np.zeros((3, len(NAMES)))
+    frames[1, col("angle_waist_rotation")] = math.pi / 2
+    frames[2, col("angle_waist_flexion")] = math.pi / 2
+    rise = SCENE_SHOULDER_HEIGHT_M - SCENE_WAIST_HEIGHT_M
+    np.testing.assert_allclose(shoulder_positions(frames, col), [[-0.18, SCENE_SHOULDER_HEIGHT_M, 0.0],
+                                                                [0.0, SCENE_SHOULDER_HEIGHT_M, 0.18],
+                                                                [-0.18, SCENE_WAIST_HEIGHT_M, rise]], atol=1e-9)
 
 
 def test_a_punch_that_misses_is_measured_to_its_closest_approach():
@@ -149,6 +205,8 @@ def test_the_captured_punches_give_the_figures_of_the_data_readme():
     assert [round(p.time_to_contact_s, 3) for p in punches] == [0.142, 0.167, 0.183, 0.175]
     assert all(1.2 <= round(p.off_fist_peak_speed_mps, 1) <= 1.8 for p in punches)
     assert all(12 <= p.trunk_flexion_deg <= p.trunk_flexion_whole_deg <= 17 for p in punches)
+    assert all(0 <= p.elbow_bend_at_contact_deg < 45 for p in punches), [p.elbow_bend_at_contact_deg for p in punches]
+    assert all(p.side_angle_at_contact_deg is None and p.rise_share_at_contact is None for p in punches)
 
 
 def test_the_capture_plots_are_written(tmp_path):
@@ -176,6 +234,9 @@ def test_punch_eval_reports_the_naturalness_of_a_shipped_policy(tmp_path):
         assert 0.0 <= row["proximal_to_distal_share"] <= 1.0
     assert all(math.isfinite(naturalness[0]["medians"][key]) for key in ("path_over_chord", "fist_peak_speed_mps", "trunk_flexion_deg"))
     assert len(written["evaluations"][0]["naturalness_at_sigma0"]) == 3
+    medians = naturalness[0]["medians"]
+    assert 0 <= medians["side_angle_at_contact_deg"] <= 180 and -1 <= medians["rise_share_at_contact"] <= 1
+    assert 0 <= medians["elbow_bend_at_contact_deg"] <= 145, "within the elbow's action range from the guard's 120°"
     text = (out / "report.md").read_text()
     assert "| punching fist path length / chord |" in text and "| figure (median) | sigma 0 | sigma 0.3 |" in text
     assert (out / "naturalness_fig4.png").is_file() and (out / "naturalness_strip.png").is_file()

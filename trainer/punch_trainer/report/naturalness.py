@@ -20,6 +20,7 @@ from punch_trainer.capture.bvh import DEFAULT_BVH
 from punch_trainer.capture.punches import CapturedPunch, angle_between, captured_punches, speeds_from_positions
 from punch_trainer.reward.rewards import first_right_contact
 from punch_trainer.reward.style import chain_speeds
+from punch_trainer.scene import GUARD_ELBOW_BEND_DEG, SCENE_ARM_LENGTHS_M, SCENE_SHOULDER_HEIGHT_M, SCENE_WAIST_HEIGHT_M
 
 
 @dataclass(frozen=True)
@@ -48,6 +49,13 @@ class PunchNaturalness:
     """waist rotation, then shoulder, then elbow reach their peak speed, in that order (ties count as in order)"""
     time_to_contact_s: float | None
     """from the first frame (captured: movement onset) to contact (captured: full reach); None without contact"""
+    side_angle_at_contact_deg: float | None = None
+    """the horizontal angle between the punching fist's velocity at contact and the line from its shoulder to the
+    target (0: straight down that line; a hook arrives from the side); None for a captured punch, still at full reach"""
+    rise_share_at_contact: float | None = None
+    """the upward part of the punching fist's velocity at contact over its speed (an uppercut rises into the target)"""
+    elbow_bend_at_contact_deg: float | None = None
+    """the punching elbow's bend at contact (captured: full reach), 0 straight, 90 a right angle"""
 
     def to_json(self) -> dict[str, float | bool | None]:
         return asdict(self)
@@ -75,6 +83,9 @@ FIGURES = (
     Figure("trunk_flexion_whole_deg", "largest waist flexion (captured: trunk lean), whole punch", 1.0, "°", 1),
     Figure("fist_peak_speed_mps", "punching fist peak speed", 1.0, " m/s", 2),
     Figure("time_to_contact_s", "time to contact (captured: onset to full reach)", 1.0, " s", 3),
+    Figure("side_angle_at_contact_deg", "fist's approach from the side at contact (velocity against shoulder-to-target line)", 1.0, "°", 0),
+    Figure("rise_share_at_contact", "rising share of the fist's velocity at contact", 1.0, "", 2),
+    Figure("elbow_bend_at_contact_deg", "elbow bend at contact (captured: full reach)", 1.0, "°", 0),
 )
 
 
@@ -110,6 +121,28 @@ def in_proximal_to_distal_order(waist: np.ndarray, shoulder: np.ndarray, elbow: 
 
 # --- a simulated punch ----------------------------------------------------------------------------------------
 
+def shoulder_positions(f: np.ndarray, col: Any, side: str = "r") -> np.ndarray:
+    """The shoulder's position per frame in the character's frame: the scene's shoulder (its joint's offset from the
+    waist joint, the arm's own shoulder width) carried by the waist's flexion and rotation (rotation vector
+    (flexion, rotation, 0): +X the character's left, +Y up, +Z toward the target)."""
+    half_width = 0.5 * SCENE_ARM_LENGTHS_M[2] * (1.0 if side == "l" else -1.0)
+    offset = np.array([half_width, SCENE_SHOULDER_HEIGHT_M - SCENE_WAIST_HEIGHT_M, 0.0])
+    vectors = np.stack([f[:, col("angle_waist_flexion")], f[:, col("angle_waist_rotation")], np.zeros(len(f))], axis=1)
+    angles = np.linalg.norm(vectors, axis=1, keepdims=True)
+    axes = np.divide(vectors, angles, out=np.zeros_like(vectors), where=angles > 0)
+    cos, sin = np.cos(angles), np.sin(angles)
+    # Rodrigues: v cos + (k x v) sin + k (k.v)(1 - cos)
+    turned = offset * cos + np.cross(axes, offset) * sin + axes * (axes @ offset)[:, None] * (1 - cos)
+    return turned + np.array([0.0, SCENE_WAIST_HEIGHT_M, 0.0])
+
+
+def horizontal_angle_deg(a: np.ndarray, b: np.ndarray) -> float:
+    """The angle between the horizontal (x, z) parts of two vectors, degrees (0 when either has none)."""
+    a, b = np.array([a[0], a[2]]), np.array([b[0], b[2]])
+    norms = float(np.linalg.norm(a) * np.linalg.norm(b))
+    return float(np.degrees(np.arccos(np.clip(a @ b / norms, -1.0, 1.0)))) if norms > 0 else 0.0
+
+
 def contact_frame(features: np.ndarray, names: list[str]) -> tuple[int, bool]:
     """The right fist's first contact frame of features [frames, F], or, when it never touches, the frame of its
     closest approach to the bag; and whether it touched."""
@@ -134,6 +167,10 @@ def punch_naturalness(features: np.ndarray, names: list[str], physics_hz: float)
     off_speed = np.linalg.norm(off_velocity, axis=1)
     # The chain's speeds as the order style reads them in training (reward/style.py), so the two cannot drift.
     waist, shoulder, elbow = chain_speeds(lambda name: f[:, col(name)])
+    # The approach: the frame before the contact, whose impulse has already turned the fist.
+    approach = max(end - 1, 0)
+    velocity_at_end, target_at_end = vector("fist_r_vel")[approach], vector("bag_pos")[approach]
+    speed_at_end = float(np.linalg.norm(velocity_at_end))
     return PunchNaturalness(
         path_over_chord=path_over_chord(fist[until]) if end > 0 else 1.0,
         chord_distance_m=largest_distance_from_chord(fist[until]),
@@ -146,6 +183,9 @@ def punch_naturalness(features: np.ndarray, names: list[str], physics_hz: float)
         fist_peak_speed_mps=float(fist_speed[until].max()),
         proximal_to_distal=in_proximal_to_distal_order(waist[until], shoulder[until], elbow[until]),
         time_to_contact_s=(end + 1) / physics_hz if touched else None,
+        side_angle_at_contact_deg=horizontal_angle_deg(velocity_at_end, target_at_end - shoulder_positions(f[approach:approach + 1], col)[0]),
+        rise_share_at_contact=float(velocity_at_end[1] / speed_at_end) if speed_at_end > 0 else 0.0,
+        elbow_bend_at_contact_deg=GUARD_ELBOW_BEND_DEG - float(np.degrees(f[end, col("angle_elbow_r_extension")])),
     )
 
 
@@ -233,6 +273,9 @@ def captured_naturalness(punch: CapturedPunch) -> PunchNaturalness:
         fist_peak_speed_mps=float(hand_speed[punch.onset:punch.reach].max()),
         proximal_to_distal=in_proximal_to_distal_order(waist[until], shoulder[until], elbow[until]),
         time_to_contact_s=(punch.reach - punch.onset) * dt,
+        elbow_bend_at_contact_deg=180.0 - float(np.degrees(angle_between(
+            punch.joint("RightArm")[punch.reach] - punch.joint("RightForeArm")[punch.reach],
+            punch.joint("RightHand")[punch.reach] - punch.joint("RightForeArm")[punch.reach]))),
     )
 
 
@@ -254,8 +297,8 @@ def naturalness_table(columns: list[tuple[str, NaturalnessSummary]], capture: li
     for figure in FIGURES:
         row = [figure.label, *[_value(summary.medians[figure.key], figure) for _, summary in columns]]
         if capture:
-            values = [getattr(p, figure.key) for p in capture]
-            row.append(f"{_value(min(values), figure)} to {_value(max(values), figure)}")
+            values = [getattr(p, figure.key) for p in capture if getattr(p, figure.key) is not None]
+            row.append(f"{_value(min(values), figure)} to {_value(max(values), figure)}" if values else "-")
         lines.append("| " + " | ".join(row) + " |")
     order = ["waist rotation, shoulder, elbow peak speeds in proximal-to-distal order",
              *[f"{100 * summary.proximal_to_distal_share:.0f}%" for _, summary in columns]]
