@@ -133,7 +133,7 @@ def shoulder_positions(f: np.ndarray, col: Any, side: str = "r") -> np.ndarray:
     cos, sin = np.cos(angles), np.sin(angles)
     # Rodrigues: v cos + (k x v) sin + k (k.v)(1 - cos)
     turned = offset * cos + np.cross(axes, offset) * sin + axes * (axes @ offset)[:, None] * (1 - cos)
-    return turned + np.array([0.0, SCENE_WAIST_HEIGHT_M, 0.0])
+    return np.asarray(turned + np.array([0.0, SCENE_WAIST_HEIGHT_M, 0.0]), dtype=np.float64)
 
 
 def horizontal_angle_deg(a: np.ndarray, b: np.ndarray) -> float:
