@@ -3,3 +3,4 @@
 pub mod bone_map;
 pub mod fist;
 pub mod skeleton_pose;
+pub mod transform;

@@ -37,6 +37,7 @@ use crate::contract::arm_size::ArmLengths;
 use crate::contract::character::{Body, JOINTS};
 use crate::contract::sensing::CharacterGeometry;
 use crate::rig::bone_map::{BoneMap, Side};
+use crate::rig::transform::TransformError;
 
 /// Why a skeleton's rest cannot be posed from the simulated body.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -47,6 +48,50 @@ pub enum PoseError {
     /// The bone lists do not agree with the map.
     #[error("the skeleton's bone list does not fit its map: {0}")]
     Malformed(String),
+    /// A bone the pose is made from has a rest that cannot be read (a NaN, no size: a broken import), by index.
+    #[error("bone {bone}'s rest {cause}")]
+    BrokenRest { bone: usize, cause: TransformError },
+}
+
+/// The first bone whose rest the poser or the fists read and cannot be used, with why: `broken[b]` says what is
+/// wrong with bone `b`'s global rest (None: nothing). The bones read are the mapped ones and every bone above them
+/// (their rests give the chain's directions and the bones between), and every bone below a hand (the fingers,
+/// which say where the fist is). A broken bone elsewhere (a leg, an accessory) does not matter.
+pub fn broken_rest(
+    map: &BoneMap,
+    parents: &[i32],
+    broken: &[Option<TransformError>],
+) -> Option<(usize, TransformError)> {
+    let parent = |b: usize| parents.get(b).and_then(|&p| usize::try_from(p).ok());
+    let mapped = [map.hips, map.head].into_iter().chain(map.spine.iter().copied()).chain(map.neck).chain(
+        SIDES.iter().flat_map(|&s| {
+            let arm = map.arm(s);
+            [Some(arm.upper_arm), Some(arm.forearm), Some(arm.hand), arm.shoulder].into_iter().flatten()
+        }),
+    );
+    let mut read = vec![false; broken.len()];
+    for bone in mapped {
+        // Up to the root (bounded: a cycle in a malformed parent list stops at the bone count).
+        let mut at = Some(bone);
+        for _ in 0..broken.len() {
+            let Some(b) = at.filter(|&b| b < read.len()) else { break };
+            read[b] = true;
+            at = parent(b);
+        }
+    }
+    let hands = [map.right.hand, map.left.hand];
+    for (b, read) in read.iter_mut().enumerate() {
+        let mut at = parent(b);
+        for _ in 0..broken.len() {
+            let Some(p) = at else { break };
+            if hands.contains(&p) {
+                *read = true;
+                break;
+            }
+            at = parent(p);
+        }
+    }
+    (0..broken.len()).find_map(|b| broken[b].filter(|_| read[b]).map(|cause| (b, cause)))
 }
 
 /// An anatomical frame from a direction (its Y) and a normal hint (its Z, made perpendicular). `None` when

@@ -2,6 +2,7 @@ use glam::{Quat, Vec3};
 
 use super::*;
 use crate::rig::bone_map::map_bones;
+use crate::rig::transform::TransformError;
 
 /// A humanoid in a T-pose (or an A-pose, arms `arm_drop_rad` below horizontal), facing +Z, +X its left, with
 /// its bones' rest rotations in one of several axis conventions: 0 identity, 1 each bone's +Y toward its child
@@ -332,4 +333,52 @@ fn the_skin_moves_the_fist_across_the_hand_but_not_along_it() {
     // Too few points (no skinned mesh): the bones' fist.
     assert_eq!(across_hand_skin(fist, wrist, &skin[..MIN_HAND_SKIN_POINTS - 1]), fist);
     assert_eq!(across_hand_skin(fist, wrist, &[]), fist);
+}
+
+#[test]
+fn a_broken_rest_is_found_on_the_bones_the_pose_reads_and_named_with_its_cause() {
+    let (names, parents, _) = humanoid(0.0, 1);
+    let map = map_bones(&names, &parents).expect("valid");
+    let bone = |name: &str| names.iter().position(|n| *n == name).expect("a bone");
+    let mut broken = vec![None; names.len()];
+    assert_eq!(broken_rest(&map, &parents, &broken), None);
+    // A leg does not matter; a finger below the hand, the hips above everything and an upper arm do.
+    broken[bone("LeftFoot")] = Some(TransformError::NoSize);
+    assert_eq!(broken_rest(&map, &parents, &broken), None);
+    broken[bone("RightHandMiddle1")] = Some(TransformError::NotFinite);
+    assert_eq!(broken_rest(&map, &parents, &broken), Some((bone("RightHandMiddle1"), TransformError::NotFinite)));
+    broken[bone("RightArm")] = Some(TransformError::NotFinite);
+    assert_eq!(broken_rest(&map, &parents, &broken), Some((bone("RightArm"), TransformError::NotFinite)));
+    broken[bone("Hips")] = Some(TransformError::NoSize);
+    let error = PoseError::BrokenRest { bone: 0, cause: TransformError::NoSize };
+    assert_eq!(broken_rest(&map, &parents, &broken), Some((0, TransformError::NoSize)));
+    assert_eq!(error.to_string(), "bone 0's rest has no size (a scale of 0)");
+    // A parent list with a cycle does not hang it.
+    let mut looped = parents.clone();
+    looped[0] = bone("Head") as i32;
+    let _ = broken_rest(&map, &looped, &broken);
+}
+
+proptest::proptest! {
+    /// Whatever the simulated bodies' rotations and the animation's pose (unit rotations: the modifier checks what
+    /// the engine gives before it asks), the pose is made without a panic (glam's asserts are on in tests) and is
+    /// made of unit rotations.
+    #[test]
+    fn any_unit_rotations_pose_the_skeleton_without_a_panic(
+        angles in proptest::collection::vec(-10.0f32..10.0, 24),
+        degenerate_spine in proptest::bool::ANY,
+    ) {
+        let (poser, parents, rest, map) = poser(0.3, 1);
+        let q = |i: usize| {
+            Quat::from_euler(glam::EulerRot::YXZ, angles[3 * i], angles[3 * i + 1], angles[3 * i + 2]).normalize()
+        };
+        let bodies = BodyRotations { torso: q(0), upper_arm: [q(1), q(2)], forearm: [q(3), q(4)] };
+        // The chest's animated turn exactly opposite the target's (a half turn to share) or any other.
+        let animated = |b: usize| if degenerate_spine { Quat::from_rotation_y(std::f32::consts::PI) } else { q(5 + b % 3) };
+        let locals = poser.pose(&bodies, q(7) * rest[map.hips].0, animated);
+        for local in locals {
+            proptest::prop_assert!(local.is_finite() && local.is_normalized());
+        }
+        let _ = parents;
+    }
 }
