@@ -1,8 +1,9 @@
 //! Conversions between Godot's math types and glam (the core's).
 
-use glam::{Mat3, Quat, Vec3};
-use godot::builtin::{Basis, Quaternion, Vector3, Vector3Axis};
+use glam::{Quat, Vec3};
+use godot::builtin::{Basis, Quaternion, Transform3D, Vector3, Vector3Axis};
 use punch_core::contract::character::Axis;
+use punch_core::rig::transform::{TransformError, placement_of, rotation_of, unit_quat};
 
 pub fn vec3(v: Vector3) -> Vec3 {
     Vec3::new(v.x, v.y, v.z)
@@ -12,19 +13,46 @@ pub fn vector3(v: Vec3) -> Vector3 {
     Vector3::new(v.x, v.y, v.z)
 }
 
+/// A quaternion from the engine, normalized. One with a NaN or of length 0 comes back as it is (no panic: glam's
+/// `normalize` asserts on it in debug builds); callers that must tell check it with `checked_quat`.
 pub fn quat(q: Quaternion) -> Quat {
-    Quat::from_xyzw(q.x, q.y, q.z, q.w).normalize()
+    checked_quat(q).unwrap_or(Quat::from_xyzw(q.x, q.y, q.z, q.w))
+}
+
+/// A quaternion from the engine (an animation's bone rotation), normalized, or why it is none.
+pub fn checked_quat(q: Quaternion) -> Result<Quat, TransformError> {
+    unit_quat(q.x, q.y, q.z, q.w)
 }
 
 pub fn quaternion(q: Quat) -> Quaternion {
     Quaternion::new(q.x, q.y, q.z, q.w)
 }
 
-/// The rotation of a basis that may be scaled, however little: a rig imported in centimetres sits under a node
-/// scaled by 0.01, whose basis Godot's own `get_quaternion` refuses (its determinant counts as zero).
-pub fn rotation(basis: Basis) -> Quat {
-    let [a, b, c] = [basis.col_a(), basis.col_b(), basis.col_c()].map(|v| vec3(v).normalize_or_zero());
-    Quat::from_mat3(&Mat3::from_cols(a, b, c)).normalize()
+/// The rotation of a basis that may be scaled, however little or unevenly: a rig imported in centimetres sits under
+/// a node scaled by 0.01, whose basis godot-rust's `get_quaternion` refuses with a panic (its determinant counts as
+/// zero). A basis with a NaN, no size (a scale of 0) or mirrored is refused, saying which
+/// (`punch_core::rig::transform::rotation_of`); one that passes has an inverse.
+pub fn rotation(basis: Basis) -> Result<Quat, TransformError> {
+    rotation_of([basis.col_a(), basis.col_b(), basis.col_c()].map(vec3))
+}
+
+/// A transform as a rotation (its scale taken out) and a position, or why it has none (`rotation`, and the origin
+/// finite).
+pub fn placement(transform: Transform3D) -> Result<(Quat, Vec3), TransformError> {
+    placement_of(
+        [transform.basis.col_a(), transform.basis.col_b(), transform.basis.col_c()].map(vec3),
+        vec3(transform.origin),
+    )
+}
+
+/// A transform without its scale (its rotation and origin), or why it has none: what a node's placement means to
+/// the simulated body, which keeps its own size.
+pub fn rigid(transform: Transform3D) -> Result<Transform3D, TransformError> {
+    let rotation = rotation(transform.basis)?;
+    if !vec3(transform.origin).is_finite() {
+        return Err(TransformError::NotFinite);
+    }
+    Ok(Transform3D::new(Basis::from_quaternion(quaternion(rotation)), transform.origin))
 }
 
 pub fn godot_axis(axis: Axis) -> Vector3Axis {
@@ -48,7 +76,17 @@ mod tests {
         // A rig imported in centimetres: its node's basis is its rotation scaled by 0.01 (by 0.02 along one axis).
         for scale in [Vector3::splat(0.01), Vector3::new(0.01, 0.02, 0.01)] {
             let basis = Basis::from_quaternion(quaternion(q)) * Basis::from_scale(scale);
-            assert!(rotation(basis).angle_between(q) < 1e-4, "{scale:?}");
+            assert!(rotation(basis).expect("a rotation").angle_between(q) < 1e-4, "{scale:?}");
         }
+        // Scale 0, mirrored, NaN: refused, with no panic.
+        let rotated = Basis::from_quaternion(quaternion(q));
+        assert_eq!(rotation(rotated * Basis::from_scale(Vector3::ZERO)), Err(TransformError::NoSize));
+        assert_eq!(rotation(rotated * Basis::from_scale(Vector3::new(-1.0, 1.0, 1.0))), Err(TransformError::Mirrored));
+        let nan = Transform3D::new(rotated, Vector3::new(f32::NAN, 0.0, 0.0));
+        assert_eq!(rigid(nan), Err(TransformError::NotFinite));
+        assert_eq!(checked_quat(Quaternion::new(0.0, 0.0, 0.0, 0.0)), Err(TransformError::ZeroRotation));
+        let scaled = Transform3D::new(rotated * Basis::from_scale(Vector3::splat(3.0)), Vector3::ONE);
+        let unscaled = rigid(scaled).expect("rigid");
+        assert!((unscaled.basis.determinant() - 1.0).abs() < 1e-5 && unscaled.origin == Vector3::ONE);
     }
 }

@@ -2,7 +2,7 @@
 //! motors from its commands. Shared by the training world (physics-server bodies) and by
 //! `PunchCharacter`/`PunchController` in a game (scene nodes).
 
-use glam::Vec3;
+use glam::{Quat, Vec3};
 use godot::builtin::{Basis, Rid, Transform3D, Vector3};
 use godot::classes::physics_server_3d::{G6dofJointAxisFlag, G6dofJointAxisParam};
 use godot::classes::{
@@ -14,7 +14,7 @@ use punch_core::contract::character::{Axis, Body, JOINTS, engine_axis, joint_dof
 use punch_core::contract::sensing::{BagContact, CharacterGeometry, FrameReading, MAX_BAG_CONTACTS};
 use punch_core::game::punch::Touch;
 
-use crate::convert::{godot_axis, quat, vec3};
+use crate::convert::{godot_axis, rotation, vec3};
 
 /// One joint axis's engine settings, for scene-node joints (`PunchCharacter`) and physics-server joints (the
 /// training world) alike, so that both build the same constraint: linear axes locked, the DOF table's angular
@@ -104,15 +104,21 @@ pub fn character_geometry(
         let local = |body: usize| vec3(bodies[body].affine_inverse() * at);
         (local(JOINTS[j].parent.index()), local(JOINTS[j].child.index()))
     });
+    // Read with the scale taken out: a character under a scaled parent (a rig in centimetres) has scaled bodies here.
+    let turn = |basis: Basis, what: &str| rotation(basis).map_err(|cause| format!("{what} {cause}"));
+    let rest_rotations: [Quat; 6] = {
+        let [a, b, c, d, e, f] = std::array::from_fn(|i| turn(bodies[i].basis, Body::ALL[i].node_name()));
+        [a?, b?, c?, d?, e?, f?]
+    };
     Ok(CharacterGeometry {
-        rest_rotations: std::array::from_fn(|i| quat(bodies[i].basis.get_quaternion())),
+        rest_rotations,
         fist_offsets,
         fist_radius_m,
         joint_anchors,
         bag_radius_m: 0.0,
         bag_height_m: 0.0,
         bag_mass_kg: 0.0,
-        root_rotation: quat(root_transform.basis.get_quaternion()),
+        root_rotation: turn(root_transform.basis, "the character")?,
         root_position: vec3(root_transform.origin),
         pelvis_rest_position: vec3(bodies[Body::Pelvis.index()].origin),
     })

@@ -26,16 +26,17 @@ use godot::classes::{
     AnimatableBody3D, Generic6DofJoint3D, INode3D, Node3D, PhysicsBody3D, PhysicsDirectBodyState3D, PhysicsServer3D,
     RigidBody3D,
 };
-use godot::global::godot_error;
+use godot::global::{godot_error, godot_warn};
 use godot::meta::ToGodot;
 use godot::obj::{Base, EngineEnum, Gd, Singleton, WithBaseField};
 use godot::prelude::{GodotClass, godot_api};
 use punch_core::contract::arm_size::{ARM_SCALE_RANGE, ArmLengths, ArmScale};
 use punch_core::contract::character::{Axis, Body, JOINTS};
 use punch_core::contract::sensing::{BodyState, CharacterGeometry, MAX_BAG_CONTACTS};
+use punch_core::rig::transform::{SaidOnce, TransformError};
 
 use crate::arm_sizing::{SceneArms, rebuild_joints};
-use crate::convert::{quat, rotation, vec3, vector3};
+use crate::convert::{rigid, rotation, vec3, vector3};
 use crate::engine_io::{character_geometry, drive_joints, joint_axis_settings};
 
 /// A move of the character's root larger than this in one physics frame (m) is a teleport (see `PunchCharacter`):
@@ -62,8 +63,12 @@ pub struct PunchCharacter {
     rig: Option<Rig>,
     /// The arms as the scene had them, captured at the first `size_arms`.
     scene_arms: Option<SceneArms>,
-    /// The root transform the pelvis was last carried to (none before `ready`).
+    /// The root transform (without its scale) the pelvis was last carried to (none before `ready`).
     carried_root: Option<Transform3D>,
+    /// The node had no usable transform (scale 0, NaN) at `ready`: it is set up at the first physics frame it has one.
+    set_up_later: bool,
+    /// What was said about the node's transform (each cause once).
+    said: SaidOnce,
     base: Base<Node3D>,
 }
 
@@ -90,12 +95,15 @@ pub struct Rig {
 }
 
 impl Rig {
-    /// The rest-pose geometry of the character standing at `root` (its global transform now): where it was
-    /// built does not matter, so a character moved or turned since `ready` senses in its own frame.
+    /// The rest-pose geometry of the character standing at `root` (its global transform now, without its scale:
+    /// `convert::rigid`): where it was built does not matter, so a character moved or turned since `ready` senses in
+    /// its own frame.
     pub fn geometry_at(&self, root: Transform3D) -> CharacterGeometry {
         let mut geometry = self.geometry;
-        geometry.rest_rotations = std::array::from_fn(|i| quat((root * self.rest_from_root[i]).basis.get_quaternion()));
-        geometry.root_rotation = quat(root.basis.get_quaternion());
+        // `root` and the rests are rotations (checked by the caller): the fallback is never taken.
+        let turn = |basis| rotation(basis).unwrap_or_default();
+        geometry.rest_rotations = std::array::from_fn(|i| turn((root * self.rest_from_root[i]).basis));
+        geometry.root_rotation = turn(root.basis);
         geometry.root_position = vec3(root.origin);
         geometry.pelvis_rest_position = vec3((root * self.rest_from_root[Body::Pelvis.index()]).origin);
         geometry
@@ -105,9 +113,10 @@ impl Rig {
     /// physics-server states: a node moved by the game (`reset_pose`) reads its new place at once. The
     /// kinematic pelvis is read from the physics server: its node holds the target of the coming step, its
     /// physics state where the last step put it and the velocity of that move (the root's motion, which the
-    /// core's sensing turns into the root's frame and its `root_vel`/`root_spin` features).
-    pub fn read_bodies(&self) -> [BodyState; 6] {
-        std::array::from_fn(|i| {
+    /// core's sensing turns into the root's frame and its `root_vel`/`root_spin` features). A body whose transform
+    /// or velocity is not a number (physics blew up) is an error naming it.
+    pub fn read_bodies(&self) -> Result<[BodyState; 6], String> {
+        let states: [Result<BodyState, String>; 6] = std::array::from_fn(|i| {
             let (transform, linear, angular) = match &self.rigid[i] {
                 Some(rigid) => (
                     self.bodies[i].get_global_transform(),
@@ -120,13 +129,16 @@ impl Rig {
                     vec3(self.pelvis_state.get_angular_velocity()),
                 ),
             };
-            BodyState {
-                position: vec3(transform.origin),
-                rotation: quat(transform.basis.get_quaternion()),
-                linear_velocity: linear,
-                angular_velocity: angular,
+            let bad = |cause: TransformError| format!("the character's body '{}' {cause}", Body::ALL[i].node_name());
+            let rotation = rotation(transform.basis).map_err(bad)?;
+            let position = vec3(transform.origin);
+            if !(position.is_finite() && linear.is_finite() && angular.is_finite()) {
+                return Err(bad(TransformError::NotFinite));
             }
-        })
+            Ok(BodyState { position, rotation, linear_velocity: linear, angular_velocity: angular })
+        });
+        let [a, b, c, d, e, f] = states;
+        Ok([a?, b?, c?, d?, e?, f?])
     }
 
     /// Puts body `index` (`Body::ALL` order) at `transform` at once, with no velocity. The kinematic pelvis is
@@ -161,17 +173,26 @@ impl Rig {
 #[godot_api]
 impl INode3D for PunchCharacter {
     fn ready(&mut self) {
-        match self.set_up() {
-            Ok(rig) => {
-                self.rig = Some(rig);
-                self.carried_root = Some(self.base().get_global_transform());
-                self.base_mut().set_physics_process_priority(FOLLOW_PRIORITY);
-            }
-            Err(error) => godot_error!("PunchCharacter '{}': {error}", self.base().get_name()),
+        self.base_mut().set_physics_process_priority(FOLLOW_PRIORITY);
+        // A character that pops in from scale 0 (or whose parent does) has no rest to read yet: its bodies are
+        // read at the first physics frame it has a size.
+        if let Err(cause) = rigid(self.base().get_global_transform()) {
+            godot_warn!(
+                "PunchCharacter '{}': its transform (or a parent's) {cause} as it enters the scene: it is set up at \
+                 the first physics frame it has a usable one",
+                self.base().get_name()
+            );
+            self.set_up_later = true;
+            return;
         }
+        self.set_up_now();
     }
 
     fn physics_process(&mut self, _delta: f64) {
+        if self.set_up_later && rigid(self.base().get_global_transform()).is_ok() {
+            self.set_up_later = false;
+            self.set_up_now();
+        }
         self.carry_pelvis();
     }
 }
@@ -192,7 +213,16 @@ impl PunchCharacter {
             godot_error!("PunchCharacter '{}': reset_pose() before the character is ready", self.base().get_name());
             return;
         };
-        let root = self.base().get_global_transform();
+        let root = match rigid(self.base().get_global_transform()) {
+            Ok(root) => root,
+            Err(cause) => {
+                godot_error!(
+                    "PunchCharacter '{}': reset_pose(): its transform (or a parent's) {cause}; its pose stays",
+                    self.base().get_name()
+                );
+                return;
+            }
+        };
         for (i, rest) in rig.rest_from_root.iter().enumerate() {
             rig.place(i, root * *rest);
         }
@@ -263,7 +293,7 @@ impl PunchCharacter {
         }
         let scene = self.scene_arms.as_ref().ok_or("no scene arms")?;
         let scale = ArmScale::between(scene.lengths, wanted).map_err(|e| e.to_string())?;
-        let root = self.base().get_global_transform();
+        let root = rigid(self.base().get_global_transform()).map_err(|cause| format!("the character {cause}"))?;
         // The torso and pelvis back at rest too: the joints are rebuilt from the bodies' places.
         for i in [Body::Pelvis.index(), Body::Torso.index()] {
             rig.place(i, root * rig.rest_from_root[i]);
@@ -282,11 +312,46 @@ impl PunchCharacter {
         self.rig.as_ref()
     }
 
+    /// Where the character last stood with a usable transform (its root without the scale; none before it was set
+    /// up): while a game holds it at scale 0 or NaN, the body stays and senses there.
+    pub fn standing(&self) -> Option<Transform3D> {
+        self.carried_root
+    }
+
+    fn set_up_now(&mut self) {
+        match self.set_up() {
+            Ok(rig) => {
+                self.rig = Some(rig);
+                self.carried_root = rigid(self.base().get_global_transform()).ok();
+            }
+            Err(error) => godot_error!("PunchCharacter '{}': {error}", self.base().get_name()),
+        }
+    }
+
     /// Carries the kinematic pelvis to where the root now is (it moves there in the coming physics step, and the
-    /// joints pull the other bodies along), or teleports the whole body when the root jumped.
+    /// joints pull the other bodies along), or teleports the whole body when the root jumped. A root with no size,
+    /// a NaN or a mirror is not followed (said once per cause): the body waits where it was until it has one.
     fn carry_pelvis(&mut self) {
         let (Some(rig), Some(carried)) = (self.rig.as_ref(), self.carried_root) else { return };
-        let root = self.base().get_global_transform();
+        let root = match rigid(self.base().get_global_transform()) {
+            Ok(root) => root,
+            Err(cause) => {
+                if self.said.first("root", cause) {
+                    let what = if cause == TransformError::Mirrored {
+                        "; a mirrored body cannot punch: use the other stance (the other hand) instead of a mirrored \
+                         model"
+                    } else {
+                        ""
+                    };
+                    godot_warn!(
+                        "PunchCharacter '{}': its transform (or a parent's) {cause}: its simulated body stays where \
+                         it was until the node has a usable transform{what} (said once)",
+                        self.base().get_name()
+                    );
+                }
+                return;
+            }
+        };
         if root == carried {
             return;
         }
@@ -383,10 +448,12 @@ impl PunchCharacter {
 }
 
 /// True when the root moved from `from` to `to` by more than a frame's walk or turn can (`TELEPORT_DISTANCE_M`,
-/// `TELEPORT_TURN_RAD`).
+/// `TELEPORT_TURN_RAD`). A transform with no rotation (scale 0, NaN, a mirror) counts as a jump.
 pub fn is_teleport(from: Transform3D, to: Transform3D) -> bool {
-    let turn = rotation(from.basis).angle_between(rotation(to.basis));
-    (to.origin - from.origin).length() > TELEPORT_DISTANCE_M || turn > TELEPORT_TURN_RAD
+    let (Ok(a), Ok(b)) = (rotation(from.basis), rotation(to.basis)) else { return true };
+    // A NaN origin (not below the limit) is a jump too.
+    let moved = (to.origin - from.origin).length();
+    moved.is_nan() || moved > TELEPORT_DISTANCE_M || a.angle_between(b) > TELEPORT_TURN_RAD
 }
 
 /// Limits and motors of one joint node (`joint_axis_settings`, the same as the training world's joints). Only

@@ -21,8 +21,9 @@ use punch_core::contract::sensing::{CharacterGeometry, FrameReading};
 use punch_core::game::lifecycle::{Drive, Ending, Event, FrameNeeds, Lifecycle, NoiseSettings, PunchStart};
 use punch_core::game::policy_gate::{DecisionRequest, PunchingPolicy, decide_batched};
 use punch_core::game::punch::{Punch, PunchSummary};
+use punch_core::rig::transform::TransformError;
 
-use crate::convert::vector3;
+use crate::convert::{rigid, vector3};
 use crate::engine_io::{add_area_touches, add_bag_contacts, read_forearm_contacts};
 use crate::punch_character::PunchCharacter;
 use crate::punch_controller_registry::PunchControllerRegistry;
@@ -369,7 +370,7 @@ impl PunchController {
         let character = live(&self.character).ok_or("no character set (or it was freed)")?;
         let mut target = Target::resolve(live(&self.target).ok_or("no target set (or it was freed)")?);
         let mut geometry = geometry_of(&character)?;
-        let offset = geometry.root_rotation.inverse() * (target.state().position - geometry.root_position);
+        let offset = geometry.root_rotation.inverse() * (target.state()?.position - geometry.root_position);
         let out_of_reach = (!policy.reach.contains(offset)).then(|| {
             let world = |local: Vec3| geometry.root_position + geometry.root_rotation * local;
             // A little out, the policy sees the target itself; far out, the point of its margin nearest to it.
@@ -529,14 +530,19 @@ impl PunchController {
 
     fn try_sense(&mut self) -> Result<Option<DecisionRequest>, String> {
         let character = live(&self.driven).ok_or("the character was freed")?;
+        // Mirrored mid-punch (a game flipping its model): its left and right are no longer the policy's. Scale 0
+        // or NaN only hold the body where it stood (`PunchCharacter` says so once), so the punch plays on.
+        if let Err(cause @ TransformError::Mirrored) = rigid(character.get_global_transform()) {
+            return Err(transform_problem(&character, cause));
+        }
         let character = character.bind();
         let rig = character.rig().ok_or("the character is not ready")?;
-        let mut reading = FrameReading { bodies: rig.read_bodies(), ..FrameReading::default() };
+        let mut reading = FrameReading { bodies: rig.read_bodies()?, ..FrameReading::default() };
         if self.lifecycle.begin_frame(&reading) == FrameNeeds::Nothing {
             return Ok(None);
         }
         let aim = self.aim.as_ref().filter(|aim| aim.is_valid()).ok_or("the target was freed")?;
-        reading.bag = aim.state();
+        reading.bag = aim.state()?;
         let mut touches = Vec::new();
         if let Some(state) = aim.reported_contacts() {
             add_bag_contacts(state, &rig.body_rids, &mut reading);
@@ -553,7 +559,7 @@ impl PunchController {
                 add_area_touches(&mut space, query, fists, mask, &mut touches);
             }
         }
-        let recover_at = self.auto_recover.then(|| rig.geometry_at(character.base().get_global_transform()));
+        let recover_at = self.auto_recover.then(|| character.standing().map(|root| rig.geometry_at(root))).flatten();
         Ok(self.lifecycle.sense(reading, &touches, || recover_at).map(|(policy, observation)| (policy, *observation)))
     }
 
@@ -643,26 +649,31 @@ fn live<T: GodotClass>(node: &Option<Gd<T>>) -> Option<Gd<T>> {
 
 /// The character's rest geometry where it stands now.
 fn geometry_of(character: &Gd<PunchCharacter>) -> Result<CharacterGeometry, String> {
-    let root = character.get_global_transform();
-    // A mirrored body's left and right are not the policy's, and a body without size has no frame: neither can
-    // land, so say why instead of punching into nothing.
-    let determinant = root.basis.determinant();
-    if !determinant.is_finite() || determinant.abs() < 1e-6 {
-        return Err(format!(
-            "character '{}' has no size or no valid transform (the determinant of its global basis is \
-             {determinant}): give it (and its parents) a scale that is not 0 before it punches",
-            character.get_name()
-        ));
-    }
-    if determinant < 0.0 {
-        return Err(format!(
-            "character '{}' is mirrored (a negative scale on it or a parent): its left and right are no longer the \
-             policy's, so it cannot land; face it the other way with a rotation instead of a negative scale",
-            character.get_name()
-        ));
-    }
+    // A mirrored body's left and right are not the policy's, and a body without size or with a NaN has no frame:
+    // none can land, so say why instead of punching into nothing.
+    let root = rigid(character.get_global_transform()).map_err(|cause| transform_problem(character, cause))?;
     let geometry = character.bind().rig().map(|rig| rig.geometry_at(root));
     geometry.ok_or_else(|| "the character is not ready (is it in the scene tree?)".into())
+}
+
+/// What is wrong with the character's transform, and what to do.
+fn transform_problem(character: &Gd<PunchCharacter>, cause: TransformError) -> String {
+    let name = character.get_name();
+    match cause {
+        TransformError::Mirrored => format!(
+            "character '{name}' is mirrored (a negative scale on it or a parent): its left and right are no longer \
+             the policy's, so it cannot land; use the other stance (the other hand) instead of a mirrored model, and \
+             face it the other way with a rotation instead of a negative scale"
+        ),
+        TransformError::NotFinite => format!(
+            "character '{name}''s transform (or a parent's) is not a number (NaN or infinite): give it a valid \
+             transform before it punches"
+        ),
+        TransformError::NoSize | TransformError::ZeroRotation => format!(
+            "character '{name}' has no size (a scale of 0 on it or a parent): give it (and its parents) a scale \
+             that is not 0 before it punches"
+        ),
+    }
 }
 
 /// A sphere query of the fist's size for overlapping areas.

@@ -39,16 +39,19 @@ use glam::{Quat, Vec3};
 use godot::builtin::{Basis, GString, PackedStringArray, PackedVector3Array, StringName, Transform3D, VarDictionary};
 use godot::classes::skeleton_3d::ModifierCallbackModeProcess;
 use godot::classes::{Engine, ISkeletonModifier3D, Node3D, Skeleton3D, SkeletonModifier3D};
-use godot::global::godot_error;
+use godot::global::{godot_error, godot_warn};
 use godot::meta::ToGodot;
 use godot::obj::{Base, Gd, InstanceId, Singleton, WithBaseField};
 use godot::prelude::{GodotClass, godot_api};
 use punch_core::contract::character::Body;
 use punch_core::rig::bone_map::{BoneMap, Role, map_bones_with};
 use punch_core::rig::fist::FistPose;
-use punch_core::rig::skeleton_pose::{Blend, BodyFrames, BodyRotations, SkeletonPoser, rig_arm_lengths, rig_fists};
+use punch_core::rig::skeleton_pose::{
+    Blend, BodyFrames, BodyRotations, SkeletonPoser, broken_rest, rig_arm_lengths, rig_fists,
+};
+use punch_core::rig::transform::{SaidOnce, TransformError};
 
-use crate::convert::{quat, quaternion, rotation, vec3, vector3};
+use crate::convert::{checked_quat, placement, quaternion, rigid, rotation, vec3, vector3};
 use crate::hand_skin::hand_skin_points;
 use crate::punch_character::{PunchCharacter, is_teleport};
 use crate::punch_controller::PunchController;
@@ -139,6 +142,9 @@ pub struct PunchSkeletonModifier {
     blend: Blend,
     /// Names the pass calls every frame, made once (making one takes a lock).
     names: Names,
+    /// The degenerate transforms (the skeleton's, a bone's) already reported: each cause is said once, not every
+    /// frame it is skipped.
+    said: SaidOnce,
     /// The character this modifier placed on the rig (and reset to its guard there) first.
     placed: Option<InstanceId>,
     /// The character read from the controller when its punch (or recovery) began: a punch keeps its character,
@@ -161,6 +167,17 @@ impl Default for Names {
             is_recovering: StringName::from("is_recovering"),
         }
     }
+}
+
+/// What one pass poses from, read from the engine and checked: the simulated bodies' rotations in the skeleton's
+/// space, the animation's local rotation of every written bone (`written_bones` order) and finger, the hips' global
+/// rotation, and the global rotation of the spine's first bone's parent.
+struct PoseInputs {
+    rotations: BodyRotations,
+    animated: Vec<Quat>,
+    hips: Quat,
+    fingers: Vec<Quat>,
+    spine_parent: Basis,
 }
 
 struct Mapped {
@@ -206,6 +223,7 @@ impl ISkeletonModifier3D for PunchSkeletonModifier {
         self.poser = None;
         self.sized_for = None;
         self.problem = None;
+        self.said.clear();
         self.ensure_mapped();
     }
 
@@ -224,6 +242,7 @@ impl PunchSkeletonModifier {
         self.poser = None;
         self.sized_for = None;
         self.problem = None;
+        self.said.clear();
         if self.base().is_inside_tree() {
             self.ensure_mapped();
         }
@@ -244,6 +263,7 @@ impl PunchSkeletonModifier {
         self.poser = None;
         self.sized_for = None;
         self.problem = None;
+        self.said.clear();
         self.ensure_mapped()
     }
 
@@ -367,11 +387,7 @@ impl PunchSkeletonModifier {
                 self.mapped = Some(mapped);
             }
             Err(problem) => {
-                godot_error!(
-                    "PunchSkeletonModifier '{}': {problem}. The skeleton keeps its animation; set the missing roles in \
-                     `bone_map`.",
-                    self.name()
-                );
+                godot_error!("PunchSkeletonModifier '{}': {problem}. The skeleton keeps its animation.", self.name());
                 self.problem = Some(problem);
                 self.mapped = None;
             }
@@ -392,13 +408,26 @@ impl PunchSkeletonModifier {
             })
             .collect();
         let chosen: Vec<(Role, &str)> = chosen_names.iter().map(|(r, n)| (*r, n.as_str())).collect();
-        let map = map_bones_with(&names, &parents, &chosen).map_err(|e| e.to_string())?;
+        let map = map_bones_with(&names, &parents, &chosen)
+            .map_err(|e| format!("{e}; set the missing roles in `bone_map`"))?;
+        // A broken import (a NaN, a bone scaled to 0 in its rest) is named with its bone when the pose reads that
+        // bone; elsewhere (a leg, an accessory) it does not matter and reads as no rotation.
+        let mut broken = vec![None; count.max(0) as usize];
         let rest: Vec<(Quat, Vec3)> = (0..count)
-            .map(|b| {
-                let t = skeleton.get_bone_global_rest(b);
-                (rotation(t.basis), vec3(t.origin))
+            .map(|b| match placement(skeleton.get_bone_global_rest(b)) {
+                Ok(rest) => rest,
+                Err(cause) => {
+                    broken[b as usize] = Some(cause);
+                    (Quat::IDENTITY, Vec3::ZERO)
+                }
             })
             .collect();
+        if let Some((bone, cause)) = broken_rest(&map, &parents, &broken) {
+            return Err(format!(
+                "bone '{}''s rest {cause}: the skeleton's import is broken (import it again, or fix that bone's rest)",
+                names[bone]
+            ));
+        }
         let fist = FistPose::new(&map, &names, &parents, &rest);
         let skins = hand_skin_points(skeleton, [map.right.hand, map.left.hand], &parents);
         let fists = rig_fists(&map, &parents, &rest, [&skins[0], &skins[1]]);
@@ -452,10 +481,10 @@ impl PunchSkeletonModifier {
                 ],
             );
         }
-        let root = character.get_global_transform();
         let (geometry, bodies) = {
             let bound = character.bind();
             let rig = bound.rig().ok_or("the PunchCharacter is not ready")?;
+            let root = bound.standing().ok_or("the PunchCharacter is not ready")?;
             let bodies: [Gd<Node3D>; 5] =
                 [Body::Torso, Body::UpperArmR, Body::ForearmR, Body::UpperArmL, Body::ForearmL]
                     .map(|b| rig.bodies[b.index()].clone().upcast::<Node3D>());
@@ -484,6 +513,17 @@ impl PunchSkeletonModifier {
             return false;
         }
         let Some(skeleton) = self.base().get_skeleton() else { return false };
+        // A skeleton (or a model above it) scaled to 0, mirrored or NaN has no frame to pose in: the frame is skipped
+        // and the skeleton keeps its animation until it has one (said once per cause). Checked before the arms are
+        // sized to the rig, so a model that pops in from scale 0 is sized once it has its size.
+        let skeleton_global = skeleton.get_global_transform();
+        let skeleton_rotation = match rigid(skeleton_global).and_then(|_| rotation(skeleton_global.basis)) {
+            Ok(rotation) => rotation,
+            Err(cause) => {
+                self.skip(&format!("the skeleton '{}'", skeleton.get_name()), cause);
+                return false;
+            }
+        };
         let Some(controller) = self.controller.clone().filter(|c| c.is_instance_valid()) else {
             self.blend.set(false);
             return false;
@@ -510,36 +550,26 @@ impl PunchSkeletonModifier {
             return false;
         }
         let active = busy || self.guard_source == GUARD_FROM_CONTROLLER;
-        let weight = self.blend.advance(active, delta_s, self.blend_in_s, self.blend_out_s);
-        let skeleton_global = skeleton.get_global_transform();
         if self.follow_rig {
-            self.place_character(character, skeleton_global, busy);
+            self.place_character(character, skeleton_global, skeleton_rotation, busy);
         }
+        // Everything the pose is made from, read and checked before a bone is written: a bone that an animation
+        // scaled to 0 or gave a NaN skips the frame (said once), and the skeleton keeps its animation.
+        let inputs = match self.read_pose_inputs(&skeleton, skeleton_rotation) {
+            Ok(inputs) => inputs,
+            Err((subject, cause)) => {
+                self.skip(&subject, cause);
+                return false;
+            }
+        };
+        let weight = self.blend.advance(active, delta_s, self.blend_in_s, self.blend_out_s);
         if weight <= 0.0 {
             return false;
         }
         let Some((_, poser, bodies)) = &self.poser else { return false };
-        let to_skeleton = rotation(skeleton_global.basis).inverse();
-        let rotation = |i: usize| to_skeleton * quat(bodies[i].get_global_transform().basis.get_quaternion());
-        let rotations = BodyRotations {
-            torso: rotation(0),
-            upper_arm: [rotation(1), rotation(3)],
-            forearm: [rotation(2), rotation(4)],
-        };
+        let PoseInputs { rotations, animated, hips, fingers, spine_parent } = inputs;
         let written: Vec<usize> = poser.written_bones().collect();
-        // The animation's pose: read for the blend, and for the spine (whose turn is shared from it) always.
         let blending = weight < 1.0;
-        let animated: Vec<Quat> = written
-            .iter()
-            .map(|&b| {
-                if blending || poser.spine().contains(&b) {
-                    quat(skeleton.get_bone_pose_rotation(b as i32))
-                } else {
-                    Quat::IDENTITY
-                }
-            })
-            .collect();
-        let hips = quat(skeleton.get_bone_global_pose(poser.hips() as i32).basis.get_quaternion());
         let lookup = |bone: usize| written.iter().position(|&b| b == bone).map_or(Quat::IDENTITY, |i| animated[i]);
         let targets = poser.pose(&rotations, hips, lookup);
         let mut skeleton = skeleton;
@@ -547,12 +577,8 @@ impl PunchSkeletonModifier {
             let q = if blending { anim.slerp(*target, weight).normalize() } else { *target };
             skeleton.set_bone_pose_rotation(bone as i32, quaternion(q));
         }
-        for (bone, fist) in self.fist_bones() {
-            let q = if blending {
-                quat(skeleton.get_bone_pose_rotation(bone as i32)).slerp(fist, weight).normalize()
-            } else {
-                fist
-            };
+        for ((bone, fist), anim) in self.fist_bones().zip(&fingers) {
+            let q = if blending { anim.slerp(fist, weight).normalize() } else { fist };
             skeleton.set_bone_pose_rotation(bone as i32, quaternion(q));
         }
         // The spine bends about other points than the simulated waist: the spine's first bone is shifted so that
@@ -567,22 +593,83 @@ impl PunchSkeletonModifier {
             * (vec3(skeleton.get_bone_global_pose(right as i32).origin)
                 + vec3(skeleton.get_bone_global_pose(left as i32).origin));
         let first = poser.spine_root() as i32;
-        let parent = skeleton.get_bone_global_pose(skeleton.get_bone_parent(first));
-        let shift = parent.basis.inverse() * vector3(weight * (simulated_mid - rig_mid));
+        let shift = spine_parent.inverse() * vector3(weight * (simulated_mid - rig_mid));
         let position = skeleton.get_bone_pose_position(first) + shift;
-        skeleton.set_bone_pose_position(first, position);
+        // A bone's position that is not a number (an animation's) is left as the animation has it.
+        if vec3(position).is_finite() {
+            skeleton.set_bone_pose_position(first, position);
+        }
         true
+    }
+
+    /// Reads what a pass poses from, checked (see `PoseInputs`); an error names what is degenerate and why.
+    fn read_pose_inputs(
+        &self,
+        skeleton: &Gd<Skeleton3D>,
+        skeleton_rotation: Quat,
+    ) -> Result<PoseInputs, (String, TransformError)> {
+        let Some((_, poser, bodies)) = &self.poser else {
+            return Err(("the poser".into(), TransformError::NotFinite));
+        };
+        let bone = |b: usize| format!("bone '{}'", skeleton.get_bone_name(b as i32));
+        let local = |b: usize| checked_quat(skeleton.get_bone_pose_rotation(b as i32)).map_err(|c| (bone(b), c));
+        let global = |b: usize| rotation(skeleton.get_bone_global_pose(b as i32).basis).map_err(|c| (bone(b), c));
+        let to_skeleton = skeleton_rotation.inverse();
+        let body = |i: usize| {
+            rotation(bodies[i].get_global_transform().basis)
+                .map(|q| to_skeleton * q)
+                .map_err(|c| (format!("the simulated body '{}'", bodies[i].get_name()), c))
+        };
+        let rotations =
+            BodyRotations { torso: body(0)?, upper_arm: [body(1)?, body(3)?], forearm: [body(2)?, body(4)?] };
+        // The animation's pose: every written bone's (read for the blend, and for the spine always).
+        let animated = poser.written_bones().map(local).collect::<Result<Vec<_>, _>>()?;
+        let fingers = self.fist_bones().map(|(b, _)| local(b)).collect::<Result<Vec<_>, _>>()?;
+        let hips = global(poser.hips())?;
+        let parent = usize::try_from(skeleton.get_bone_parent(poser.spine_root() as i32)).unwrap_or(poser.hips());
+        global(parent)?; // checked: its basis has an inverse
+        let spine_parent = skeleton.get_bone_global_pose(parent as i32).basis;
+        Ok(PoseInputs { rotations, animated, hips, fingers, spine_parent })
+    }
+
+    /// Skips this frame: says why, once per cause and subject. A mirrored skeleton is an error (the model must
+    /// change); scale 0 or a NaN a warning (a game may do it for a while: a model popping in, hidden, animated).
+    fn skip(&mut self, subject: &str, cause: TransformError) {
+        if !self.said.first(subject, cause) {
+            return;
+        }
+        let name = self.name();
+        if cause == TransformError::Mirrored {
+            godot_error!(
+                "PunchSkeletonModifier '{name}': {subject} is mirrored (a negative scale on it or a parent): the \
+                 simulated body cannot be shown on a mirrored model, so the skeleton keeps its animation; use the \
+                 other stance (the other hand) instead of a mirrored model, and turn the model with a rotation"
+            );
+        } else {
+            godot_warn!(
+                "PunchSkeletonModifier '{name}': {subject} {cause}: the skeleton keeps its animation until it has a \
+                 usable transform again (said once)"
+            );
+        }
     }
 
     /// Keeps the simulated character's root on the rig (see `follow_rig`); a teleport-sized jump while it is
     /// neither punching nor recovering (`busy`) also resets it to its guard there.
-    fn place_character(&mut self, mut character: Gd<PunchCharacter>, skeleton: Transform3D, busy: bool) {
+    fn place_character(
+        &mut self,
+        mut character: Gd<PunchCharacter>,
+        skeleton: Transform3D,
+        skeleton_rotation: Quat,
+        busy: bool,
+    ) {
         let Some((_, poser, _)) = &self.poser else { return };
-        let scale = skeleton.basis.get_scale();
-        let (rotation, origin) = poser.character_placement(rotation(skeleton.basis), vec3(skeleton.origin), scale.y);
         let now = character.get_global_transform();
-        let moved = (vec3(now.origin) - origin).length() > 1e-4
-            || quat(now.basis.get_quaternion()).angle_between(rotation) > 1e-3;
+        // A character (or its parent) at scale 0 or NaN cannot be placed: setting its global transform would invert
+        // its parent's. It says so itself (`PunchCharacter`), once.
+        let Ok(now_rotation) = rotation(now.basis).and_then(|q| rigid(now).map(|_| q)) else { return };
+        let scale = skeleton.basis.get_scale();
+        let (rotation, origin) = poser.character_placement(skeleton_rotation, vec3(skeleton.origin), scale.y);
+        let moved = (vec3(now.origin) - origin).length() > 1e-4 || now_rotation.angle_between(rotation) > 1e-3;
         let basis = Basis::from_quaternion(quaternion(rotation));
         let placement = Transform3D::new(basis, vector3(origin));
         if moved {

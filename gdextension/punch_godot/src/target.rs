@@ -8,8 +8,9 @@ use godot::classes::{
 };
 use godot::obj::{Gd, Singleton};
 use punch_core::contract::sensing::{BodyState, CharacterGeometry};
+use punch_core::rig::transform::TransformError;
 
-use crate::convert::{quat, vec3};
+use crate::convert::{rotation, vec3};
 
 /// What kind of physics object stands for the target, found once when a punch starts (the per-frame reads
 /// then need no engine casts).
@@ -93,20 +94,29 @@ impl Target {
     }
 
     /// The target's state as the policy sees it: the node's pose (shifted by `aim_at`) and its physics
-    /// object's velocity (zero for static ones).
-    pub fn state(&self) -> BodyState {
+    /// object's velocity (zero for static ones). A position or velocity that is not a number is an error naming the
+    /// node; a rotation that cannot be read (the node scaled to 0 or mirrored: only its place matters) is none.
+    pub fn state(&self) -> Result<BodyState, String> {
         let transform = self.node.get_global_transform();
         let (linear_velocity, angular_velocity) = match &self.kind {
             Kind::Rigid(rigid, _) => (vec3(rigid.get_linear_velocity()), vec3(rigid.get_angular_velocity())),
             Kind::Character(character) => (vec3(character.get_velocity()), Vec3::ZERO),
             Kind::None | Kind::Area(_) | Kind::Fixed => (Vec3::ZERO, Vec3::ZERO),
         };
-        BodyState {
+        let state = BodyState {
             position: vec3(transform.origin) + self.aim_shift,
-            rotation: quat(transform.basis.get_quaternion()),
+            rotation: rotation(transform.basis).unwrap_or_default(),
             linear_velocity,
             angular_velocity,
+        };
+        if !(state.position.is_finite() && linear_velocity.is_finite() && angular_velocity.is_finite()) {
+            return Err(format!(
+                "the target '{}' {} (its position or its velocity, or a parent's)",
+                self.node.get_name(),
+                TransformError::NotFinite
+            ));
         }
+        Ok(state)
     }
 
     /// Puts what the observation knows of the target into the character's geometry: a RigidBody3D's mass
