@@ -3,7 +3,9 @@
 pub mod arm_size;
 pub mod character;
 pub mod controller;
+pub mod mirror;
 pub mod motion;
+pub mod names;
 pub mod observation;
 pub mod sensing;
 pub mod smoothing;

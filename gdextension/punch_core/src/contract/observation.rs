@@ -2,6 +2,7 @@
 //! server's handshake, the exported ONNX metadata, and `PunchController` when it loads a model.
 
 use crate::contract::character::{DOF_COUNT, DOFS, MAX_JOINT_SPEED_RAD_S, PHYSICS_HZ, POSITION_GAIN_PER_S};
+use crate::contract::names::{ends_with, same, starts_with};
 use crate::contract::sensing::{FEATURE_COUNT, FEATURE_NAMES};
 
 /// Bumped whenever the observation, action or feature layout or meaning changes. 2: the root's own velocity
@@ -13,13 +14,24 @@ pub const OBS_SPEC_VERSION: u32 = 3;
 /// Whether the policy sees a feature: all of them except the diagnostics and the reward-only quantities
 /// (the whole character's contact impulse, the bag's momentum change, fist-bag distances, the joint gap and
 /// the guard flags).
-fn observed(name: &str) -> bool {
-    !(name.starts_with("character_impulse")
-        || name.starts_with("bag_momentum_change")
-        || name.ends_with("_bag_distance")
-        || name == "joint_gap_max_m"
-        || name == "exploit_flags")
+const fn observed(name: &str) -> bool {
+    !(starts_with(name, "character_impulse")
+        || starts_with(name, "bag_momentum_change")
+        || ends_with(name, "_bag_distance")
+        || same(name, "joint_gap_max_m")
+        || same(name, "exploit_flags"))
 }
+
+/// Per feature (`FEATURE_NAMES` order), whether the policy sees it.
+pub const OBSERVED: [bool; FEATURE_COUNT] = {
+    let mut observed_features = [false; FEATURE_COUNT];
+    let mut i = 0;
+    while i < FEATURE_COUNT {
+        observed_features[i] = observed(FEATURE_NAMES[i]);
+        i += 1;
+    }
+    observed_features
+};
 
 /// Size of the observation: the observed features (in feature order, all in the character's frame) plus
 /// the episode phase. A test checks it against `observed`.

@@ -15,6 +15,7 @@ use glam::Vec3;
 use serde_json::{Map, Value, json};
 
 use crate::contract::arm_size::ArmScale;
+use crate::contract::mirror;
 use crate::contract::motion::BodyMotion;
 
 pub use crate::contract::character::{DEFAULT_DECISION_PERIOD, DOF_COUNT, DOFS, PHYSICS_HZ};
@@ -88,6 +89,13 @@ impl EpisodeConditions {
     /// Velocity of the bag at the start, in the character's frame.
     pub fn velocity(&self) -> Vec3 {
         Vec3::new(self.velocity_side_mps, 0.0, self.velocity_forward_mps)
+    }
+
+    /// These conditions mirrored across the character's sagittal plane (`mirror::CONDITION_RULES`): the bag's
+    /// lateral place and velocity, the body's sideways walk and its turning change sign.
+    pub fn mirrored(&self) -> Self {
+        let body = BodyMotion { side_mps: -self.body.side_mps, turn_rad_s: -self.body.turn_rad_s, ..self.body };
+        Self { side_m: -self.side_m, velocity_side_mps: -self.velocity_side_mps, body, ..*self }
     }
 
     /// As the protocol writes it (docs/protocol.md, `reset`).
@@ -174,6 +182,12 @@ impl ReachVolume {
         let [x, y, z] = self.ranges();
         let clamp = |v: f32, [low, high]: [f32; 2]| v.clamp(low - margin_m, high + margin_m);
         Vec3::new(clamp(position.x, x), clamp(position.y, y), clamp(position.z, z))
+    }
+
+    /// The volume mirrored across the character's sagittal plane: the side range negated (the reach of a policy
+    /// played mirrored, by the other hand).
+    pub fn mirrored(&self) -> Self {
+        Self { side_m: [-self.side_m[1], -self.side_m[0]], ..*self }
     }
 
     /// Whether a target centre lies in the box, give or take `REACH_TOLERANCE_M`.
@@ -496,7 +510,8 @@ impl PolicySpec {
 }
 
 /// The spec part of the training server's handshake for `decision_period`: versions, hash, rates, sizes,
-/// every name, the action bounds, the default bag placement and the reach volume training covers.
+/// every name, the action bounds, the default bag placement, the reach volume training covers and the mirror's
+/// rules (`mirror::rules_json`).
 pub fn handshake_fields(decision_period: u32) -> Map<String, Value> {
     let mut fields = Map::new();
     fields.insert("spec_version".into(), json!(OBS_SPEC_VERSION));
@@ -510,6 +525,7 @@ pub fn handshake_fields(decision_period: u32) -> Map<String, Value> {
     fields.insert("feature_names".into(), json!(FEATURE_NAMES.to_vec()));
     fields.insert("default_bag".into(), EpisodeConditions::DEFAULT.to_json());
     fields.insert("reach_volume".into(), REACH_VOLUME.to_json());
+    fields.insert("mirror".into(), mirror::rules_json());
     fields
 }
 
@@ -616,6 +632,34 @@ mod tests {
         assert_eq!(fields["action_names"].as_array().map(Vec::len), Some(DOF_COUNT));
         assert_eq!(fields["default_bag"]["distance_m"], json!(0.72f32));
         assert_eq!(ReachVolume::from_json(&fields["reach_volume"]), Ok(REACH_VOLUME));
+        assert_eq!(fields["mirror"], mirror::rules_json());
+    }
+
+    #[test]
+    fn mirrored_conditions_follow_the_mirror_rules_field_by_field() {
+        let conditions = EpisodeConditions {
+            distance_m: 0.7,
+            height_m: 1.3,
+            side_m: 0.2,
+            velocity_side_mps: -0.4,
+            velocity_forward_mps: 0.3,
+            glides: true,
+            rides: false,
+            body: BodyMotion { side_mps: 0.5, forward_mps: 1.1, turn_rad_s: -1.2, lunge_m: 0.2, bob_m: 0.03 },
+            arms: ArmScale { upper_arm: 1.1, forearm: 0.9, shoulder_shift_m: 0.02 },
+        };
+        let (plain, mirrored) = (conditions.to_json(), conditions.mirrored().to_json());
+        let (plain, mirrored) = (plain.as_object().expect("object"), mirrored.as_object().expect("object"));
+        assert_eq!(plain.len(), mirror::CONDITION_RULES.len(), "every field has a mirror rule");
+        for (name, value) in plain {
+            let expected = mirror::mirror_condition(name, value).unwrap_or_else(|| panic!("{name} has no mirror rule"));
+            assert_eq!(mirrored[name], expected, "{name}");
+        }
+        assert_eq!(conditions.mirrored().mirrored(), conditions);
+        assert_eq!(conditions.mirrored().position(), mirror::mirror_point(conditions.position()));
+        assert_eq!(REACH_VOLUME.mirrored(), REACH_VOLUME, "the default reach is symmetric");
+        let right = ReachVolume { side_m: [-0.3, 0.1], ..REACH_VOLUME };
+        assert_eq!(right.mirrored().side_m, [-0.1, 0.3]);
     }
 
     #[test]
