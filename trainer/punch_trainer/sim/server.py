@@ -19,6 +19,7 @@ from punch_trainer.framing import write_frame
 from punch_trainer.sim.conditions import EpisodeConditions
 from punch_trainer.sim.godot import GODOT_PROJECT, start_godot, stop_godot
 from punch_trainer.sim.godot_output import GodotOutput
+from punch_trainer.sim.mirror import MirrorRules
 from punch_trainer.sim.protocol import (
     PROTOCOL_VERSION,
     Bags,
@@ -72,6 +73,8 @@ class ServerInfo:
     """where the bag hangs unless a reset says otherwise"""
     reach_volume: dict[str, object]
     """the target placements training covers by default (punch_core::spec::REACH_VOLUME)"""
+    mirror: MirrorRules
+    """how features, observations, actions and episode conditions mirror, left for right (punch_core::contract::mirror)"""
 
     @property
     def observation_size(self) -> int:
@@ -214,7 +217,8 @@ class TrainingServer(ServerConnection):
         f = reply.fields
         return ServerInfo(f["slot_count"], f["decision_period"], f["physics_hz"], f["spec_hash"], f["spec_version"],
                           f["extension_version"], f["action_names"], f["action_lower_rad"], f["action_upper_rad"],
-                          f["observation_names"], f["feature_names"], EpisodeConditions.from_wire(f["default_bag"]), f["reach_volume"])
+                          f["observation_names"], f["feature_names"], EpisodeConditions.from_wire(f["default_bag"]), f["reach_volume"],
+                          MirrorRules.from_wire(f["mirror"]))
 
     @property
     def pid(self) -> int | None:
