@@ -1,6 +1,6 @@
 //! A fake physics world for unit tests: each slot's character slides its whole body toward the bag at a
-//! speed set by how hard its right elbow motor is driven, and stops against the bag with a contact. Crude,
-//! but it moves a fist, touches a bag and answers every `World` call, without Godot.
+//! speed set by how hard its harder-driven elbow motor is driven, and stops against the bag with that fist's
+//! contact. Crude, but it moves a fist, touches a bag and answers every `World` call, without Godot.
 
 use glam::{Quat, Vec3};
 
@@ -110,20 +110,26 @@ impl FakeWorld {
     pub fn step(&mut self) {
         let geometry = rest_geometry();
         for (reading, commands) in self.readings.iter_mut().zip(&self.commands) {
-            let forearm = reading.bodies[Body::ForearmR.index()];
+            // The elbow driven harder punches (the right on a tie), so a mirrored punch lands with the left fist.
+            let (elbow, punching) = if commands[4].length() > commands[2].length() {
+                (commands[4], Body::ForearmL)
+            } else {
+                (commands[2], Body::ForearmR)
+            };
+            let forearm = reading.bodies[punching.index()];
             let reach_z = reading.bag.position.z - geometry.bag_radius_m - geometry.fist_radius_m;
-            let speed = (0.3 * commands[2].length()).min(6.0);
+            let speed = (0.3 * elbow.length()).min(6.0);
             let z = (forearm.position.z + speed * DT).min(reach_z);
             let velocity = Vec3::new(0.0, 0.0, (z - forearm.position.z) / DT);
             for body in &mut reading.bodies {
                 body.position.z = z;
                 body.linear_velocity = velocity;
             }
-            let fist = reading.bodies[Body::ForearmR.index()].position + FIST_OFFSET;
+            let fist = reading.bodies[punching.index()].position + FIST_OFFSET;
             reading.contact_count = 0;
             if z >= reach_z {
                 reading.contacts[0] =
-                    BagContact { body: Body::ForearmR.index(), point: fist + Vec3::Z * 0.045, impulse: Vec3::Z };
+                    BagContact { body: punching.index(), point: fist + Vec3::Z * 0.045, impulse: Vec3::Z };
                 reading.contact_count = 1;
             }
         }

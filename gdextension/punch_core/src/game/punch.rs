@@ -10,12 +10,14 @@ use glam::Vec3;
 
 use crate::contract::character::{Body, DOF_COUNT};
 use crate::contract::controller::CharacterController;
+use crate::contract::mirror::{mirror_action, mirror_features};
 use crate::contract::observation::{OBS_DIM, observation};
 use crate::contract::sensing::{
     CharacterGeometry, FEATURE_COUNT, FIST_CONTACT_MARGIN_M, FrameReading, columns, feature_vector,
 };
 use crate::contract::spec::{NoiseScale, PolicySpec, UNIFORM_NOISE};
 use crate::error::{CoreError, CoreResult};
+use crate::game::moves::Hand;
 use crate::game::noise::GaussianNoise;
 
 /// Impulse (N s) on the target above which a fist counts as hitting it.
@@ -80,6 +82,8 @@ pub struct Hit {
     pub speed_mps: f32,
     /// Where the fist was (world coordinates).
     pub position: Vec3,
+    /// The striking hand (the punching one, or the guard hand).
+    pub hand: Hand,
 }
 
 impl Hit {
@@ -94,9 +98,9 @@ impl Hit {
 pub struct PunchSummary {
     /// Physics frames played.
     pub frames: usize,
-    /// The punching (right) fist's peak speed, m/s.
+    /// The punching fist's peak speed, m/s.
     pub peak_fist_speed_mps: f32,
-    /// The off (left, guard) fist's peak speed, m/s: a guard hand that flails shows here, not above.
+    /// The off (guard) fist's peak speed, m/s: a guard hand that flails shows here, not above.
     pub peak_off_fist_speed_mps: f32,
     /// Things a fist struck (each counted once per punch).
     pub hits: i64,
@@ -144,6 +148,10 @@ pub struct Punch {
     struck: Vec<u64>,
     summary: PunchSummary,
     record: Option<PunchRecord>,
+    /// The punching hand. Policies punch with the right; the left plays the policy in the mirrored world: it
+    /// senses the mirrored features and its actions are mirrored before they drive the joints, so everything
+    /// the punch measures and records (the "right" fist, its speed) is the punching fist's.
+    hand: Hand,
 }
 
 impl Punch {
@@ -167,7 +175,19 @@ impl Punch {
             struck: Vec::new(),
             summary: PunchSummary::default(),
             record: record.then(PunchRecord::default),
+            hand: Hand::Right,
         }
+    }
+
+    /// Punches with `hand` (the right by default; the left plays the policy mirrored).
+    pub fn with_hand(mut self, hand: Hand) -> Self {
+        self.hand = hand;
+        self
+    }
+
+    /// The punching hand.
+    pub fn hand(&self) -> Hand {
+        self.hand
     }
 
     /// The rest geometry of the character it drives.
@@ -201,6 +221,7 @@ impl Punch {
     /// touch. Returns the hits it shows (a fist started touching something) and what the caller does next.
     pub fn sense(&mut self, reading: FrameReading, touches: &[Touch]) -> (Vec<Hit>, Sensed) {
         let features = self.controller.features(&reading);
+        let features = if self.hand.is_mirrored() { mirror_features(&features) } else { features };
         let hit = self.track_hits(&features, &reading, touches);
         if let Some(record) = self.record.as_mut().filter(|_| self.frame > 0) {
             record.features.extend_from_slice(&features);
@@ -229,7 +250,14 @@ impl Punch {
                 return Err(CoreError::Inference("the policy returned NaN or infinite actions".into()));
             }
             let action = noise.apply(self.decision(), mean, &self.noise_scale);
-            self.controller.set_action(&action)?;
+            if self.hand.is_mirrored() {
+                let action: [f32; DOF_COUNT] = action.as_slice().try_into().map_err(|_| {
+                    CoreError::Inference(format!("the policy returned {} actions, not {DOF_COUNT}", action.len()))
+                })?;
+                self.controller.set_action(&mirror_action(&action))?;
+            } else {
+                self.controller.set_action(&action)?;
+            }
             if let Some(record) = self.record.as_mut() {
                 record.mean_actions.extend_from_slice(mean);
                 record.actions.extend_from_slice(&action);
@@ -251,12 +279,17 @@ impl Punch {
         self.summary.peak_off_fist_speed_mps = self.summary.peak_off_fist_speed_mps.max(speeds[1]);
         let peaks = [self.summary.peak_fist_speed_mps, self.summary.peak_off_fist_speed_mps];
 
-        let fists = self.controller.fists(reading);
+        // The punching fist first, then the off fist (the features are the punching hand's, mirrored for the left).
+        let [right, left] = self.controller.fists(reading);
+        let (fists, forearms, hands) = match self.hand {
+            Hand::Right => ([right, left], [Body::ForearmR, Body::ForearmL], [Hand::Right, Hand::Left]),
+            Hand::Left => ([left, right], [Body::ForearmL, Body::ForearmR], [Hand::Left, Hand::Right]),
+        };
         let reach = self.controller.geometry().fist_radius_m + FIST_CONTACT_MARGIN_M;
         // Per collider: the impulse of all fist contacts with it, the fist that touched it, area or not.
         let mut touched: Vec<(u64, Vec3, usize, bool)> = Vec::new();
         for touch in touches {
-            let Some(side) = [Body::ForearmR, Body::ForearmL].iter().position(|b| b.index() == touch.body) else {
+            let Some(side) = forearms.iter().position(|b| b.index() == touch.body) else {
                 continue;
             };
             if !touch.overlap && touch.point.distance(fists[side].0) > reach {
@@ -282,7 +315,13 @@ impl Punch {
             if !continuing && !self.struck.contains(&collider) {
                 self.struck.push(collider);
                 self.summary.hits += 1;
-                hits.push(Hit { collider, impulse, speed_mps: peaks[side], position: fists[side].0 });
+                hits.push(Hit {
+                    collider,
+                    impulse,
+                    speed_mps: peaks[side],
+                    position: fists[side].0,
+                    hand: hands[side],
+                });
             }
         }
         self.in_contact = in_contact;
@@ -376,6 +415,30 @@ mod tests {
         }
     }
 
+    /// `play` with `hand` punching (the record in the punching hand's frame).
+    fn play_with_hand(
+        hand: Hand,
+        spec: PolicySpec,
+        noise: &mut RuntimeNoise,
+        mut policy: impl FnMut(&[f32; OBS_DIM]) -> Vec<f32>,
+    ) -> (Vec<u32>, PunchRecord, Vec<Hit>, PunchSummary) {
+        let mut world = FakeWorld::new(1);
+        let mut punch = Punch::new(rest_geometry(), spec, true).with_hand(hand);
+        let mut hits = Vec::new();
+        loop {
+            let (hit, sensed) = punch.sense(world.read_slot(0), &world.touches_slot(0));
+            hits.extend(hit);
+            let commands = match sensed {
+                Sensed::Finished(summary, record) => return (Vec::new(), record.expect("recording"), hits, summary),
+                Sensed::Hold => punch.act(None, noise),
+                Sensed::Decide(observation) => punch.act(Some(&policy(&observation)), noise),
+            }
+            .expect("acts");
+            world.drive_slot(0, &commands);
+            world.step();
+        }
+    }
+
     fn forward(_: &[f32; OBS_DIM]) -> Vec<f32> {
         vec![0.6; 10]
     }
@@ -455,6 +518,33 @@ mod tests {
         assert!((summary.peak_fist_speed_mps - 3.0).abs() < 1e-4, "{summary:?}");
         assert!((summary.peak_off_fist_speed_mps - 9.0).abs() < 1e-4, "{summary:?}");
         assert!((hits[0].speed_mps - 3.0).abs() < 1e-4, "the striking fist's speed: {hits:?}");
+    }
+
+    #[test]
+    fn a_left_hand_punch_is_the_right_hands_in_the_mirrored_world() {
+        // The fake world is symmetric about the character's sagittal plane and its bag sits on it, so the same
+        // policy played with the left hand senses, records and scores what the right hand's punch does.
+        let spec = PolicySpec::new(5, 50, 1).expect("valid");
+        let elbow = |_: &[f32; OBS_DIM]| {
+            let mut action = vec![0.0; DOF_COUNT];
+            action[5] = 0.6; // the punching elbow straightens; the rest hold the guard
+            action
+        };
+        let right = play_with_hand(Hand::Right, spec, &mut RuntimeNoise::new(0, 0.0, -1), elbow);
+        let left = play_with_hand(Hand::Left, spec, &mut RuntimeNoise::new(0, 0.0, -1), elbow);
+        for (index, (a, b)) in right.1.features.iter().zip(&left.1.features).enumerate() {
+            let name = crate::contract::sensing::FEATURE_NAMES[index % FEATURE_COUNT];
+            assert!(
+                (a - b).abs() < 1e-4,
+                "frame {}: {name} is {a} right-handed, {b} left-handed",
+                index / FEATURE_COUNT
+            );
+        }
+        assert_eq!(right.1.observations.len(), left.1.observations.len());
+        assert_eq!(right.2.len(), 1);
+        assert_eq!((right.2[0].hand, left.2.len(), left.2[0].hand), (Hand::Right, 1, Hand::Left));
+        assert!((left.2[0].position.x + right.2[0].position.x).abs() < 1e-4, "the hit is at the mirrored place");
+        assert!((right.3.peak_fist_speed_mps - left.3.peak_fist_speed_mps).abs() < 1e-4);
     }
 
     #[test]
