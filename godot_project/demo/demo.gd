@@ -120,7 +120,7 @@ func _on_sigma_changed(value: float) -> void:
 	_sigma_value.text = "%.2f" % value
 
 
-func _on_hit(impulse: float, speed: float, _position: Vector3, _body: Node3D, _push: Vector3) -> void:
+func _on_hit(impulse: float, speed: float, _position: Vector3, _body: Node3D, _push: Vector3, _hand: StringName) -> void:
 	_impact.text = "impact: %.1f m/s, %.2f N·s" % [speed, impulse]
 
 

@@ -24,7 +24,7 @@ func _ready() -> void:
 	for index in 2:
 		var opponent := _fighters[1 - index]
 		var controller := add_controller(_fighters[index], opponent.get_node("Torso"), 0.1, index + 1)
-		controller.hit.connect(func(_impulse, _speed, _position, body, _push):
+		controller.hit.connect(func(_impulse, _speed, _position, body, _push, _hand):
 			_landed = _landed or (body != null and opponent.is_ancestor_of(body)))
 		controller.recovered.connect(_next)
 		controller.punch_finished.connect(func(_metrics): count_punch(_landed, "duel"))

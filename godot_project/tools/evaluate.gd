@@ -292,7 +292,7 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 	slot.motion_with_punch = target_motion != null or lead_s == 0.0
 	slot.lead_frames = roundi(lead_s * Engine.physics_ticks_per_second)
 	var row := slot.row
-	controller.connect("hit", func(_impulse, _speed, _position, body, _push):
+	controller.connect("hit", func(_impulse, _speed, _position, body, _push, _hand):
 		if body == bag:
 			row[0] += 1)
 	controller.connect("target_out_of_reach", func(offset_now: Vector3, nearest: Vector3):

@@ -8,6 +8,7 @@ mod hand_skin;
 mod punch_character;
 mod punch_controller;
 mod punch_controller_registry;
+mod punch_moveset;
 mod punch_policy;
 // Tests' and benchmarks' hooks, off the game classes: debug builds only.
 #[cfg(feature = "probe")]

@@ -9,16 +9,18 @@ use std::rc::Rc;
 use std::time::Instant;
 
 use glam::Vec3;
-use godot::builtin::{VarDictionary, Vector2, Vector3};
+use godot::builtin::{StringName, VarDictionary, Vector2, Vector3};
 use godot::classes::notify::NodeNotification;
 use godot::classes::{Engine, INode, Node, Node3D, PhysicsShapeQueryParameters3D, SceneTree, SphereShape3D};
 use godot::global::{godot_error, godot_warn};
 use godot::obj::{Base, Gd, InstanceId, NewGd, Singleton, WithBaseField, WithSignals, WithUserSignals};
 use godot::prelude::PhantomVar;
-use godot::prelude::{GodotClass, godot_api};
+use godot::prelude::{Export, GodotClass, GodotConvert, Var, godot_api, try_load};
 use punch_core::contract::character::{Body, DEFAULT_DECISION_PERIOD};
+use punch_core::contract::mirror::mirror_point;
 use punch_core::contract::sensing::{CharacterGeometry, FrameReading};
 use punch_core::game::lifecycle::{Drive, Ending, Event, FrameNeeds, Lifecycle, NoiseSettings, PunchStart};
+use punch_core::game::moves::{Hand, Move, Stance};
 use punch_core::game::policy_gate::{DecisionRequest, PunchingPolicy, decide_batched};
 use punch_core::game::punch::{Punch, PunchSummary};
 use punch_core::rig::transform::TransformError;
@@ -27,8 +29,39 @@ use crate::convert::{rigid, vector3};
 use crate::engine_io::{add_area_touches, add_bag_contacts, read_forearm_contacts};
 use crate::punch_character::PunchCharacter;
 use crate::punch_controller_registry::PunchControllerRegistry;
+use crate::punch_moveset::PunchMoveset;
 use crate::punch_policy::PunchPolicy;
 use crate::target::Target;
+
+/// The addon's moveset, which `punch(move)` plays when `moveset` is empty.
+const ADDON_MOVESET: &str = "res://addons/punch_controller/policies/boxing.tres";
+
+/// Which hand leads (`PunchController.stance`).
+#[derive(GodotConvert, Var, Export, Default, Debug, Clone, Copy, PartialEq, Eq)]
+#[godot(via = i64)]
+pub enum PunchStance {
+    /// The left hand leads.
+    #[default]
+    Orthodox,
+    /// The right hand leads.
+    Southpaw,
+}
+
+impl From<PunchStance> for Stance {
+    fn from(stance: PunchStance) -> Self {
+        match stance {
+            PunchStance::Orthodox => Stance::Orthodox,
+            PunchStance::Southpaw => Stance::Southpaw,
+        }
+    }
+}
+
+/// What `punch()` was asked to throw: a policy, the hand it punches with, and the move it is.
+struct Throw {
+    policy: Rc<PunchingPolicy>,
+    hand: Hand,
+    punch_move: Option<Move>,
+}
 
 /// The signals of this class, as the frame pass and the class's own functions emit them.
 type Signals<'c> = <PunchController as WithSignals>::SignalCollection<'c, PunchController>;
@@ -79,6 +112,21 @@ pub struct PunchController {
     /// value made `punch()` refuse the policy.
     #[var(get = get_decision_period, no_set)]
     decision_period: PhantomVar<i32>,
+
+    /// The policies of the six moves `punch(move)` throws by name (`PunchMoveset`); empty: the addon's,
+    /// `res://addons/punch_controller/policies/boxing.tres`. A new moveset plays from the next punch.
+    #[export_group(name = "Moves")]
+    #[export]
+    moveset: Option<Gd<PunchMoveset>>,
+    /// Which hand leads: ORTHODOX (the left, the default) or SOUTHPAW (the right). The jab, the lead hook and the
+    /// lead uppercut are the lead hand's, the other three the rear's; a left-hand punch plays its policy
+    /// mirrored. Takes effect at the next punch.
+    #[export]
+    stance: PunchStance,
+    /// The move `punch()` throws when it is given none ("jab", "cross", "lead_hook", "rear_hook",
+    /// "lead_uppercut", "rear_uppercut"); empty (the default): `policy`, with the right hand, as trained.
+    #[export]
+    default_move: StringName,
 
     /// The character to drive. A new character is driven from the next punch.
     #[export_group(name = "Character and target")]
@@ -172,9 +220,17 @@ impl INode for PunchController {
 
 #[godot_api]
 impl PunchController {
-    /// Emitted when a punch begins.
+    /// `stance`: the left hand leads.
+    #[constant]
+    const ORTHODOX: i64 = 0;
+    /// `stance`: the right hand leads.
+    #[constant]
+    const SOUTHPAW: i64 = 1;
+
+    /// Emitted when a punch begins: the move (`&"jab"` ... `&"rear_uppercut"`; empty for `policy` thrown with no
+    /// move) and the hand that throws it (`&"left"` or `&"right"`).
     #[signal]
-    fn punch_started();
+    fn punch_started(move_name: StringName, hand: StringName);
 
     /// Emitted when a punch starts with the target outside the policy's reach volume (`reach_volume()`), so
     /// it may miss. The punch still goes at the target while it is at most 0.3 m outside (policies reach a little
@@ -190,12 +246,14 @@ impl PunchController {
     /// frame, the striking fist's peak `speed` so far (m/s), where the fist was (`position`, global), what was hit
     /// (`body`: a CollisionObject3D, or null if it is gone), and `push`, the impulse vector (N s, global
     /// axes) for bodies that physics does not push, such as a CharacterBody3D:
-    /// `enemy.velocity += push / enemy_mass_kg` knocks it back.
+    /// `enemy.velocity += push / enemy_mass_kg` knocks it back; and the `hand` that struck (`&"left"` or
+    /// `&"right"`: the punching one, or the guard hand).
     #[signal]
-    fn hit(impulse: f32, speed: f32, position: Vector3, body: Option<Gd<Node3D>>, push: Vector3);
+    fn hit(impulse: f32, speed: f32, position: Vector3, body: Option<Gd<Node3D>>, push: Vector3, hand: StringName);
 
-    /// Emitted when a punch is over, however it ended, with `frames`, `peak_fist_speed_mps` (the punching,
-    /// right fist's; m/s), `peak_off_fist_speed_mps` (the guard hand's, m/s), `hits`,
+    /// Emitted when a punch is over, however it ended, with `move` and `hand` (as `punch_started` gave them),
+    /// `frames`, `peak_fist_speed_mps` (the punching fist's; m/s), `peak_off_fist_speed_mps` (the guard hand's,
+    /// m/s), `hits`,
     /// `strongest_hit_ns` (the largest fist impulse of one frame), `ended` ("completed"; "interrupted":
     /// cancelled, restarted, taken over by another controller, or the controller left the scene tree before
     /// its last frame; "error": it stopped on an error, given in `error` and logged), and `interrupted` (true
@@ -209,14 +267,17 @@ impl PunchController {
     #[signal]
     fn recovered();
 
-    /// Starts a punch (a punch already running ends first, interrupted): at once from the guard pose, else
-    /// after a return to guard (`guard_first`) or from the current pose. Returns false (with the reason in the
-    /// log) when the controller is not in the scene tree, the policy, the character or the target is missing
-    /// or unusable, or the project's physics settings are not the policy's. A target outside the policy's
-    /// reach gets `target_out_of_reach`, and a punch at it (0.3 m out at most).
+    /// Throws `move_name` ("jab", "cross", "lead_hook", "rear_hook", "lead_uppercut", "rear_uppercut") with
+    /// the hand `stance` gives it, playing `moveset`'s policy for it; with no move, `default_move`, or when that
+    /// is empty too, `policy` with the right hand. A punch already running ends first, interrupted. It starts at
+    /// once from the guard pose, else after a return to guard (`guard_first`) or from the current pose. Returns
+    /// false (with the reason in the log) when the move is none of the six or the moveset has no policy for it,
+    /// the controller is not in the scene tree, the policy, the character or the target is missing or unusable,
+    /// or the project's physics settings are not the policy's. A target outside the policy's reach gets
+    /// `target_out_of_reach`, and a punch at it (0.3 m out at most).
     #[func(gd_self)]
-    fn punch(mut this: Gd<Self>) -> bool {
-        let started = this.bind_mut().start_punch();
+    fn punch(mut this: Gd<Self>, #[opt(default = "")] move_name: StringName) -> bool {
+        let started = this.bind_mut().start_punch(&move_name);
         let started = match started {
             Ok(character) => {
                 Self::take_over(&this, character);
@@ -355,8 +416,28 @@ impl PunchController {
         result
     }
 
+    /// What `punch(move_name)` throws: the move's policy from the moveset and its hand in the stance, or
+    /// `policy` with the right hand when no move is named (here or in `default_move`).
+    fn throw_of(&self, move_name: &StringName) -> Result<Throw, String> {
+        let name = if move_name.is_empty() { self.default_move.to_string() } else { move_name.to_string() };
+        if name.is_empty() {
+            return Ok(Throw { policy: self.punching_policy()?, hand: Hand::Right, punch_move: None });
+        }
+        let punch_move = Move::from_name(&name).map_err(|error| error.to_string())?;
+        let moveset = match &self.moveset {
+            Some(moveset) => moveset.clone(),
+            None => try_load::<PunchMoveset>(ADDON_MOVESET)
+                .map_err(|error| format!("no moveset set, and the addon's ({ADDON_MOVESET}) does not load: {error}"))?,
+        };
+        let mut policy = moveset.bind().policy_of(punch_move).ok_or_else(|| {
+            format!("the moveset '{}' has no policy for '{punch_move}': set one in its inspector", moveset.get_path())
+        })?;
+        let policy = policy.bind_mut().punching()?;
+        Ok(Throw { policy, hand: punch_move.hand(self.stance.into()), punch_move: Some(punch_move) })
+    }
+
     /// Starts a punch (its events queued); returns the character it drives.
-    fn start_punch(&mut self) -> Result<Gd<PunchCharacter>, String> {
+    fn start_punch(&mut self, move_name: &StringName) -> Result<Gd<PunchCharacter>, String> {
         self.lifecycle.interrupt();
         self.act_now();
         if !self.base().is_inside_tree() || self.leaving_tree {
@@ -365,24 +446,29 @@ impl PunchController {
                 .into());
         }
         PunchControllerRegistry::check_project_settings()?;
-        let policy = self.punching_policy()?;
+        let Throw { policy, hand, punch_move } = self.throw_of(move_name)?;
         policy.check_spec(policy.spec.decision_period).map_err(|e| e.to_string())?;
         let character = live(&self.character).ok_or("no character set (or it was freed)")?;
         let mut target = Target::resolve(live(&self.target).ok_or("no target set (or it was freed)")?);
         let mut geometry = geometry_of(&character)?;
         let offset = geometry.root_rotation.inverse() * (target.state()?.position - geometry.root_position);
-        let out_of_reach = (!policy.reach.contains(offset)).then(|| {
-            let world = |local: Vec3| geometry.root_position + geometry.root_rotation * local;
+        // The reach volume is the right hand's: the left hand's is its mirror.
+        let to_policy = |local: Vec3| if hand.is_mirrored() { mirror_point(local) } else { local };
+        let out_of_reach = (!policy.reach.contains(to_policy(offset))).then(|| {
+            let world = |local: Vec3| geometry.root_position + geometry.root_rotation * to_policy(local);
             // A little out, the policy sees the target itself; far out, the point of its margin nearest to it.
-            let aim = policy.reach.aim_point(offset);
-            if aim != offset {
+            let aim = policy.reach.aim_point(to_policy(offset));
+            if aim != to_policy(offset) {
                 target.aim_at(world(aim));
             }
-            (offset, world(policy.reach.nearest(offset)))
+            (offset, world(policy.reach.nearest(to_policy(offset))))
         });
         target.describe(&mut geometry);
         self.aim = Some(target);
-        let punch = Punch::new(geometry, policy.spec, self.record).with_noise_scale(policy.noise_scale);
+        let punch = Punch::new(geometry, policy.spec, self.record)
+            .with_noise_scale(policy.noise_scale)
+            .with_hand(hand)
+            .with_move(punch_move);
         let identity = Rc::as_ptr(&policy) as usize;
         let start = PunchStart { punch, policy, guard_first: self.guard_first, out_of_reach };
         self.lifecycle.start(start, identity, self.noise());
@@ -614,7 +700,9 @@ impl PunchController {
 /// Emits one event as its signal.
 fn emit(mut signals: Signals<'_>, event: Event) {
     match event {
-        Event::Started => signals.punch_started().emit(),
+        Event::Started { hand, punch_move } => {
+            signals.punch_started().emit(&move_name_of(punch_move), &StringName::from(hand.name()))
+        }
         Event::OutOfReach { offset, nearest } => signals.target_out_of_reach().emit(vector3(offset), vector3(nearest)),
         Event::Hit(hit) => {
             let body = Gd::<Node3D>::try_from_instance_id(InstanceId::from_i64(hit.collider as i64)).ok();
@@ -624,6 +712,7 @@ fn emit(mut signals: Signals<'_>, event: Event) {
                 vector3(hit.position),
                 body.as_ref(),
                 vector3(hit.impulse),
+                &StringName::from(hit.hand.name()),
             );
         }
         Event::Finished(summary, ending) => signals.punch_finished().emit(&finish_metrics(&summary, &ending)),
@@ -687,8 +776,15 @@ fn fist_query(radius_m: f32) -> Gd<PhysicsShapeQueryParameters3D> {
     query
 }
 
+/// A move's name as signals carry it (empty for a policy thrown with no move).
+fn move_name_of(punch_move: Option<Move>) -> StringName {
+    StringName::from(punch_move.map_or("", Move::name))
+}
+
 fn finish_metrics(summary: &PunchSummary, ending: &Ending) -> VarDictionary {
     let mut metrics = VarDictionary::new();
+    metrics.set("move", &move_name_of(summary.punch_move));
+    metrics.set("hand", &StringName::from(summary.hand.name()));
     let (ended, error) = match ending {
         Ending::Completed => ("completed", ""),
         Ending::Interrupted => ("interrupted", ""),

@@ -15,6 +15,7 @@ use glam::Vec3;
 use crate::contract::observation::OBS_DIM;
 use crate::contract::sensing::{CharacterGeometry, FrameReading};
 use crate::error::CoreResult;
+use crate::game::moves::{Hand, Move};
 use crate::game::punch::{Hit, Punch, PunchRecord, PunchSummary, Recovery, RuntimeNoise, Sensed, Touch};
 
 /// Joint motor commands for one physics step (`Body` joint order).
@@ -23,8 +24,8 @@ pub type MotorCommands = [Vec3; 5];
 /// Something the game hears of (a signal of `PunchController`).
 #[derive(Debug, Clone, PartialEq)]
 pub enum Event {
-    /// A punch began.
-    Started,
+    /// A punch began: the hand that throws it and the move it is (None: a policy played as it is).
+    Started { hand: Hand, punch_move: Option<Move> },
     /// The punch just started goes at the nearest point the policy covers: the target was outside its reach
     /// volume. The target's offset in the character's frame, and that point (world coordinates).
     OutOfReach { offset: Vec3, nearest: Vec3 },
@@ -158,6 +159,7 @@ impl<P: Clone> Lifecycle<P> {
             self.noise_key = Some((noise.seed, identity));
         }
         let punch = Box::new(start.punch);
+        let (hand, punch_move) = (punch.hand(), punch.punch_move());
         let geometry = *punch.geometry();
         self.phase = match start.guard_first {
             // Decided at the next frame's reading: a character already in guard punches in that same frame.
@@ -165,7 +167,7 @@ impl<P: Clone> Lifecycle<P> {
             false => Phase::Punching(punch, start.policy),
         };
         self.hold_next = false;
-        self.events.push_back(Event::Started);
+        self.events.push_back(Event::Started { hand, punch_move });
         if let Some((offset, nearest)) = start.out_of_reach {
             self.events.push_back(Event::OutOfReach { offset, nearest });
         }
@@ -395,7 +397,7 @@ mod tests {
         }
         assert_eq!(decided_at, (0..50).step_by(5).collect::<Vec<_>>(), "a character in guard punches at once");
         let events = events(&mut lifecycle);
-        assert_eq!(events[0], Event::Started);
+        assert_eq!(events[0], Event::Started { hand: Hand::Right, punch_move: None });
         assert!(matches!(events[1], Event::Hit(hit) if hit.collider == FAKE_BAG_ID));
         let Event::Finished(summary, Ending::Completed) = &events[2] else { panic!("{events:?}") };
         assert_eq!((summary.frames, summary.hits, events.len()), (50, 1, 3));
@@ -413,7 +415,7 @@ mod tests {
         assert_eq!(asked, [2, 2, 2], "the new punch asks its own policy");
         let ends: Vec<_> = events(&mut lifecycle).into_iter().filter(|e| !matches!(e, Event::Hit(_))).collect();
         assert!(
-            matches!(&ends[..], [Event::Started, Event::Finished(summary, Ending::Interrupted), Event::Started]
+            matches!(&ends[..], [Event::Started { .. }, Event::Finished(summary, Ending::Interrupted), Event::Started { .. }]
                 if summary.frames == 12 && summary.interrupted),
             "{ends:?}"
         );
@@ -442,7 +444,7 @@ mod tests {
             .into_iter()
             .filter_map(|e| match e {
                 Event::Finished(_, ending) => Some(ending),
-                Event::Started => Some(Ending::Completed), // a marker for a start
+                Event::Started { .. } => Some(Ending::Completed), // a marker for a start
                 _ => None,
             })
             .collect()
@@ -552,7 +554,7 @@ mod tests {
             let mut open = false;
             for event in &heard {
                 match event {
-                    Event::Started => { prop_assert!(!open, "a start before the last punch finished: {heard:?}"); open = true }
+                    Event::Started { .. } => { prop_assert!(!open, "a start before the last punch finished: {heard:?}"); open = true }
                     Event::OutOfReach { .. } => prop_assert!(open, "out of reach outside a punch"),
                     Event::Finished(..) => { prop_assert!(open, "a finish with no punch: {heard:?}"); open = false }
                     Event::Hit(_) => prop_assert!(open, "a hit outside a punch"),

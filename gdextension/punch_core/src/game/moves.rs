@@ -17,10 +17,11 @@ pub enum Stance {
     Southpaw,
 }
 
-/// A hand.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// A hand (the right by default: the hand every policy punches with).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Hand {
     Left,
+    #[default]
     Right,
 }
 

@@ -17,7 +17,7 @@ use crate::contract::sensing::{
 };
 use crate::contract::spec::{NoiseScale, PolicySpec, UNIFORM_NOISE};
 use crate::error::{CoreError, CoreResult};
-use crate::game::moves::Hand;
+use crate::game::moves::{Hand, Move};
 use crate::game::noise::GaussianNoise;
 
 /// Impulse (N s) on the target above which a fist counts as hitting it.
@@ -108,6 +108,10 @@ pub struct PunchSummary {
     pub strongest_hit_ns: f32,
     /// The punch was ended before its last frame (cancelled, or its policy changed).
     pub interrupted: bool,
+    /// The hand that punched.
+    pub hand: Hand,
+    /// The move it was (None: a policy played as it is, not one of the six).
+    pub punch_move: Option<Move>,
 }
 
 /// A punch frame by frame (kept when asked for): features [frames x F] (the frame before the first decision
@@ -182,12 +186,24 @@ impl Punch {
     /// Punches with `hand` (the right by default; the left plays the policy mirrored).
     pub fn with_hand(mut self, hand: Hand) -> Self {
         self.hand = hand;
+        self.summary.hand = hand;
+        self
+    }
+
+    /// Names the move this punch is (what its events and summary say).
+    pub fn with_move(mut self, punch_move: Option<Move>) -> Self {
+        self.summary.punch_move = punch_move;
         self
     }
 
     /// The punching hand.
     pub fn hand(&self) -> Hand {
         self.hand
+    }
+
+    /// The move it is, if it is one of the six.
+    pub fn punch_move(&self) -> Option<Move> {
+        self.summary.punch_move
     }
 
     /// The rest geometry of the character it drives.

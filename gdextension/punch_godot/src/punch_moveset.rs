@@ -1,0 +1,72 @@
+//! `PunchMoveset`: the policy of each of the six moves a `PunchController` throws by name.
+
+use godot::builtin::{PackedStringArray, StringName};
+use godot::classes::{IResource, Resource};
+use godot::obj::{Base, Gd};
+use godot::prelude::{GodotClass, godot_api};
+use punch_core::game::moves::Move;
+
+use crate::punch_policy::PunchPolicy;
+
+/// The policies of a boxer's six punches, by name: `PunchController.punch(&"jab")` plays this moveset's `jab`.
+/// Each policy punches with the right hand; the controller's `stance` says which hand throws a move, and the left
+/// hand plays the policy mirrored, so one policy serves both stances. The addon's moveset is
+/// `res://addons/punch_controller/policies/boxing.tres`; duplicate it (or make a new one) to swap in a policy of
+/// your own for a move. A move left empty is refused by `punch()`, naming it.
+#[derive(GodotClass)]
+#[class(base = Resource, init, tool)]
+pub struct PunchMoveset {
+    /// 1, the jab: the lead hand's straight, the quickest punch.
+    #[export]
+    jab: Option<Gd<PunchPolicy>>,
+    /// 2, the cross: the rear hand's straight.
+    #[export]
+    cross: Option<Gd<PunchPolicy>>,
+    /// 3, the lead hook: the lead fist swung in from the side, the elbow bent.
+    #[export]
+    lead_hook: Option<Gd<PunchPolicy>>,
+    /// 4, the rear hook.
+    #[export]
+    rear_hook: Option<Gd<PunchPolicy>>,
+    /// 5, the lead uppercut: the lead fist rising into the target.
+    #[export]
+    lead_uppercut: Option<Gd<PunchPolicy>>,
+    /// 6, the rear uppercut.
+    #[export]
+    rear_uppercut: Option<Gd<PunchPolicy>>,
+    base: Base<Resource>,
+}
+
+#[godot_api]
+impl IResource for PunchMoveset {}
+
+#[godot_api]
+impl PunchMoveset {
+    /// The policy of the move named `move_name` ("jab", "cross", "lead_hook", "rear_hook", "lead_uppercut",
+    /// "rear_uppercut"), or null when the moveset has none for it or the name is none of the six.
+    #[func]
+    fn policy_for(&self, move_name: StringName) -> Option<Gd<PunchPolicy>> {
+        Move::from_name(&move_name.to_string()).ok().and_then(|m| self.policy_of(m))
+    }
+
+    /// The names of the moves this moveset has a policy for, in boxing's order (1 to 6).
+    #[func]
+    fn moves(&self) -> PackedStringArray {
+        Move::ALL.into_iter().filter(|&m| self.policy_of(m).is_some()).map(|m| m.name().into()).collect()
+    }
+}
+
+impl PunchMoveset {
+    /// The policy of `punch_move`, if the moveset has one.
+    pub fn policy_of(&self, punch_move: Move) -> Option<Gd<PunchPolicy>> {
+        match punch_move {
+            Move::Jab => &self.jab,
+            Move::Cross => &self.cross,
+            Move::LeadHook => &self.lead_hook,
+            Move::RearHook => &self.rear_hook,
+            Move::LeadUppercut => &self.lead_uppercut,
+            Move::RearUppercut => &self.rear_uppercut,
+        }
+        .clone()
+    }
+}

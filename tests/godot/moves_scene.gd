@@ -1,0 +1,76 @@
+## The moves a game throws by name, in both stances: for each stance and each move the addon's moveset has, a
+## character punches a sandbag placed for that move's hand, off the centre line on its side (the left hand's bag is
+## the mirror image of the right's). Then what a game gets wrong: a move that is none of the six, a move the
+## moveset has no policy for, and a moveset of its own holding one move. Prints `MOVES_SCENE <json>` and quits.
+extends SceneTree
+
+const MOVES := [&"jab", &"cross", &"lead_hook", &"rear_hook"]
+const SIDE_M := 0.12  # the bag's centre this far toward the punching hand's side
+var _throws: Array[Dictionary] = []
+var _report := {"throws": [], "refused": {}}
+var _frames := 0
+
+
+func _initialize() -> void:
+	var index := 0
+	for stance in [PunchController.ORTHODOX, PunchController.SOUTHPAW]:
+		for move in MOVES:
+			_throws.append(_add_pair(index, stance, move))
+			index += 1
+
+
+## A character and its bag 3 m from the others; the bag toward the side of the hand `move` is thrown with.
+func _add_pair(index: int, stance: int, move: StringName) -> Dictionary:
+	var origin := Vector3(3.0 * index, 0, 0)
+	var character: Node3D = load("res://addons/punch_controller/scenes/punch_character.tscn").instantiate()
+	character.position = origin
+	root.add_child(character)
+	var lead_is_left := stance == PunchController.ORTHODOX
+	var left := lead_is_left == (move in [&"jab", &"lead_hook", &"lead_uppercut"])
+	var sandbag: Node3D = load("res://addons/punch_controller/scenes/punch_sandbag.tscn").instantiate()
+	var offset := PunchSpec.default_target_offset()
+	offset.x = SIDE_M if left else -SIDE_M  # +X is the character's left
+	sandbag.position = origin + offset
+	root.add_child(sandbag)
+	var controller: Node = ClassDB.instantiate("PunchController")
+	controller.set("character", character)
+	controller.set("target", sandbag.get_node("Bag"))
+	controller.set("stance", stance)
+	root.add_child(controller)
+	var entry := {"stance": stance, "move": String(move), "bag_side_m": offset.x, "started": [], "hits": [], "finished": []}
+	controller.connect("punch_started", func(move_name, hand): entry.started.append([String(move_name), String(hand)]))
+	controller.connect("hit", func(_impulse, speed, position, body, _push, hand):
+		entry.hits.append({"hand": String(hand), "speed": speed, "x": position.x - origin.x, "bag": body == sandbag.get_node("Bag")}))
+	controller.connect("punch_finished", func(metrics): entry.finished.append(metrics))
+	return {"controller": controller, "entry": entry, "move": move}
+
+
+func _physics_process(_delta: float) -> bool:
+	_frames += 1
+	if _frames == 2:
+		for throw in _throws:
+			throw.controller.call("punch", throw.move)
+		_refusals()
+	if _throws.all(func(throw): return throw.entry.finished.size() == 1) or _frames > 600:
+		_report.throws = _throws.map(func(throw): return throw.entry)
+		print("MOVES_SCENE ", JSON.stringify(_report))
+		quit(0)
+	return false
+
+
+## What a game gets wrong, each answered by `punch()` returning false (the log says why).
+func _refusals() -> void:
+	var controller: Node = _throws[0].controller
+	var other: Node = ClassDB.instantiate("PunchController")
+	other.set("character", controller.get("character"))
+	other.set("target", controller.get("target"))
+	root.add_child(other)
+	_report.refused["haymaker"] = other.call("punch", &"haymaker")
+	_report.refused["lead_uppercut"] = other.call("punch", &"lead_uppercut")
+	var moveset: Resource = ClassDB.instantiate("PunchMoveset")
+	moveset.set("jab", load("res://addons/punch_controller/policies/straight.onnx"))
+	other.set("moveset", moveset)
+	_report.refused["cross_from_own_moveset"] = other.call("punch", &"cross")
+	_report.moves_of_own_moveset = Array(moveset.call("moves"))
+	_report.moves_of_addon_moveset = Array(load("res://addons/punch_controller/policies/boxing.tres").call("moves"))
+	other.queue_free()
