@@ -114,6 +114,8 @@ class Slot:
 	var motion_with_punch := false
 	## Physics frames left before the punch (-1: punched).
 	var lead_frames := 0
+	## The move it throws (empty: the policy, with the right hand).
+	var move := &""
 
 
 const KINDS := ["features", "observations", "mean_actions", "actions"]
@@ -238,6 +240,13 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 	var offset := Vector3(placement.get("side_m", default_offset.x), placement.get("height_m", default_offset.y),
 		placement.get("distance_m", default_offset.z))
 	var swing := Vector3(placement.get("velocity_side_mps", 0.0), 0.0, placement.get("velocity_forward_mps", 0.0))
+	# A move (the policy as the moveset's policy for it, thrown in the episode's stance): a left-hand move punches
+	# at the mirror image of the placement, drawn from the right hand's reach volume.
+	var move := StringName(episode.get("move", ""))
+	var stance := PunchController.SOUTHPAW if episode.get("stance", "orthodox") == "southpaw" else PunchController.ORTHODOX
+	if move != &"" and PunchController.hand_for(move, stance) == &"left":
+		offset.x = -offset.x
+		swing.x = -swing.x
 	var body_motion = episode.get("body")
 	var target_motion = episode.get("target")
 	var parent: Node = arena
@@ -248,6 +257,15 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 		parent = holder
 	var controller := PunchPair.add(parent, layer_slot, Vector3.ZERO, offset, _options.policy,
 		float(episode.get("sigma", 0.0)), int(episode.get("noise_decisions", -1)), int(episode.seed), swing)
+	if move != &"":
+		if PunchController.hand_for(move, stance) == &"":
+			_fail("the episode's move '%s' is none of the six" % move)
+			return null
+		var moveset := PunchMoveset.new()
+		moveset.set(move, controller.get("policy"))
+		controller.set("moveset", moveset)
+		controller.set("stance", stance)
+		slot.move = move
 	if _record:
 		PunchProbe.set_recording(controller, true)
 	controller.set("auto_recover", false)  # each batch's scene is freed after its punches
@@ -313,7 +331,7 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 			row[0] = 0
 			row[1] = 0
 			row[2] = 0.0
-			controller.call("punch")
+			controller.call("punch", slot.move)
 			return
 		row[3] = metrics.get("ended", "")
 		if slot.moved != null:
@@ -333,7 +351,7 @@ func _start_motion(slot: Slot) -> void:
 ## Starts a slot's punch (and the motion that starts with it); false when the controller refused.
 func _punch(slot: Slot) -> bool:
 	slot.lead_frames = -1
-	if not slot.controller.call("punch"):
+	if not slot.controller.call("punch", slot.move):
 		_fail("PunchController refused to punch (see the error above)")
 		return false
 	if slot.motion != null and slot.motion_with_punch:

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import onnxruntime
 import pytest
+
 from punch_trainer.policy_file import read_policy_metadata
 from punch_trainer.sim.conditions import EpisodeConditions
 from punch_trainer.sim.mirror import MirrorRules, VectorMirror

@@ -57,3 +57,24 @@ def test_a_move_with_no_policy_or_no_name_is_refused_naming_it():
     assert "has no policy for 'lead_uppercut'" in run.log and "has no policy for 'cross'" in run.log
     assert report["moves_of_own_moveset"] == ["jab"]
     assert report["moves_of_addon_moveset"] == ["jab", "cross", "lead_hook", "rear_hook"]
+
+
+def test_the_evaluator_throws_a_policy_with_either_hand(tmp_path):
+    """The `hands` scenario: the left hand, at the mirror images of the right hand's held-out placements, lands as the
+    right does, and its punches are measured in its own frame (the return and the naturalness work unchanged)."""
+    from punch_trainer.pipelines.evaluation import EvalArgs, run_eval
+
+    args = EvalArgs(policy=PROJECT_ROOT / "addons" / "punch_controller" / "policies" / "straight.onnx", scenario="hands",
+                    placements=6, sigmas=[0.0], out=tmp_path)
+    _, report = run_eval(args, progress=False)
+    rows = {row["condition"]: row for row in report["evaluations"][0]["rows"]}
+    right, left = rows["right hand (orthodox)"], rows["left hand (southpaw)"]
+    assert right["successes"] == left["successes"] == 6, rows
+    assert left["impact_spread_m"] == pytest.approx(right["impact_spread_m"], abs=0.01)
+
+
+def test_a_scenario_with_a_stance_that_is_none_is_refused():
+    from punch_trainer.pipelines.scenario import ScenarioError, build_scenario
+
+    with pytest.raises(ScenarioError, match="stance is \"orthodox\" or \"southpaw\""):
+        build_scenario({"conditions": [{"name": "x", "move": "jab", "stance": "boxer"}]}, "inline")

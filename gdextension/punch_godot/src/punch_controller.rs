@@ -294,6 +294,14 @@ impl PunchController {
         started
     }
 
+    /// The hand (`&"left"` or `&"right"`) that throws `move_name` in `stance` (ORTHODOX or SOUTHPAW); empty when
+    /// the move is none of the six. The left hand punches at the mirror image of where the right hand's policy
+    /// aims: a target for it belongs on the character's left (+X) as a right-hand target on its right.
+    #[func]
+    fn hand_for(move_name: StringName, stance: PunchStance) -> StringName {
+        Move::from_name(&move_name.to_string()).map_or(StringName::default(), |m| m.hand(stance.into()).name().into())
+    }
+
     /// Ends the current punch (`punch_finished` reports it interrupted) or recovery; the joints then hold
     /// the pose they are in.
     #[func(gd_self)]

@@ -142,7 +142,7 @@ class EvalArgs:
     policy: Path
     """the policy to measure (an exported .onnx)"""
     scenario: str = "held_out"
-    """a shipped scenario's name (held_out, moving, sizes) or a scenario file (.toml; docs/evaluation.md)"""
+    """a shipped scenario's name (held_out, moving, sizes, hands) or a scenario file (.toml; docs/evaluation.md)"""
     baseline: Path | None = None
     """a second policy measured on the same placements and conditions, side by side"""
     placements: int | None = None
@@ -230,7 +230,8 @@ def episodes_of(scenario: Scenario, still: list[EpisodeConditions], swinging: li
                                                                      "velocity_side_mps", "velocity_forward_mps")},
                     "sigma": sigma, "noise_decisions": condition.noise_decisions,
                     "seed": condition.noise_seed * SEED_STRIDE[0] + index * SEED_STRIDE[1] + e,
-                    "start": condition.start, "arms": list(condition.arms), "lead_s": condition.lead_s}
+                    "start": condition.start, "arms": list(condition.arms), "lead_s": condition.lead_s,
+                    "move": condition.move, "stance": condition.stance}
                 if condition.body is not None:
                     episode["body"] = condition.body.to_wire()
                 if condition.target is not None:

@@ -64,6 +64,11 @@ class Condition:
     target: Motion | None = None
     swinging: bool = False
     """the bag swinging at the start (the placements' swinging twins)"""
+    move: str = ""
+    """the move thrown (`punch(&"jab")`, the policy as the moveset's for it; a left-hand move at the mirror image of each
+    placement); empty: the policy with the right hand"""
+    stance: Literal["orthodox", "southpaw"] = "orthodox"
+    """the controller's stance, which says the move's hand"""
 
     def moves(self) -> bool:
         return self.body is not None or self.target is not None
@@ -88,7 +93,8 @@ class Scenario:
         return asdict(self)
 
 
-CONDITION_KEYS = ("name", "sigmas", "noise_decisions", "noise_seed", "start", "arms", "lead_s", "body", "target")
+CONDITION_KEYS = ("name", "sigmas", "noise_decisions", "noise_seed", "start", "arms", "lead_s", "body", "target", "move",
+                  "stance")
 SCENARIO_KEYS = ("name", "description", "success", "placements", "noisy_punches", "search_iterations", "naturalness",
                  "conditions")
 PLACEMENT_KEYS = ("count", "seed", "volume")
@@ -229,13 +235,18 @@ def _condition(index: int, table: Any, defaults: Mapping[str, Any], scenario_sig
     if body is not None and target is not None:
         raise ScenarioError(f"{where}: moves both the body and the target's hook; one of them at a time")
     noise_seed = merged.get("noise_seed", seed)
+    move, stance = merged.get("move", ""), merged.get("stance", "orthodox")
+    if not isinstance(move, str):
+        raise ScenarioError(f"{where}: move is a move's name (\"jab\", \"cross\", ...), not {move!r}")
+    if stance not in ("orthodox", "southpaw"):
+        raise ScenarioError(f"{where}: stance is \"orthodox\" or \"southpaw\", not {stance!r}")
     return Condition(
         name=name, sigmas=_sigmas(f"{where}: sigmas", merged.get("sigmas", "all"), scenario_sigmas),
         noise_seed=int(_number(f"{where}: noise_seed", noise_seed, 0, 2**32 - 1, whole=True)),
         noise_decisions=int(_number(f"{where}: noise_decisions", merged.get("noise_decisions", -1), -1, 10_000, whole=True)),
         start=start, arms=_arms(f"{where}: arms", merged.get("arms", 1.0)),
         lead_s=float(_number(f"{where}: lead_s", merged.get("lead_s", 0.0), 0.0, 10.0)),
-        body=body, target=target, swinging=swinging)
+        body=body, target=target, swinging=swinging, move=move, stance=stance)
 
 
 def build_scenario(data: Mapping[str, Any], source: str) -> Scenario:
