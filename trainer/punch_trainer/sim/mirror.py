@@ -33,7 +33,8 @@ class VectorMirror:
     def __call__(self, values: np.ndarray) -> np.ndarray:
         """`values` [..., N] mirrored along its last axis (the dtype kept)."""
         values = np.asarray(values)
-        return values[..., self.partner] * self.sign.astype(values.dtype)
+        mirrored: np.ndarray = values[..., self.partner] * self.sign.astype(values.dtype)
+        return mirrored
 
 
 @dataclass(frozen=True)
