@@ -56,6 +56,8 @@ MEASUREMENTS = (
                              "conditions": ["every decision"]}),
     Measurement("moving"),
     Measurement("sizes", {"placements": 256}),
+    # The policy thrown with the left hand (mirrored) beside the right, at mirrored held-out placements.
+    Measurement("hands", {"placements": 1024, "seed": 2025}),
 )
 
 
@@ -89,8 +91,9 @@ def _rows(report: dict[str, Any]) -> list[dict[str, Any]]:
 
 def summary_row(recipe: Recipe, runs: list[dict[str, Any]]) -> list[str]:
     """The figures that matter of one policy, from its reports: held-out success at sigma 0 and 0.3, the share in
-    proximal-to-distal order and the fist's peak speed at sigma 0, the weakest arm size and the hits on the move."""
-    held_out, moving, sizes = (run["report"] for run in runs)
+    proximal-to-distal order and the fist's peak speed at sigma 0, the weakest arm size, the hits on the move and the
+    left hand's success at sigma 0.3."""
+    held_out, moving, sizes, hands = (run["report"] for run in runs)
 
     def success(rows: list[dict[str, Any]], sigma: float) -> tuple[int, int]:
         chosen = [row for row in rows if abs(row["sigma"] - sigma) < 1e-9]
@@ -102,14 +105,17 @@ def summary_row(recipe: Recipe, runs: list[dict[str, Any]]) -> list[str]:
     natural = next(n for n in held_out["evaluations"][0]["naturalness"] if n["sigma"] == 0.0)
     weakest = min((row for row in _rows(sizes) if row["sigma"] == 0.0), key=lambda row: row["success_rate"])
     moved = success(_rows(moving), 0.0)
+    left_hand = success([row for row in _rows(hands) if row["condition"].startswith("left")], 0.3)
     return [f"`{recipe.policy.name}`", f"[{recipe.path.relative_to(PROJECT_ROOT).as_posix()}]",
             percent(success(_rows(held_out), 0.0)), percent(success(_rows(held_out), 0.3)),
             f"{100 * natural['proximal_to_distal_share']:.0f}%", f"{natural['medians']['fist_peak_speed_mps']:.2f} m/s",
-            f"{100 * weakest['success_rate']:.1f}% (arms {weakest['condition']})", f"{moved[0]:,} of {moved[1]:,}"]
+            f"{100 * weakest['success_rate']:.1f}% (arms {weakest['condition']})", f"{moved[0]:,} of {moved[1]:,}",
+            percent(left_hand)]
 
 
 SUMMARY_HEADER = ["file", "recipe", "lands at sigma 0 (held out)", "at sigma 0.3", "in proximal-to-distal order, sigma 0",
-                  "fist peak speed, sigma 0", "weakest arm size, sigma 0", "hits on the move, sigma 0"]
+                  "fist peak speed, sigma 0", "weakest arm size, sigma 0", "hits on the move, sigma 0",
+                  "left hand (mirrored), sigma 0.3"]
 
 
 def summary_table(rows: list[list[str]], link_prefix: str) -> str:
@@ -131,7 +137,8 @@ def write_results(recipes: list[Recipe], reports: dict[str, list[dict[str, Any]]
     explained = (f"Each shipped policy through the evaluator (docs/evaluation.md): {scenarios}. Held out: a hit and a "
                  "positive return, one punch per placement at sigma 0 and two at 0.3; on the move: the controller's "
                  "`hit` over every condition of the `moving` scenario; arm sizes: the fewest hits over the `sizes` "
-                 "scenario's arms. The reports of each policy follow, one section each.")
+                 "scenario's arms; the left hand: the `hands` scenario's southpaw row (the policy mirrored, at the mirror "
+                 "images of its placements). The reports of each policy follow, one section each.")
     write_section(SUMMARY_SECTION, command, explained + "\n\n" + summary_table(rows, ""))
     for recipe in recipes:
         body = []
