@@ -10,6 +10,7 @@ from punch_trainer.sim.godot import GODOT_PROJECT, PROJECT_ROOT, run_godot
 pytestmark = pytest.mark.godot
 
 LEAD_MOVES = {"jab", "lead_hook", "lead_uppercut"}
+SIX_MOVES = ["jab", "cross", "lead_hook", "rear_hook", "lead_uppercut", "rear_uppercut"]
 
 
 def run_moves_scene():
@@ -78,3 +79,45 @@ def test_a_scenario_with_a_stance_that_is_none_is_refused():
 
     with pytest.raises(ScenarioError, match="stance is \"orthodox\" or \"southpaw\""):
         build_scenario({"conditions": [{"name": "x", "move": "jab", "stance": "boxer"}]}, "inline")
+
+
+def test_the_demo_throws_every_move_in_both_stances_at_its_bag():
+    """The demo (godot_project/demo/demo.tscn) as a newcomer plays it: keys 1-6 in each stance (the stance picked in
+    its picker), the bag nudged right, then the swing from the move picker. Every move of the moveset is thrown in
+    both stances with its stance's hand and hits the bag, which hangs on that hand's side; a key whose move has no
+    policy throws nothing and says so, with no error in the log."""
+    script = PROJECT_ROOT / "tests" / "godot" / "demo_moves.gd"
+    run = run_godot(["--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), "--script", str(script)],
+                    check=False, timeout_s=120)
+    line = next((line for line in run.log.splitlines() if line.startswith("DEMO_MOVES ")), None)
+    assert line is not None and run.fatal_lines() == [] and "ERROR" not in run.log, run.log[-3000:]
+    report = json.loads(line[len("DEMO_MOVES "):])
+    moveset = report["moveset"]
+    assert {"jab", "cross", "lead_hook", "rear_hook"} <= set(moveset), report["moveset"]
+    labels = {move: f"{number} {move.replace('_', ' ')}" for number, move in enumerate(SIX_MOVES, 1)}
+    assert report["items"] == [labels[move] for move in moveset] + ["swing (policy)"], report["items"]
+    assert report["stances"] == ["orthodox (left leads)", "southpaw (right leads)"]
+    thrown, nudges = set(), 0
+    for throw in report["throws"]:
+        orthodox = throw["stance"] == 0
+        nudges += throw["action"] == "key Right"
+        key_move = SIX_MOVES[int(throw["action"][-1]) - 1] if throw["action"][-1].isdigit() else None
+        if key_move is not None and key_move not in moveset:
+            assert throw["started"] == [] and throw["label"] == f"{labels[key_move]}: no policy for it in the moveset yet"
+            continue
+        ((move, hand),) = throw["started"]
+        if key_move is not None:
+            assert move == key_move, throw
+        expected = "right" if move == "" else ("left" if orthodox == (move in LEAD_MOVES) else "right")
+        assert hand == expected and [(f["move"], f["hand"], f["ended"]) for f in throw["finished"]] == \
+            [(move, hand, "completed")], throw
+        bag_hits = [hit for hit in throw["hits"] if hit["bag"]]
+        assert bag_hits and all(hit["hand"] == hand for hit in bag_hits), throw
+        name = labels.get(move, "swing")
+        assert throw["label"] == f"{name}, {hand} hand: hit the bag ({hand} fist)", throw
+        if nudges == 2:  # the bag nudged 10 cm right, then mirrored onto the side of each punch's hand
+            assert throw["bag_x"] == pytest.approx(0.10 if hand == "left" else -0.10, abs=1e-3), throw
+        thrown.add((throw["stance"], move))
+    assert thrown == {(stance, move) for stance in (0, 1) for move in moveset} | {(1, "")}, thrown
+    throws = sum(1 for throw in report["throws"] if throw["started"])
+    assert report["hit_rate_label"] == f"hit rate: {throws} of {throws} (100%)"
