@@ -138,11 +138,11 @@ func _unhandled_key_input(event: InputEvent) -> void:
 		_place_bag(_bag_offset() + nudges[key_event.keycode])
 
 
-## The picked move's policy becomes the controller's `policy` too: `reach_volume()` gives its reach, and the swing
-## (no move) plays it.
+## The picked move (empty: the swing, played as the controller's `policy`).
 func _use(move: StringName) -> void:
 	_move = move
-	_controller.policy = load(SWING) if move == &"" else _moveset.policy_for(move)
+	if move == &"":
+		_controller.policy = load(SWING)
 
 
 ## The hand the picked move is thrown with in the controller's stance (the swing: the right).
@@ -150,12 +150,9 @@ func _hand() -> StringName:
 	return &"right" if _move == &"" else PunchController.hand_for(_move, _controller.stance)
 
 
-## The punching hand's reach volume: the policy's (the right hand's), its side range mirrored for the left hand.
+## The picked move's reach volume, for the hand the stance gives it (the swing: `policy`'s).
 func _reach_volume() -> Dictionary:
-	var reach: Dictionary = _controller.reach_volume()
-	if not reach.is_empty() and _hand() == &"left":
-		reach.side_m = Vector2(-reach.side_m.y, -reach.side_m.x)
-	return reach
+	return _controller.reach_volume(_move)
 
 
 func _throw_with_bag_on_its_side() -> void:

@@ -65,6 +65,8 @@ func _refusals() -> void:
 	other.set("character", controller.get("character"))
 	other.set("target", controller.get("target"))
 	root.add_child(other)
+	_report.reach_of_jab = other.call("reach_volume", &"jab")
+	_report.reach_of_haymaker = other.call("reach_volume", &"haymaker")
 	_report.refused["haymaker"] = other.call("punch", &"haymaker")
 	_report.refused["lead_uppercut"] = other.call("punch", &"lead_uppercut")
 	var moveset: Resource = ClassDB.instantiate("PunchMoveset")

@@ -57,6 +57,8 @@ def test_a_move_with_no_policy_or_no_name_is_refused_naming_it():
     assert "no move named 'haymaker' (the moves: jab, cross, lead_hook, rear_hook, lead_uppercut, rear_uppercut)" in run.log
     assert "has no policy for 'lead_uppercut'" in run.log and "has no policy for 'cross'" in run.log
     assert report["moves_of_own_moveset"] == ["jab"]
+    # A move's reach (the left hand's mirrored; the shipped policies' side ranges are symmetric, so it looks alike).
+    assert set(report["reach_of_jab"]) >= {"distance_m", "height_m", "side_m"} and report["reach_of_haymaker"] == {}
     assert report["moves_of_addon_moveset"] == ["jab", "cross", "lead_hook", "rear_hook"]
 
 

@@ -326,15 +326,17 @@ impl PunchController {
         Self::emit_events(&mut this);
     }
 
-    /// The target placements the policy was trained to punch, in the character's frame: `distance_m`,
-    /// `height_m` and `side_m` ranges of the target's centre (Vector2(low, high); +Z ahead, +Y up, +X the
-    /// character's left), `max_target_speed_mps` and `any_start_pose` (false: only from the settled guard).
-    /// Targets up to 3 cm outside still count. Empty when the policy cannot be loaded.
+    /// The target placements `punch(move_name)` covers (with no move: `default_move`'s, or `policy`'s), in the
+    /// character's frame: `distance_m`, `height_m` and `side_m` ranges of the target's centre (Vector2(low, high);
+    /// +Z ahead, +Y up, +X the character's left; a left-hand move's is the mirror image of its policy's),
+    /// `max_target_speed_mps` and `any_start_pose` (false: only from the settled guard). Targets up to 3 cm outside
+    /// still count. Empty (with the reason in the log) when the move or its policy cannot be had.
     #[func]
-    fn reach_volume(&self) -> VarDictionary {
+    fn reach_volume(&self, #[opt(default = "")] move_name: StringName) -> VarDictionary {
         let mut result = VarDictionary::new();
-        let reach = match self.punching_policy() {
-            Ok(policy) => policy.reach,
+        let reach = match self.throw_of(&move_name) {
+            Ok(throw) if throw.hand.is_mirrored() => throw.policy.reach.mirrored(),
+            Ok(throw) => throw.policy.reach,
             Err(error) => {
                 if !error.is_empty() {
                     godot_error!("PunchController '{}': {error}", self.base().get_name());
