@@ -266,6 +266,7 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 		controller.set("moveset", moveset)
 		controller.set("stance", stance)
 		slot.move = move
+	controller.set("stance_pose", bool(episode.get("stance_pose", false)))
 	if _record:
 		PunchProbe.set_recording(controller, true)
 	controller.set("auto_recover", false)  # each batch's scene is freed after its punches

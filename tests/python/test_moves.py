@@ -123,3 +123,26 @@ def test_the_demo_throws_every_move_in_both_stances_at_its_bag():
     assert thrown == {(stance, move) for stance in (0, 1) for move in moveset} | {(1, "")}, thrown
     throws = sum(1 for throw in report["throws"] if throw["started"])
     assert report["hit_rate_label"] == f"hit rate: {throws} of {throws} (100%)"
+
+
+def test_from_the_stances_guard_the_character_turns_and_still_lands(tmp_path):
+    """`stance_pose`: each punch first returns to the stance's guard (the trunk turned 30°, recorded as the first
+    frame's waist rotation, mirrored for the left hand into the policy's frame), then lands."""
+    import numpy as np
+
+    from punch_trainer.pipelines.evaluation import EvalArgs, recorded, run_episodes, run_eval
+    from punch_trainer.pipelines.scenario import load_scenario
+
+    args = EvalArgs(policy=PROJECT_ROOT / "addons" / "punch_controller" / "policies" / "straight.onnx", scenario="stance",
+                    placements=4, sigmas=[0.0], out=tmp_path)
+    _, report = run_eval(args, progress=False)
+    for row in report["evaluations"][0]["rows"]:
+        assert row["successes"] >= 3, row
+    scenario = load_scenario("stance")
+    assert all(condition.stance_pose for condition in scenario.conditions)
+    # The first recorded frame of an orthodox cross (the right hand, unmirrored) has the trunk turned right.
+    meta = run_episodes(args.policy, [{"seed": 0, "move": "cross", "stance": "orthodox", "stance_pose": True}],
+                        tmp_path / "one", record=True)
+    features = recorded(tmp_path / "one", meta, "features")
+    waist = features[0, 0, meta["feature_names"].index("angle_waist_rotation")]
+    assert np.degrees(waist) == pytest.approx(-30.0, abs=3.0), np.degrees(waist)

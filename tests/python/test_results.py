@@ -53,6 +53,7 @@ def test_results_measure_a_recipes_policy_and_rewrite_the_docs(tmp_path, monkeyp
         Measurement("moving", {"placements": 2, "conditions": ["standing", "forward 0.7 m/s"]}),
         Measurement("sizes", {"placements": 2, "conditions": ["0.75", "1"]}),
         Measurement("hands", {"placements": 2, "sigmas": [0.0, 0.3]}),
+        Measurement("stance", {"placements": 2, "conditions": ["jab, orthodox (left, lead)"]}),
     ))
     arguments = ["results", str(PROJECT_ROOT / "recipes" / "straight.toml"), "--out", str(tmp_path / "runs")]
     for _ in range(2):
@@ -62,7 +63,7 @@ def test_results_measure_a_recipes_policy_and_rewrite_the_docs(tmp_path, monkeyp
     cells = [cell.strip() for cell in row.strip("|").split("|")]
     assert cells[2].endswith("of 3") and cells[3].endswith("of 6"), row
     assert cells[6].endswith("(arms 0.75)") or cells[6].endswith("(arms 1)"), row
-    assert cells[7].endswith("of 4") and cells[8].endswith("of 2"), row
+    assert cells[7].endswith("of 4") and cells[8].endswith("of 2") and cells[9].endswith("(jab, orthodox (left, lead))"), row
     assert "Measured by `punch results" in table and "hook.onnx" not in table
     text = benchmarks.read_text()
     assert "kept" in text and text.count("## The shipped straight") == 1 and text.count("## The shipped policies") == 1

@@ -16,7 +16,7 @@ use godot::global::{godot_error, godot_warn};
 use godot::obj::{Base, Gd, InstanceId, NewGd, Singleton, WithBaseField, WithSignals, WithUserSignals};
 use godot::prelude::PhantomVar;
 use godot::prelude::{Export, GodotClass, GodotConvert, Var, godot_api, try_load};
-use punch_core::contract::character::{Body, DEFAULT_DECISION_PERIOD};
+use punch_core::contract::character::{Body, DEFAULT_DECISION_PERIOD, DOF_COUNT};
 use punch_core::contract::mirror::mirror_point;
 use punch_core::contract::sensing::{CharacterGeometry, FrameReading};
 use punch_core::game::lifecycle::{Drive, Ending, Event, FrameNeeds, Lifecycle, NoiseSettings, PunchStart};
@@ -123,6 +123,13 @@ pub struct PunchController {
     /// mirrored. Takes effect at the next punch.
     #[export]
     stance: PunchStance,
+    /// Stand in the stance's guard: the trunk turned 30° to bring the lead shoulder forward, the lead hand a little
+    /// ahead (docs/moves.md). Recoveries drive there, and a punch asked for away from it returns there first
+    /// (`guard_first`). Off (the default): the square guard the shipped policies were trained from; from the
+    /// stance's they land less often (BENCHMARKS.md, "The shipped policies", the `stance` scenario). Takes effect
+    /// at the next punch or recovery.
+    #[export]
+    stance_pose: bool,
     /// The move `punch()` throws when it is given none ("jab", "cross", "lead_hook", "rear_hook",
     /// "lead_uppercut", "rear_uppercut"); empty (the default): `policy`, with the right hand, as trained.
     #[export]
@@ -457,6 +464,7 @@ impl PunchController {
         }
         PunchControllerRegistry::check_project_settings()?;
         let Throw { policy, hand, punch_move } = self.throw_of(move_name)?;
+        self.lifecycle.set_guard(self.guard_targets());
         policy.check_spec(policy.spec.decision_period).map_err(|e| e.to_string())?;
         let character = live(&self.character).ok_or("no character set (or it was freed)")?;
         let mut target = Target::resolve(live(&self.target).ok_or("no target set (or it was freed)")?);
@@ -493,6 +501,7 @@ impl PunchController {
         if !self.base().is_inside_tree() || self.leaving_tree {
             return Err("the controller is not in the scene tree".into());
         }
+        self.lifecycle.set_guard(self.guard_targets());
         self.lifecycle.recover(geometry);
         self.drive_from_now(character.clone());
         Ok(character)
@@ -538,6 +547,11 @@ impl PunchController {
     fn punching_policy(&self) -> Result<Rc<PunchingPolicy>, String> {
         let mut policy = self.policy.clone().ok_or("no policy set")?;
         policy.bind_mut().punching()
+    }
+
+    /// The guard recoveries drive to: the stance's (`stance_pose`), or the square guard.
+    fn guard_targets(&self) -> [f32; DOF_COUNT] {
+        if self.stance_pose { Stance::from(self.stance).guard_targets() } else { [0.0; DOF_COUNT] }
     }
 
     fn noise(&self) -> NoiseSettings {

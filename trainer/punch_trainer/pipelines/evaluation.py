@@ -231,7 +231,7 @@ def episodes_of(scenario: Scenario, still: list[EpisodeConditions], swinging: li
                     "sigma": sigma, "noise_decisions": condition.noise_decisions,
                     "seed": condition.noise_seed * SEED_STRIDE[0] + index * SEED_STRIDE[1] + e,
                     "start": condition.start, "arms": list(condition.arms), "lead_s": condition.lead_s,
-                    "move": condition.move, "stance": condition.stance}
+                    "move": condition.move, "stance": condition.stance, "stance_pose": condition.stance_pose}
                 if condition.body is not None:
                     episode["body"] = condition.body.to_wire()
                 if condition.target is not None:

@@ -58,6 +58,8 @@ MEASUREMENTS = (
     Measurement("sizes", {"placements": 256}),
     # The policy thrown with the left hand (mirrored) beside the right, at mirrored held-out placements.
     Measurement("hands", {"placements": 1024, "seed": 2025}),
+    # From the stance's guard (`stance_pose`), as the rear and the lead hand's move in each stance.
+    Measurement("stance"),
 )
 
 
@@ -92,8 +94,8 @@ def _rows(report: dict[str, Any]) -> list[dict[str, Any]]:
 def summary_row(recipe: Recipe, runs: list[dict[str, Any]]) -> list[str]:
     """The figures that matter of one policy, from its reports: held-out success at sigma 0 and 0.3, the share in
     proximal-to-distal order and the fist's peak speed at sigma 0, the weakest arm size, the hits on the move and the
-    left hand's success at sigma 0.3."""
-    held_out, moving, sizes, hands = (run["report"] for run in runs)
+    left hand's success at sigma 0.3 and the weakest move from the stance's guard at sigma 0.3."""
+    held_out, moving, sizes, hands, stance = (run["report"] for run in runs)
 
     def success(rows: list[dict[str, Any]], sigma: float) -> tuple[int, int]:
         chosen = [row for row in rows if abs(row["sigma"] - sigma) < 1e-9]
@@ -106,16 +108,17 @@ def summary_row(recipe: Recipe, runs: list[dict[str, Any]]) -> list[str]:
     weakest = min((row for row in _rows(sizes) if row["sigma"] == 0.0), key=lambda row: row["success_rate"])
     moved = success(_rows(moving), 0.0)
     left_hand = success([row for row in _rows(hands) if row["condition"].startswith("left")], 0.3)
+    from_stance = min((row for row in _rows(stance) if row["sigma"] == 0.3), key=lambda row: row["success_rate"])
     return [f"`{recipe.policy.name}`", f"[{recipe.path.relative_to(PROJECT_ROOT).as_posix()}]",
             percent(success(_rows(held_out), 0.0)), percent(success(_rows(held_out), 0.3)),
             f"{100 * natural['proximal_to_distal_share']:.0f}%", f"{natural['medians']['fist_peak_speed_mps']:.2f} m/s",
             f"{100 * weakest['success_rate']:.1f}% (arms {weakest['condition']})", f"{moved[0]:,} of {moved[1]:,}",
-            percent(left_hand)]
+            percent(left_hand), f"{100 * from_stance['success_rate']:.1f}% ({from_stance['condition']})"]
 
 
 SUMMARY_HEADER = ["file", "recipe", "lands at sigma 0 (held out)", "at sigma 0.3", "in proximal-to-distal order, sigma 0",
                   "fist peak speed, sigma 0", "weakest arm size, sigma 0", "hits on the move, sigma 0",
-                  "left hand (mirrored), sigma 0.3"]
+                  "left hand (mirrored), sigma 0.3", "weakest from the stance's guard, sigma 0.3"]
 
 
 def summary_table(rows: list[list[str]], link_prefix: str) -> str:
@@ -138,7 +141,8 @@ def write_results(recipes: list[Recipe], reports: dict[str, list[dict[str, Any]]
                  "positive return, one punch per placement at sigma 0 and two at 0.3; on the move: the controller's "
                  "`hit` over every condition of the `moving` scenario; arm sizes: the fewest hits over the `sizes` "
                  "scenario's arms; the left hand: the `hands` scenario's southpaw row (the policy mirrored, at the mirror "
-                 "images of its placements). The reports of each policy follow, one section each.")
+                 "images of its placements); from the stance: the `stance` scenario's lowest row at sigma 0.3. The reports of "
+                 "each policy follow, one section each.")
     write_section(SUMMARY_SECTION, command, explained + "\n\n" + summary_table(rows, ""))
     for recipe in recipes:
         body = []

@@ -69,6 +69,8 @@ class Condition:
     placement); empty: the policy with the right hand"""
     stance: Literal["orthodox", "southpaw"] = "orthodox"
     """the controller's stance, which says the move's hand"""
+    stance_pose: bool = False
+    """the character stands in the stance's guard (`PunchController.stance_pose`) and punches from there"""
 
     def moves(self) -> bool:
         return self.body is not None or self.target is not None
@@ -94,7 +96,7 @@ class Scenario:
 
 
 CONDITION_KEYS = ("name", "sigmas", "noise_decisions", "noise_seed", "start", "arms", "lead_s", "body", "target", "move",
-                  "stance")
+                  "stance", "stance_pose")
 SCENARIO_KEYS = ("name", "description", "success", "placements", "noisy_punches", "search_iterations", "naturalness",
                  "conditions")
 PLACEMENT_KEYS = ("count", "seed", "volume")
@@ -240,13 +242,16 @@ def _condition(index: int, table: Any, defaults: Mapping[str, Any], scenario_sig
         raise ScenarioError(f"{where}: move is a move's name (\"jab\", \"cross\", ...), not {move!r}")
     if stance not in ("orthodox", "southpaw"):
         raise ScenarioError(f"{where}: stance is \"orthodox\" or \"southpaw\", not {stance!r}")
+    stance_pose = merged.get("stance_pose", False)
+    if not isinstance(stance_pose, bool):
+        raise ScenarioError(f"{where}: stance_pose is true or false, not {stance_pose!r}")
     return Condition(
         name=name, sigmas=_sigmas(f"{where}: sigmas", merged.get("sigmas", "all"), scenario_sigmas),
         noise_seed=int(_number(f"{where}: noise_seed", noise_seed, 0, 2**32 - 1, whole=True)),
         noise_decisions=int(_number(f"{where}: noise_decisions", merged.get("noise_decisions", -1), -1, 10_000, whole=True)),
         start=start, arms=_arms(f"{where}: arms", merged.get("arms", 1.0)),
         lead_s=float(_number(f"{where}: lead_s", merged.get("lead_s", 0.0), 0.0, 10.0)),
-        body=body, target=target, swinging=swinging, move=move, stance=stance)
+        body=body, target=target, swinging=swinging, move=move, stance=stance, stance_pose=stance_pose)
 
 
 def build_scenario(data: Mapping[str, Any], source: str) -> Scenario:

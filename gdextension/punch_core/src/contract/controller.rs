@@ -42,6 +42,12 @@ impl CharacterController {
         Ok(executed)
     }
 
+    /// Holds these joint targets (rad, action order) until the next action: a pose to drive to, as a recovery
+    /// does to a stance's guard.
+    pub fn set_targets(&mut self, targets: [f32; DOF_COUNT]) {
+        self.targets = targets;
+    }
+
     /// Motor target velocities for each joint (`JOINTS` order), in Godot's 6DOF motor convention.
     pub fn motor_commands(&self, reading: &FrameReading) -> [Vec3; 5] {
         let rotations = self.sensor.joint_rotations(reading);

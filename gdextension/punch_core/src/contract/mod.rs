@@ -10,3 +10,4 @@ pub mod observation;
 pub mod sensing;
 pub mod smoothing;
 pub mod spec;
+pub mod stance;

@@ -12,6 +12,7 @@ use std::collections::VecDeque;
 
 use glam::Vec3;
 
+use crate::contract::character::DOF_COUNT;
 use crate::contract::observation::OBS_DIM;
 use crate::contract::sensing::{CharacterGeometry, FrameReading};
 use crate::error::CoreResult;
@@ -108,6 +109,8 @@ pub struct Lifecycle<P: Clone> {
     /// The joints are to be stopped at the next `act` (a recovery ended, or a punch stopped).
     hold_next: bool,
     last_record: PunchRecord,
+    /// The guard a recovery drives to (rad, action order; all 0: the square guard).
+    guard: [f32; DOF_COUNT],
 }
 
 impl<P: Clone> Default for Lifecycle<P> {
@@ -119,6 +122,7 @@ impl<P: Clone> Default for Lifecycle<P> {
             events: VecDeque::new(),
             hold_next: false,
             last_record: PunchRecord::default(),
+            guard: [0.0; DOF_COUNT],
         }
     }
 }
@@ -138,6 +142,12 @@ impl<P: Clone> Lifecycle<P> {
     /// keep calling `begin_frame` and `act`, and taking the events.
     pub fn is_active(&self) -> bool {
         !matches!(self.phase, Phase::Idle) || self.hold_next || !self.events.is_empty()
+    }
+
+    /// The guard every later recovery drives to, and a punch returns to first (`PunchStart::guard_first`): joint
+    /// targets (rad, action order), all 0 for the square guard, a stance's (`Stance::guard_targets`) otherwise.
+    pub fn set_guard(&mut self, guard: [f32; DOF_COUNT]) {
+        self.guard = guard;
     }
 
     /// The record of the last finished punch (empty unless its `Punch` was made to record).
@@ -163,7 +173,9 @@ impl<P: Clone> Lifecycle<P> {
         let geometry = *punch.geometry();
         self.phase = match start.guard_first {
             // Decided at the next frame's reading: a character already in guard punches in that same frame.
-            true => Phase::Guarding(punch, start.policy, Box::new(Recovery::new(geometry)), [Vec3::ZERO; 5]),
+            true => {
+                Phase::Guarding(punch, start.policy, Box::new(Recovery::new(geometry, self.guard)), [Vec3::ZERO; 5])
+            }
             false => Phase::Punching(punch, start.policy),
         };
         self.hold_next = false;
@@ -201,7 +213,7 @@ impl<P: Clone> Lifecycle<P> {
     /// when it is there.
     pub fn recover(&mut self, geometry: CharacterGeometry) {
         self.interrupt();
-        self.phase = Phase::Recovering(Box::new(Recovery::new(geometry)), [Vec3::ZERO; 5]);
+        self.phase = Phase::Recovering(Box::new(Recovery::new(geometry, self.guard)), [Vec3::ZERO; 5]);
         self.hold_next = false;
     }
 
@@ -269,7 +281,7 @@ impl<P: Clone> Lifecycle<P> {
                 self.phase = Phase::Idle;
                 self.hold_next = true;
                 if let Some(geometry) = recover_at() {
-                    let mut recovery = Recovery::new(geometry);
+                    let mut recovery = Recovery::new(geometry, self.guard);
                     if let Some(commands) = recovery.step(&reading) {
                         self.phase = Phase::Recovering(Box::new(recovery), commands);
                         self.hold_next = false;

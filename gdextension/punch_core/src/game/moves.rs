@@ -7,15 +7,7 @@
 
 use std::fmt;
 
-/// Which side of the body leads: the lead hand is the one nearer the opponent.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Stance {
-    /// The left hand leads (a right-handed boxer's stance).
-    #[default]
-    Orthodox,
-    /// The right hand leads.
-    Southpaw,
-}
+pub use crate::contract::stance::Stance;
 
 /// A hand (the right by default: the hand every policy punches with).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

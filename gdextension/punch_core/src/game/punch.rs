@@ -346,10 +346,12 @@ impl Punch {
 }
 
 /// Bringing a character back to its guard pose under physics (after a punch, or whenever a game asks): the
-/// joint motors drive every joint toward its rest angle with the same motor law as a punch.
+/// joint motors drive every joint toward its guard angle (the square guard's rest angle, or a stance's) with the
+/// same motor law as a punch.
 #[derive(Debug, Clone)]
 pub struct Recovery {
     controller: CharacterController,
+    guard: [f32; DOF_COUNT],
     frame: u32,
 }
 
@@ -361,8 +363,11 @@ impl Recovery {
     /// ... and slower than this (rad/s).
     pub const SETTLED_SPEED_RAD_S: f32 = 0.2;
 
-    pub fn new(geometry: CharacterGeometry) -> Self {
-        Self { controller: CharacterController::new(geometry, 1), frame: 0 }
+    /// A recovery to the guard whose joint targets are `guard` (rad, action order; all 0: the square guard).
+    pub fn new(geometry: CharacterGeometry, guard: [f32; DOF_COUNT]) -> Self {
+        let mut controller = CharacterController::new(geometry, 1);
+        controller.set_targets(guard);
+        Self { controller, guard, frame: 0 }
     }
 
     /// Motor commands for the next physics step, or None when the character is back in its guard pose (or
@@ -370,7 +375,7 @@ impl Recovery {
     pub fn step(&mut self, reading: &FrameReading) -> Option<[Vec3; 5]> {
         let features = self.controller.features(reading);
         let settled = (0..DOF_COUNT).all(|i| {
-            features[columns::ANGLES + i].abs() < Self::SETTLED_ANGLE_RAD
+            (features[columns::ANGLES + i] - self.guard[i]).abs() < Self::SETTLED_ANGLE_RAD
                 && features[columns::SPEEDS + i].abs() < Self::SETTLED_SPEED_RAD_S
         });
         if settled || self.frame >= Self::MAX_FRAMES {
@@ -578,9 +583,12 @@ mod tests {
     #[test]
     fn recovery_drives_back_to_guard_and_stops_there() {
         let mut reading = FakeWorld::new(1).read_slot(0);
-        assert_eq!(Recovery::new(rest_geometry()).step(&reading), None, "already in guard");
+        assert_eq!(Recovery::new(rest_geometry(), [0.0; DOF_COUNT]).step(&reading), None, "already in guard");
+        let stance = Recovery::new(rest_geometry(), crate::contract::stance::Stance::Orthodox.guard_targets());
+        let commands = stance.clone().step(&reading).expect("the square guard is not the stance's");
+        assert!(commands[0].length() > 1.0, "the waist is driven round: {commands:?}");
         reading.bodies[Body::ForearmR.index()].rotation = Quat::from_rotation_x(0.5);
-        let mut recovery = Recovery::new(rest_geometry());
+        let mut recovery = Recovery::new(rest_geometry(), [0.0; DOF_COUNT]);
         let commands = recovery.step(&reading).expect("drives");
         assert!(commands[2].length() > 1.0, "the right elbow is driven back: {commands:?}");
         let steps = std::iter::from_fn(|| recovery.step(&reading)).take(1000).count();

@@ -1,0 +1,71 @@
+//! A boxer's stance: which side leads, and the guard it stands in.
+//!
+//! The character's pelvis is the game's (it faces its +Z, square to the target), so the stance is the upper body's:
+//! the trunk turned so the lead shoulder comes forward and the rear shoulder back, the lead hand held a little ahead
+//! of the face and the rear hand by the chin. Boxing coaches teach the rear shoulder "about 30-40 degrees back"
+//! and the lead hand about 10 cm out from the face (ringsport.com.au, "Basic boxing stance"); the guard here turns
+//! the trunk 30° and opens the lead arm 10° forward at the shoulder and 15° at the elbow, within every joint's
+//! range. The southpaw's is the orthodox's mirror image.
+
+use crate::contract::character::DOF_COUNT;
+use crate::contract::mirror::mirror_targets;
+
+/// Which side leads: the lead hand is the one nearer the opponent.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Stance {
+    /// The left hand leads (a right-handed boxer's stance).
+    #[default]
+    Orthodox,
+    /// The right hand leads.
+    Southpaw,
+}
+
+const fn deg(value: f32) -> f32 {
+    value * std::f32::consts::PI / 180.0
+}
+
+/// The orthodox guard's joint targets (rad, from the square guard every joint's range is measured from, in action
+/// order): the trunk turned 30° to the right (waist rotation, positive turning left), the left shoulder 10°
+/// forward (flexion, positive swinging back) and the left elbow opened 15°; the right arm as in the square guard.
+pub const ORTHODOX_GUARD_RAD: [f32; DOF_COUNT] = [0.0, deg(-30.0), 0.0, 0.0, 0.0, 0.0, deg(-10.0), 0.0, 0.0, deg(15.0)];
+
+impl Stance {
+    /// The joint targets of this stance's guard (rad, action order).
+    pub fn guard_targets(self) -> [f32; DOF_COUNT] {
+        match self {
+            Stance::Orthodox => ORTHODOX_GUARD_RAD,
+            Stance::Southpaw => mirror_targets(&ORTHODOX_GUARD_RAD),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::contract::character::DOFS;
+
+    #[test]
+    fn the_orthodox_guard_turns_the_left_side_forward_within_every_range() {
+        let guard = Stance::Orthodox.guard_targets();
+        for (target, dof) in guard.iter().zip(&DOFS) {
+            assert!(dof.lower_rad < *target && *target < dof.upper_rad, "{} at {target}", dof.name);
+        }
+        let index = |name: &str| DOFS.iter().position(|d| d.name == name).expect("a DOF");
+        assert!(guard[index("waist_rotation")] < 0.0, "the trunk turns right: the left shoulder comes forward");
+        assert!(
+            guard[index("shoulder_l_flexion")] < 0.0 && guard[index("elbow_l_extension")] > 0.0,
+            "the lead hand out"
+        );
+        assert_eq!(guard[index("shoulder_r_flexion")], 0.0);
+    }
+
+    #[test]
+    fn the_southpaw_guard_is_the_orthodox_mirrored() {
+        let (orthodox, southpaw) = (Stance::Orthodox.guard_targets(), Stance::Southpaw.guard_targets());
+        let index = |name: &str| DOFS.iter().position(|d| d.name == name).expect("a DOF");
+        assert_eq!(southpaw[index("waist_rotation")], -orthodox[index("waist_rotation")]);
+        assert_eq!(southpaw[index("shoulder_r_flexion")], orthodox[index("shoulder_l_flexion")]);
+        assert_eq!(southpaw[index("elbow_r_extension")], orthodox[index("elbow_l_extension")]);
+        assert_eq!(mirror_targets(&southpaw), orthodox);
+    }
+}
