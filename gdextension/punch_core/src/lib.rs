@@ -16,14 +16,16 @@
 /// mirror that turns a policy of one hand into one of the other (`mirror`, its tables resolved by name: `names`).
 pub mod contract;
 /// One punch in a game, free of Godot: the punch itself (decision clock, runtime noise, hits, its end:
-/// `punch`, `noise`), a controller's phases and events (`lifecycle`), and the gate a policy passes before a
-/// character plays it, with the batched decisions of every character (`policy_gate`).
+/// `punch`, `noise`), a controller's phases and events (`lifecycle`), the six moves and which hand throws each
+/// (`moves`), and the gate a policy passes before a character plays it, with the batched decisions of every
+/// character (`policy_gate`).
 pub mod game;
 /// Policy inference with ONNX Runtime: the process-wide runtime (`runtime`) and a policy file checked by
 /// `punch_model_check` and loaded as a session (`policy`).
 pub mod inference;
 /// Rig retargeting: finding a user's skeleton's bones (`bone_map`), posing it from the simulated upper body
-/// and blending with its animation (`skeleton_pose`), and closing its hands into fists (`fist`).
+/// and blending with its animation (`skeleton_pose`), closing its hands into fists (`fist`), and reading the
+/// transforms a game gives without trusting them (`transform`: scale 0, mirrored, NaN).
 pub mod rig;
 /// The training server, free of Godot: its episodes over N slots (`session`), the trainer's wire format
 /// (`protocol`), who may use a server (`access`), its sockets (`connections`, Linux) and its log budget
