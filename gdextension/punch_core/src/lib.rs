@@ -12,8 +12,9 @@
 /// The policy contract and what training and the game both run, defined once: sizes, names, rates and the
 /// spec hash (`spec`), the character's bodies and joints (`character`), what it senses each frame
 /// (`sensing`), the policy's observation (`observation`), Eq. 1 smoothing (`smoothing`), the motor law
-/// (`controller`), the arms' sizes (`arm_size`), how training moves a character's root (`motion`), and the
-/// mirror that turns a policy of one hand into one of the other (`mirror`, its tables resolved by name: `names`).
+/// (`controller`), the arms' sizes (`arm_size`), how training moves a character's root (`motion`), the mirror
+/// that turns a policy of one hand into one of the other (`mirror`, its tables resolved by name: `names`), and the
+/// stances' guards (`stance`).
 pub mod contract;
 /// One punch in a game, free of Godot: the punch itself (decision clock, runtime noise, hits, its end:
 /// `punch`, `noise`), a controller's phases and events (`lifecycle`), the six moves and which hand throws each
