@@ -19,9 +19,13 @@ pub fn quat(q: Quaternion) -> Quat {
     checked_quat(q).unwrap_or(Quat::from_xyzw(q.x, q.y, q.z, q.w))
 }
 
-/// A quaternion from the engine (an animation's bone rotation), normalized, or why it is none.
+/// A quaternion from the engine (an animation's bone rotation), normalized, or why it is none. One of a normal
+/// length is normalized as the extension always did (glam's `normalize`), bit for bit, so that what training and
+/// the game sense does not change; one too short for that, by `unit_quat`'s scaled normalization.
 pub fn checked_quat(q: Quaternion) -> Result<Quat, TransformError> {
-    unit_quat(q.x, q.y, q.z, q.w)
+    let unit = unit_quat(q.x, q.y, q.z, q.w)?;
+    let raw = Quat::from_xyzw(q.x, q.y, q.z, q.w);
+    Ok(if raw.length_squared().is_normal() { raw.normalize() } else { unit })
 }
 
 pub fn quaternion(q: Quat) -> Quaternion {
@@ -33,7 +37,20 @@ pub fn quaternion(q: Quat) -> Quaternion {
 /// zero). A basis with a NaN, no size (a scale of 0) or mirrored is refused, saying which
 /// (`punch_core::rig::transform::rotation_of`); one that passes has an inverse.
 pub fn rotation(basis: Basis) -> Result<Quat, TransformError> {
-    rotation_of([basis.col_a(), basis.col_b(), basis.col_c()].map(vec3))
+    let checked = rotation_of([basis.col_a(), basis.col_b(), basis.col_c()].map(vec3))?;
+    // A rotation (every physics body's basis, an unscaled node's): Godot's own quaternion of it, as the extension
+    // always read it, bit for bit, so that training and the game sense exactly what they did (the golden run).
+    Ok(if is_rotation(basis) { quat(basis.get_quaternion()) } else { checked })
+}
+
+/// Whether a basis is a rotation within float error: unit columns at right angles (so its determinant is 1 and
+/// Godot's `get_quaternion` takes it).
+fn is_rotation(basis: Basis) -> bool {
+    const TOLERANCE: f32 = 1e-4;
+    let [a, b, c] = [basis.col_a(), basis.col_b(), basis.col_c()].map(vec3);
+    [a, b, c].iter().all(|v| (v.length_squared() - 1.0).abs() < TOLERANCE)
+        && [a.dot(b), b.dot(c), c.dot(a)].iter().all(|d| d.abs() < TOLERANCE)
+        && a.cross(b).dot(c) > 0.0
 }
 
 /// A transform as a rotation (its scale taken out) and a position, or why it has none (`rotation`, and the origin
