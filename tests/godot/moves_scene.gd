@@ -4,7 +4,7 @@
 ## moveset has no policy for, and a moveset of its own holding one move. Prints `MOVES_SCENE <json>` and quits.
 extends SceneTree
 
-const MOVES := [&"jab", &"cross", &"lead_hook", &"rear_hook"]
+const MOVES := [&"jab", &"cross", &"lead_hook", &"rear_hook", &"lead_uppercut", &"rear_uppercut"]
 const SIDE_M := 0.12  # the bag's centre this far toward the punching hand's side
 var _throws: Array[Dictionary] = []
 var _report := {"throws": [], "refused": {}}
@@ -68,7 +68,6 @@ func _refusals() -> void:
 	_report.reach_of_jab = other.call("reach_volume", &"jab")
 	_report.reach_of_haymaker = other.call("reach_volume", &"haymaker")
 	_report.refused["haymaker"] = other.call("punch", &"haymaker")
-	_report.refused["lead_uppercut"] = other.call("punch", &"lead_uppercut")
 	var moveset: Resource = ClassDB.instantiate("PunchMoveset")
 	moveset.set("jab", load("res://addons/punch_controller/policies/straight.onnx"))
 	other.set("moveset", moveset)

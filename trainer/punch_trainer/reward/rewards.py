@@ -4,13 +4,13 @@ A reward receives a `Frames` view of features shaped [..., frames, F] (batched: 
 returns either one array of per-frame rewards [..., frames] or a dict of named terms of that shape (their
 sum is the reward; each term is logged on its own). Frames the physics guard flagged earn nothing.
 
-    # my_rewards.py, used as: punch search --reward my_rewards.py:uppercut
-    def uppercut(f):
+    # my_rewards.py, used as: punch search --reward my_rewards.py:jab
+    def jab(f):
         near = np.maximum(0.0, 0.3 - f["fist_r_bag_distance"]) ** 2
-        return {"up": near * 10.0 * f["fist_r_vel_y"], "forward": near * 5.0 * f["fist_r_vel_z"]}
+        return {"forward": near * 10.0 * f["fist_r_vel_z"], "soon": -0.01 * np.ones_like(near)}
 
-The presets are the paper's Table 2, with d the distance from the right fist to the bag's centre of mass
-and v the right fist's velocity (z toward the bag, x the character's left).
+The presets are the paper's Table 2 and an uppercut, with d the distance from the right fist to the bag's
+centre of mass and v the right fist's velocity (z toward the bag, x the character's left, y up).
 """
 
 from __future__ import annotations
@@ -64,6 +64,15 @@ def swing(f: Frames) -> Terms:
     return {"forward": near * 500.0 * f["fist_r_vel_z"], "sideways": near * 500.0 * 0.5 * f["fist_r_vel_x"]}
 
 
+def uppercut(f: Frames) -> Terms:
+    """The uppercut (not the paper's): max(0, 0.3 - d)^2 * 10 * (v_z + v_y), the fist coming in and up, plus 5 times
+    the upward impulse the fist gives the bag (N s): rising near the bag without touching it earns less than lifting
+    it."""
+    near = _near(f)
+    return {"forward": near * 10.0 * f["fist_r_vel_z"], "up": near * 10.0 * f["fist_r_vel_y"],
+            "lift": 5.0 * f["fist_r_impulse_y"]}
+
+
 @dataclass(frozen=True)
 class Reward:
     """A reward, the episode length it is meant for, and the trajectory search's sigma clip for it."""
@@ -84,6 +93,7 @@ PRESETS = {
     "straight100": Reward("straight100", straight, 100),
     "hook": Reward("hook", hook, 50),
     "swing": Reward("swing", swing, 50, search_clip_epsilon=0.1),
+    "uppercut": Reward("uppercut", uppercut, 50),
 }
 
 
