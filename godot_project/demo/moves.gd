@@ -8,8 +8,6 @@ const SANDBAG_SCENE := preload("res://addons/punch_controller/scenes/punch_sandb
 ## The bag's centre this far toward the punching hand (m; +X is a character's left).
 const SIDE_M := 0.1
 
-var _rows: Array[Dictionary] = []
-
 
 func _ready() -> void:
 	build_stage(Vector3(-0.8, 3.3, 6.4))
@@ -26,7 +24,6 @@ func _ready() -> void:
 		add_child(label)
 		var row := {"move": MOVES[index], "controller": controller, "sandbag": null, "bag": null, "label": label,
 			"origin": where.origin, "landed": false}
-		_rows.append(row)
 		controller.hit.connect(func(_impulse, _speed, _position, body, _push, _hand):
 			row.landed = row.landed or body == row.bag)
 		controller.punch_finished.connect(func(_metrics):

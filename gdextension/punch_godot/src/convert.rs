@@ -23,9 +23,11 @@ pub fn quat(q: Quaternion) -> Quat {
 /// length is normalized as the extension always did (glam's `normalize`), bit for bit, so that what training and
 /// the game sense does not change; one too short for that, by `unit_quat`'s scaled normalization.
 pub fn checked_quat(q: Quaternion) -> Result<Quat, TransformError> {
-    let unit = unit_quat(q.x, q.y, q.z, q.w)?;
     let raw = Quat::from_xyzw(q.x, q.y, q.z, q.w);
-    Ok(if raw.length_squared().is_normal() { raw.normalize() } else { unit })
+    if raw.is_finite() && raw.length_squared().is_normal() {
+        return Ok(raw.normalize());
+    }
+    unit_quat(q.x, q.y, q.z, q.w)
 }
 
 pub fn quaternion(q: Quat) -> Quaternion {
@@ -37,14 +39,17 @@ pub fn quaternion(q: Quat) -> Quaternion {
 /// zero). A basis with a NaN, no size (a scale of 0) or mirrored is refused, saying which
 /// (`punch_core::rig::transform::rotation_of`); one that passes has an inverse.
 pub fn rotation(basis: Basis) -> Result<Quat, TransformError> {
-    let checked = rotation_of([basis.col_a(), basis.col_b(), basis.col_c()].map(vec3))?;
-    // A rotation (every physics body's basis, an unscaled node's): Godot's own quaternion of it, as the extension
-    // always read it, bit for bit, so that training and the game sense exactly what they did (the golden run).
-    Ok(if is_rotation(basis) { quat(basis.get_quaternion()) } else { checked })
+    // A rotation (every physics body's basis, an unscaled node's, read every frame): Godot's own quaternion of it,
+    // as the extension always read it, bit for bit, so that training and the game sense exactly what they did (the
+    // golden run). Anything else (scaled, NaN, no size, mirrored) takes the checked path, which says why it fails.
+    if is_rotation(basis) {
+        return Ok(quat(basis.get_quaternion()));
+    }
+    rotation_of([basis.col_a(), basis.col_b(), basis.col_c()].map(vec3))
 }
 
-/// Whether a basis is a rotation within float error: unit columns at right angles (so its determinant is 1 and
-/// Godot's `get_quaternion` takes it).
+/// Whether a basis is a rotation within float error: unit columns at right angles, right-handed (so its
+/// determinant is 1 and Godot's `get_quaternion` takes it). A NaN fails every comparison, so it is none.
 fn is_rotation(basis: Basis) -> bool {
     const TOLERANCE: f32 = 1e-4;
     let [a, b, c] = [basis.col_a(), basis.col_b(), basis.col_c()].map(vec3);

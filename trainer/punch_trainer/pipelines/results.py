@@ -44,9 +44,13 @@ class Measurement:
     def command(self, policy: Path) -> str:
         words = ["punch", "eval", "--policy", str(policy), "--scenario", self.scenario]
         for key, value in self.options.items():
-            flag = "--" + key.replace("_", "-")
-            words += [flag, *value] if isinstance(value, list) and key == "conditions" else \
-                     [flag, ",".join(f"{v:g}" for v in value) if isinstance(value, list) else str(value)]
+            words.append("--" + key.replace("_", "-"))
+            if key == "conditions":
+                words += value  # one argument per condition's name
+            elif isinstance(value, list):
+                words.append(",".join(f"{v:g}" for v in value))
+            else:
+                words.append(str(value))
         return shlex.join(words)
 
 
@@ -133,8 +137,14 @@ def summary_table(rows: list[list[str]], link_prefix: str) -> str:
 
 def write_results(recipes: list[Recipe], reports: dict[str, list[dict[str, Any]]], command: str) -> list[Path]:
     """BENCHMARKS.md's summary and per-policy sections, and the policies' README table."""
-    from punch_trainer.pipelines.bench import machine_description, write_section
+    from punch_trainer.pipelines.bench import BENCHMARKS_FILE, machine_description, write_section
 
+    # The README is checked first, so a refused run leaves both files as they were.
+    text = POLICIES_README.read_text()
+    start, end = SUMMARY_MARKERS
+    pattern = re.compile(rf"{re.escape(start)}.*?{re.escape(end)}", re.S)
+    if not pattern.search(text):
+        raise ResultsError(f"{POLICIES_README}: no {start} ... {end} markers for the table")
     rows = [summary_row(recipe, reports[recipe.name]) for recipe in recipes]
     scenarios = ", ".join(f"`{m.command(Path('POLICY'))}`" for m in MEASUREMENTS)
     explained = (f"Each shipped policy through the evaluator (docs/evaluation.md): {scenarios}. Held out: a hit and a "
@@ -149,14 +159,7 @@ def write_results(recipes: list[Recipe], reports: dict[str, list[dict[str, Any]]
         for run in reports[recipe.name]:
             body += [f"### `{run['measurement'].command(recipe.policy)}`", "", *benchmarks_body(run["markdown"], depth=1), ""]
         write_section(f"The shipped {recipe.name}", command, "\n".join(body).strip())
-    text = POLICIES_README.read_text()
-    start, end = SUMMARY_MARKERS
-    pattern = re.compile(rf"{re.escape(start)}.*?{re.escape(end)}", re.S)
-    if not pattern.search(text):
-        raise ResultsError(f"{POLICIES_README}: no {start} ... {end} markers for the table")
     table = (f"{start}\n{summary_table(rows, '../../../')}\n\nMeasured by `{command}` on {machine_description()}; every "
              f"report: [BENCHMARKS.md, \"{SUMMARY_SECTION}\"](../../../BENCHMARKS.md#the-shipped-policies).\n{end}")
     POLICIES_README.write_text(pattern.sub(lambda _: table, text))
-    from punch_trainer.pipelines.bench import BENCHMARKS_FILE
-
     return [BENCHMARKS_FILE, POLICIES_README]
