@@ -146,3 +146,44 @@ def test_from_the_stances_guard_the_character_turns_and_still_lands(tmp_path):
     features = recorded(tmp_path / "one", meta, "features")
     waist = features[0, 0, meta["feature_names"].index("angle_waist_rotation")]
     assert np.degrees(waist) == pytest.approx(-30.0, abs=3.0), np.degrees(waist)
+
+
+def test_training_starts_in_the_guard_the_game_stands_in():
+    """The training server's `stance_guard_actions`: a lead-in holding the orthodox guard leaves the character as
+    `stance_pose` holds it in the game (trunk turned 30° right, the lead elbow opened); the southpaw's is its mirror."""
+    import numpy as np
+
+    from punch_trainer.learn.volume import STANCE_LEAD_IN_DECISIONS
+    from punch_trainer.sim.conditions import EpisodeStart
+    from punch_trainer.sim.env import PunchVectorEnv
+
+    with PunchVectorEnv(1, 3, frames=50) as env:
+        guards = env.info.stance_guard_actions
+        assert np.allclose(env.info.mirror.actions(np.array(guards["orthodox"])), guards["southpaw"])
+        lead_in = np.zeros((3, STANCE_LEAD_IN_DECISIONS, env.info.action_size), dtype=np.float32)
+        lead_in[1], lead_in[2] = guards["orthodox"], guards["southpaw"]
+        env.reset(options=EpisodeStart([env.info.default_bag] * 3, lead_in))
+        *_, info = env.step(np.zeros((3, env.info.action_size), dtype=np.float32))
+    names = env.feature_names
+    waist = np.degrees(info["features"][:, 0, names.index("angle_waist_rotation")])
+    lead_elbow = np.degrees(info["features"][:, 0, [names.index("angle_elbow_l_extension"), names.index("angle_elbow_r_extension")]])
+    assert waist[0] == pytest.approx(0.0, abs=1.0) and waist[1] == pytest.approx(-30.0, abs=2.0), waist
+    assert waist[2] == pytest.approx(30.0, abs=2.0), waist
+    assert lead_elbow[1, 0] > 10.0 and lead_elbow[2, 1] > 10.0 and abs(lead_elbow[1, 1]) < 2.0, lead_elbow
+
+
+def test_body_shots_are_drawn_in_the_body_band(tmp_path):
+    """`placements.height_m`: the body scenario's targets lie 1.00-1.20 m high (below most of the volume); a band
+    that runs downward or is not two numbers is refused."""
+    from punch_trainer.pipelines.evaluation import EvalArgs, run_eval
+    from punch_trainer.pipelines.scenario import ScenarioError, build_scenario
+
+    args = EvalArgs(policy=PROJECT_ROOT / "addons" / "punch_controller" / "policies" / "straight.onnx", scenario="body",
+                    placements=4, sigmas=[0.0], out=tmp_path)
+    _, report = run_eval(args, progress=False)
+    heights = [placement["height_m"] for placement in report["placements"]]
+    assert len(heights) == 4 and all(1.0 <= h <= 1.2 for h in heights), heights
+    assert len(report["evaluations"][0]["rows"]) == 4
+    for band, message in (([1.2, 1.0], "runs downward"), ([1.0], r"\[low, high\]"), ("1.0", r"\[low, high\]")):
+        with pytest.raises(ScenarioError, match=message):
+            build_scenario({"placements": {"height_m": band}, "conditions": [{"name": "x"}]}, "inline")

@@ -227,7 +227,9 @@ def test_punch_eval_reports_the_naturalness_of_a_shipped_policy(tmp_path):
     args = EvalArgs(policy=policy, placements=3, sigmas=[0.0, 0.3], noisy_episodes=1, search_iterations=0, out=tmp_path)
     out, report = run_eval(args, progress=False)
     written = json.loads((out / "eval.json").read_text())
-    naturalness = written["evaluations"][0]["naturalness"]
+    every = written["evaluations"][0]["naturalness"]
+    assert {row["condition"] for row in every} == {"every decision", "first 4 decisions", "bag swinging", "after a punch"}
+    naturalness = [row for row in every if row["condition"] == "every decision"]
     assert [row["sigma"] for row in naturalness] == [0.0, 0.3] and naturalness[0]["punches"] == 3
     for row in naturalness:
         assert all(value is None or math.isfinite(value) for value in row["medians"].values())

@@ -28,6 +28,7 @@ def test_every_shipped_policy_has_its_generated_row_and_section():
     assert "<!-- The shipped policies:start -->" in benchmarks
 
 
+
 def test_a_readme_without_its_markers_is_refused(tmp_path, monkeypatch):
     readme = tmp_path / "README.md"
     readme.write_text("# Default policies\n\nno table here\n")
@@ -53,7 +54,8 @@ def test_results_measure_a_recipes_policy_and_rewrite_the_docs(tmp_path, monkeyp
         Measurement("moving", {"placements": 2, "conditions": ["standing", "forward 0.7 m/s"]}),
         Measurement("sizes", {"placements": 2, "conditions": ["0.75", "1"]}),
         Measurement("hands", {"placements": 2, "sigmas": [0.0, 0.3]}),
-        Measurement("stance", {"placements": 2, "conditions": ["jab, orthodox (left, lead)"]}),
+        Measurement("stance", {"placements": 2, "conditions": ["lead hand, orthodox (left)"]}),
+        Measurement("body", {"placements": 2, "conditions": ["rear hand, orthodox (right)"]}),
     ))
     arguments = ["results", str(PROJECT_ROOT / "recipes" / "straight.toml"), "--out", str(tmp_path / "runs")]
     for _ in range(2):
@@ -63,7 +65,7 @@ def test_results_measure_a_recipes_policy_and_rewrite_the_docs(tmp_path, monkeyp
     cells = [cell.strip() for cell in row.strip("|").split("|")]
     assert cells[2].endswith("of 3") and cells[3].endswith("of 6"), row
     assert cells[6].endswith("(arms 0.75)") or cells[6].endswith("(arms 1)"), row
-    assert cells[7].endswith("of 4") and cells[8].endswith("of 2") and cells[9].endswith("(jab, orthodox (left, lead))"), row
+    assert cells[7].endswith("of 4") and cells[8].endswith("of 2") and cells[9].endswith("(lead hand, orthodox (left))"), row
     assert "Measured by `punch results" in table and "hook.onnx" not in table
     text = benchmarks.read_text()
     assert "kept" in text and text.count("## The shipped straight") == 1 and text.count("## The shipped policies") == 1
@@ -71,3 +73,34 @@ def test_results_measure_a_recipes_policy_and_rewrite_the_docs(tmp_path, monkeyp
     assert "| standing | 0.00 | 2 |" in text and "![" not in text
     assert (tmp_path / "runs" / "straight" / "held_out" / "report.md").is_file()
     capsys.readouterr()
+
+
+def test_the_moves_table_names_the_shape_each_move_misses():
+    """`moves_table`: each move reads its policy's rows for its hand (the lead hand's move the lead row), and lists the
+    boxer's figures it misses: here a hook that comes in straight and slow, and a jab slower than a cross."""
+    def medians(**changes):
+        base = {"time_to_contact_s": 0.12, "path_over_chord": 1.1, "fist_peak_speed_mps": 7.0, "side_angle_at_contact_deg": 40.0,
+                "rise_share_at_contact": 0.6, "elbow_bend_at_contact_deg": 90.0, "off_fist_from_guard_m": 0.1, "trunk_flexion_deg": 10.0}
+        return {**base, **changes}
+
+    def runs(lead, rear, rate=0.97):
+        rows, natural = [], []
+        for stance in ("orthodox", "southpaw"):
+            for move, figures in (("jab", lead), ("cross", rear)):
+                name = results.hand_row(move, stance)
+                rows += [{"condition": name, "sigma": sigma, "success_rate": rate} for sigma in (0.0, 0.3)]
+                natural.append({"condition": name, "sigma": 0.0, "medians": figures})
+        report = {"evaluations": [{"rows": rows, "naturalness": natural}]}
+        return [{"measurement": Measurement(scenario), "report": report} for scenario in ("stance", "body")]
+
+    reports = {"straight": runs(medians(time_to_contact_s=0.2), medians(time_to_contact_s=0.15)),
+               "hook": runs(medians(side_angle_at_contact_deg=17.0, fist_peak_speed_mps=6.0), medians(), rate=0.5),
+               "uppercut": runs(medians(), medians(rise_share_at_contact=0.48))}
+    table = results.moves_table(reports, {"straight.onnx": "straight", "hook.onnx": "hook", "uppercut.onnx": "uppercut"})
+    rows = {line.split("|")[1].strip(): line for line in table.splitlines()[2:]}
+    assert list(rows) == [f"`{move}`" for move in results.SIX_MOVES]
+    assert rows["`jab`"].endswith("| the quickest to land |") and "| 97.0% | 97.0% |" in rows["`jab`"]
+    assert "side_angle_at_contact_deg >= 35, fist_peak_speed_mps >= the cross's" in rows["`lead_hook`"]
+    assert "| 50.0% |" in rows["`rear_hook`"] and rows["`rear_hook`"].endswith("| none |")
+    assert rows["`rear_uppercut`"].endswith("| rise_share_at_contact >= 0.5 |") and rows["`lead_uppercut`"].endswith("| none |")
+    assert results.moves_table({"straight": reports["straight"]}, {"straight.onnx": "straight"}) is None

@@ -12,7 +12,7 @@ from punch_trainer.learn.a2c import collect_episodes
 from punch_trainer.learn.policy import SIGMA_MIN, ActorCritic
 from punch_trainer.learn.reach import HELD_OUT_SEED, ReachVolume, placement
 from punch_trainer.learn.search import SearchArgs
-from punch_trainer.learn.volume import ConditionSampler, VolumeArgs
+from punch_trainer.learn.volume import STANCE_LEAD_IN_DECISIONS, ConditionSampler, VolumeArgs
 from punch_trainer.pipelines.evaluation import EvalArgs, run_eval
 from punch_trainer.pipelines.experiments import AfterPunchArgs, after_punch_headroom
 from punch_trainer.pipelines.search import run_search
@@ -107,6 +107,28 @@ def test_a_share_of_episodes_at_the_default_placement():
     without = ConditionSampler(reach, punches, VolumeArgs(), seed=5, default_bag=default)
     assert not any(bag == default for bag in without(32, 1).bags)
     assert type(without(32, 1).bags[0]) is type(default)
+
+
+def test_a_share_of_episodes_starts_in_a_stances_guard():
+    """`stance_share`: that share of A2C's characters plays a lead-in holding the orthodox or the southpaw guard
+    (both drawn), the others a lead-in of zeros (the square guard); none without it."""
+    reach = ReachVolume((0.6, 0.85), (1.15, 1.55), (-0.25, 0.25), 1.0, True)
+    punches = np.zeros((1, 10, 10), dtype=np.float32)
+    guards = np.array([[0.0, -0.667] + [0.1] * 8, [0.0, 0.667] + [0.2] * 8], dtype=np.float32)
+    with pytest.raises(ValueError, match="guard actions"):
+        ConditionSampler(reach, punches, VolumeArgs(stance_share=0.5), seed=5, default_bag=placement(0.7, 1.35, 0.0))
+    draw = ConditionSampler(reach, punches, VolumeArgs(stance_share=0.5), seed=5, default_bag=placement(0.7, 1.35, 0.0),
+                            stance_guards=guards)
+    lead_ins = np.concatenate([draw(64, update).lead_in for update in range(1, 11)])
+    assert lead_ins.shape == (640, STANCE_LEAD_IN_DECISIONS, 10)
+    first = lead_ins[:, 0]
+    orthodox, southpaw = (np.all(first == guard, axis=1) for guard in guards)
+    square = np.all(first == 0.0, axis=1)
+    assert np.all(orthodox | southpaw | square) and np.all(lead_ins == lead_ins[:, :1]), "each holds one pose throughout"
+    assert 0.4 < (orthodox | southpaw).mean() < 0.6 and 0.4 < orthodox.sum() / (orthodox | southpaw).sum() < 0.6
+    assert np.array_equal(draw(64, 3).lead_in, draw(64, 3).lead_in), "a resumed run draws the same"
+    without = ConditionSampler(reach, punches, VolumeArgs(), seed=5, default_bag=placement(0.7, 1.35, 0.0))
+    assert without(64, 1).lead_in is None
 
 
 @pytest.mark.godot

@@ -99,6 +99,7 @@ BOUNDS: dict[str, Bounds] = {
     "gamma": SHARE, "gae_lambda": SHARE,
     "entropy_coef": Bounds(0.0, 100.0), "value_coef": Bounds(0.0, 100.0),
     "moving_share": SHARE, "default_share": SHARE, "after_punch_share": SHARE, "recovering_share": SHARE,
+    "stance_share": SHARE,
     "time_budget_s": SECONDS, "a2c_time_budget_s": SECONDS,
     "timeout_s": Bounds(0.0, 7 * 86400.0, low_exclusive=True),
     "seconds": Bounds(0.0, 600.0, low_exclusive=True),

@@ -195,7 +195,7 @@ def restore_a2c(saved: dict[str, Any], model: ActorCritic, optimizer: torch.opti
 def train_a2c(model: ActorCritic, reward: Reward, args: A2CArgs, env: PunchVectorEnv, progress: bool = True,
               start_rollouts: int = 0, run_dir: Path | None = None, max_restarts: int = 3,
               conditions: Callable[[int, int], EpisodeStart] | None = None,
-              validation: list[EpisodeConditions] | None = None,
+              validation: list[EpisodeConditions] | EpisodeStart | None = None,
               on_snapshot: Callable[[int, ActorCritic], None] | None = None) -> tuple[ActorCritic, list[dict[str, Any]]]:
     """Trains in place and returns the parameters with the best noise-free return, with the history.
 

@@ -11,7 +11,9 @@
    episode starts from the guard: a punch asked for in another pose (after an earlier punch, mid-recovery)
    goes to guard first in the game (`PunchController.guard_first`), which measured better than teaching the
    policy those starts (experiments/measurements.md, "Target-aware policies").
-   Episodes that start after a lead-in of real actions remain an option (`lead_in_every`).
+   Episodes that start after a lead-in of real actions remain an option (`lead_in_every`). A share of episodes
+   may start in a boxing stance's guard instead (`stance_share`): a lead-in holds that guard's action first, so a
+   policy learns to punch from where `PunchController.stance_pose` holds a character.
 
 Success (`success`): a positive return and the right fist touched the bag, as `punch eval` counts it.
 """
@@ -36,6 +38,9 @@ from punch_trainer.sim.conditions import (
 )
 from punch_trainer.sim.env import PunchVectorEnv
 
+STANCE_LEAD_IN_DECISIONS = 8
+"""decisions a lead-in holds a stance's guard before the episode (0.33 s at 120 Hz and 5 frames a decision: the
+trunk's 30 degree turn has settled)"""
 DISTRIBUTION_DRAWS = 10**9
 """the first "update" number of the draws for the observation statistics (A2C updates count from 1)"""
 
@@ -61,6 +66,10 @@ class VolumeArgs:
     lead_in_every: int = 0
     """every k-th A2C update starts its episodes after lead-ins (0: never, the default since guard_first; they
     cost frames and, at 2, left the policies missing a swinging bag more often)"""
+    stance_share: float = 0.0
+    """share of A2C episodes (and validation placements) that start in a boxing stance's guard, the orthodox and
+    the southpaw alike (the right hand as the rear hand and as the lead), after a lead-in that holds it; the others
+    start in the square guard"""
     validation_placements: int = 64
     motions: MotionRange | None = None
     """the body and target motions of A2C's episodes (None: every character stands, every target hangs)"""
@@ -172,10 +181,14 @@ class ConditionSampler:
     """Draws the conditions of every A2C episode from the reach volume: `options` for `PunchVectorEnv.reset`."""
 
     def __init__(self, reach: ReachVolume, punches: np.ndarray, args: VolumeArgs, seed: int,
-                 default_bag: EpisodeConditions):
+                 default_bag: EpisodeConditions, stance_guards: np.ndarray | None = None):
         """`punches`: raw action sequences [K, decisions, A] (the search's bests) that lead-ins replay;
-        `default_bag`: the default placement, for `args.default_share`."""
+        `default_bag`: the default placement, for `args.default_share`; `stance_guards`: [2, A], the actions that
+        hold the orthodox and the southpaw guard (the server's `stance_guard_actions`), for `args.stance_share`."""
+        if args.stance_share > 0 and stance_guards is None:
+            raise ValueError("a stance share needs the stances' guard actions")
         self.reach, self.punches, self.args, self.seed, self.default_bag = reach, punches, args, seed, default_bag
+        self.stance_guards = stance_guards
 
     def __call__(self, count: int, update: int) -> EpisodeStart:
         """The conditions of update `update`'s episodes (drawn from the seed and the update alone, so a resumed
@@ -190,9 +203,21 @@ class ConditionSampler:
             bags = self.args.motions.draw(rng, bags)
         if self.args.arms is not None:
             bags = self.args.arms.draw(rng, bags)
-        if not lead_ins:
-            return EpisodeStart(bags)
-        return EpisodeStart(bags, self.lead_ins(rng, count))
+        if lead_ins:
+            return EpisodeStart(bags, self.lead_ins(rng, count))
+        if self.args.stance_share > 0:
+            return EpisodeStart(bags, self.stance_lead_ins(rng, count))
+        return EpisodeStart(bags)
+
+    def stance_lead_ins(self, rng: np.random.Generator, count: int) -> np.ndarray:
+        """[count, STANCE_LEAD_IN_DECISIONS, A]: for `args.stance_share` of the characters, a stance's guard held
+        (orthodox or southpaw, even odds); zeros (the square guard) for the others."""
+        assert self.stance_guards is not None
+        out = np.zeros((count, STANCE_LEAD_IN_DECISIONS, self.stance_guards.shape[1]), dtype=np.float32)
+        in_stance = rng.uniform(size=count) < self.args.stance_share
+        stances = rng.integers(len(self.stance_guards), size=count)
+        out[in_stance] = self.stance_guards[stances[in_stance]][:, None, :]
+        return out
 
     def lead_ins(self, rng: np.random.Generator, count: int) -> np.ndarray:
         """[count, decisions + 4, A]: zeros (a start from the guard at rest), a whole punch (its end), or a
@@ -258,9 +283,12 @@ class Validation:
         return {"return": self.mean_return, "success": self.success_rate}
 
 
-def validate(model: ActorCritic, env: PunchVectorEnv, reward: Reward, placements: list[EpisodeConditions]) -> Validation:
-    """Noise-free mean return and success rate over fixed validation placements (one per character)."""
-    returns, features = run_policy(model, env, reward, EpisodeStart(placements))
+def validate(model: ActorCritic, env: PunchVectorEnv, reward: Reward,
+             placements: list[EpisodeConditions] | EpisodeStart) -> Validation:
+    """Noise-free mean return and success rate over fixed validation placements (one per character; an
+    `EpisodeStart` when they start after lead-ins)."""
+    start = placements if isinstance(placements, EpisodeStart) else EpisodeStart(placements)
+    returns, features = run_policy(model, env, reward, start)
     return Validation(float(returns.mean()), float(success(returns, features, env.feature_names).mean()))
 
 

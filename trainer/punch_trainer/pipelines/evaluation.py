@@ -9,13 +9,14 @@ one row per condition and sigma, one report (report.md and eval.json in the outp
 `punch eval-moving` and `punch eval-sizes` are the scenarios `moving` and `sizes` with their own flags. Per row:
 the success rate with its 95% interval (Wilson's: 64 placements tell a few points apart only roughly); with
 success "return", the mean return as a fraction of a short search's best at that placement and the spread of the
-impact points, and for the first condition the naturalness figures (docs/naturalness.md) beside the captured
-punches'. This module also holds what `punch replay` and `punch bench inference` share with it: the driver's run
+impact points, and the naturalness figures (docs/naturalness.md) of every condition (the report shows the first's)
+beside the captured punches'. This module also holds what `punch replay` and `punch bench inference` share with it: the driver's run
 (`run_episodes`), the sigma lists (`parse_sigmas`) and the scoring of recorded punches (`analyse_punches`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import tempfile
@@ -243,7 +244,7 @@ def episodes_of(scenario: Scenario, still: list[EpisodeConditions], swinging: li
 def play_policy(policy: Path, episodes: list[dict[str, Any]], groups: list[Group], reward: Reward | None,
                 naturalness: bool, timeout_s: float, on_progress: Callable[[int], None] | None = None) -> dict[str, Any]:
     """Every episode of one policy, and per group what its rows need: the punches' rows, and with `reward` (the
-    scenario's success is "return") their returns, success, impact spread and naturalness; the first group's
+    scenario's success is "return") their returns, success, impact spread and naturalness (every group's); the first group's
     features and actions (for the plots and the search)."""
     from punch_trainer.report.naturalness import punches_naturalness
 
@@ -262,7 +263,7 @@ def play_policy(policy: Path, episodes: list[dict[str, Any]], groups: list[Group
                 analysis = analyse_punches(features, names, reward)
                 result.update(returns=analysis["returns"], success=success(analysis["returns"], features, names),
                               impact_spread_m=analysis["impact_spread_m"])
-                if naturalness and group.condition.name == groups[0].condition.name:
+                if naturalness:
                     result["naturalness"] = punches_naturalness(features, names, physics_hz)
                 if index == 0:
                     result["features"] = features
@@ -374,6 +375,8 @@ def run_eval(args: EvalArgs, progress: bool = True, *, backend: Backend = LOCAL)
             reach = ReachVolume.from_json(pool.info.reach_volume)
     else:
         reach = ReachVolume.from_json(metadata[0].reach_volume)
+    if scenario.height_m is not None:
+        reach = dataclasses.replace(reach, height_m=scenario.height_m)
     still, swinging = draw_placements(scenario, reach)
     episodes, groups = episodes_of(scenario, still, swinging)
     out = Path(args.out or Path(args.policy).parent / f"eval_{scenario.name}_{int(time.time())}")
@@ -425,7 +428,7 @@ def evaluation_of(policy: Path, run: dict[str, Any], groups: list[Group], scenar
     evaluation: dict[str, Any] = {"policy": str(policy), "reward": reward.name if reward else None, "rows": rows,
                                   "success_at_sigma0": first["success"][:scenario.placements].tolist()}
     if "naturalness" in first:
-        evaluation["naturalness"] = [{"sigma": group.sigma, **summarise(result["naturalness"]).to_json()}
+        evaluation["naturalness"] = [{"condition": group.condition.name, "sigma": group.sigma, **summarise(result["naturalness"]).to_json()}
                                      for group, result in zip(groups, run["groups"], strict=True) if "naturalness" in result]
         evaluation["naturalness_at_sigma0"] = [punch.to_json() for punch in first["naturalness"]]
     return evaluation
@@ -477,7 +480,8 @@ def write_report(out: Path, args: EvalArgs, scenario: Scenario, report: dict[str
                 if scenario.success == "return" else "the controller's `hit` signal on the target during the punch")
     lines = [f"# punch eval: {args.policy}", "",
              f"Scenario `{scenario.name}` ({scenario.source}): {scenario.description}.", "",
-             f"{scenario.placements} held-out placements drawn from the {scenario.volume}'s reach volume with seed "
+             f"{scenario.placements} held-out placements drawn from the {scenario.volume}'s reach volume"
+             + (f" at heights {scenario.height_m[0]:g}-{scenario.height_m[1]:g} m" if scenario.height_m else "") + " with seed "
              f"{scenario.seed} (a seed no training stage uses); one punch per placement and condition at "
              f"sigma 0, {scenario.noisy_punches} at each sigma above it; every punch through PunchController in headless "
              f"Godot ({report['wall_s']:.0f} s in all). Success: {measured}; its interval: Wilson's 95% score interval, "
@@ -494,7 +498,7 @@ def write_report(out: Path, args: EvalArgs, scenario: Scenario, report: dict[str
             lines += [f"Naturalness (docs/naturalness.md): medians over the punches of `{scenario.conditions[0].name}`; the "
                       "captured punches' range from movement onset to full reach.", ""]
             lines += naturalness_table([(f"sigma {row['sigma']:g}", NaturalnessSummary.from_json(row))
-                                        for row in evaluation["naturalness"]], capture)
+                                        for row in evaluation["naturalness"] if row["condition"] == scenario.conditions[0].name], capture)
             first = runs[index]["groups"][0]
             plots = plot_naturalness(out, first["features"], runs[index]["feature_names"], runs[index]["physics_hz"], still,
                                      "" if index == 0 else "_baseline")

@@ -3,7 +3,9 @@
 The figures the docs give of the shipped policies are made here, never copied: each recipe's policy is played through
 the evaluator's scenarios below, the reports go into BENCHMARKS.md (one section per policy) and a summary table of
 them into BENCHMARKS.md's "The shipped policies" and into the policies' README (between its `punch results`
-markers). Run it again after a policy changes (`punch recipe ... --install`).
+markers). When every policy of the default moveset was measured, BENCHMARKS.md's "The six moves" gives each move's
+success from the stance's guard (head and body) and its shape against a boxer's (`MOVE_TARGETS`). Run it again after
+a policy changes (`punch recipe ... --install`).
 """
 
 from __future__ import annotations
@@ -22,7 +24,9 @@ from punch_trainer.sim.godot import PROJECT_ROOT
 
 RECIPES_DIR = PROJECT_ROOT / "recipes"
 POLICIES_README = PROJECT_ROOT / "addons" / "punch_controller" / "policies" / "README.md"
+MOVESET = PROJECT_ROOT / "addons" / "punch_controller" / "policies" / "boxing.tres"
 SUMMARY_SECTION = "The shipped policies"
+MOVES_SECTION = "The six moves"
 SUMMARY_MARKERS = ("<!-- punch results:start -->", "<!-- punch results:end -->")
 
 
@@ -62,9 +66,62 @@ MEASUREMENTS = (
     Measurement("sizes", {"placements": 256}),
     # The policy thrown with the left hand (mirrored) beside the right, at mirrored held-out placements.
     Measurement("hands", {"placements": 1024, "seed": 2025}),
-    # From the stance's guard (`stance_pose`), as the rear and the lead hand's move in each stance.
-    Measurement("stance"),
+    # From the stance's guard (`stance_pose`), as the rear and the lead hand's move in each stance: at the head (the
+    # volume) and at the body (targets 1.00-1.20 m high).
+    Measurement("stance", {"placements": 2048}),
+    Measurement("body", {"placements": 2048}),
 )
+
+SIX_MOVES = ("jab", "cross", "lead_hook", "rear_hook", "lead_uppercut", "rear_uppercut")
+LEAD_MOVES = ("jab", "lead_hook", "lead_uppercut")
+
+
+@dataclass(frozen=True)
+class MoveTarget:
+    """What a boxer's move looks like, as a naturalness figure's range (docs/moves.md; None: no bound)."""
+
+    figure: str
+    low: float | None
+    high: float | None
+    moves: tuple[str, ...] = SIX_MOVES
+
+    def met(self, value: float | None) -> bool:
+        return value is not None and (self.low is None or value >= self.low) and (self.high is None or value <= self.high)
+
+    def label(self) -> str:
+        if self.low is None:
+            return f"{self.figure} <= {self.high:g}"
+        return f"{self.figure} >= {self.low:g}" if self.high is None else f"{self.figure} {self.low:g}-{self.high:g}"
+
+
+HOOKS, UPPERCUTS = ("lead_hook", "rear_hook"), ("lead_uppercut", "rear_uppercut")
+MOVE_TARGETS = (
+    MoveTarget("time_to_contact_s", None, 0.25, ("jab",)),
+    MoveTarget("path_over_chord", None, 1.2, ("jab",)),
+    MoveTarget("fist_peak_speed_mps", 5.0, 8.0, ("jab",)),
+    MoveTarget("path_over_chord", None, 1.3, ("cross",)),
+    MoveTarget("fist_peak_speed_mps", 6.0, 10.0, ("cross",)),
+    MoveTarget("side_angle_at_contact_deg", 35.0, None, HOOKS),
+    MoveTarget("elbow_bend_at_contact_deg", 70.0, 120.0, HOOKS),
+    MoveTarget("rise_share_at_contact", 0.5, None, UPPERCUTS),
+    MoveTarget("elbow_bend_at_contact_deg", 60.0, 120.0, UPPERCUTS),
+    MoveTarget("off_fist_from_guard_m", None, 0.20),
+    MoveTarget("trunk_flexion_deg", None, 20.0),
+)
+"""A boxer's moves (the jab short and quick, the hooks sweeping in from the side, the uppercuts rising), each figure
+from the stance's guard at sigma 0, its median. Besides: a hook's fist at least as fast as the cross's, and the jab
+the quickest of the six to land."""
+
+
+def moveset_policies(path: Path = MOVESET) -> dict[str, str]:
+    """The default moveset's policy file (its name) for each move, read from its .tres as Godot writes it."""
+    text = path.read_text()
+    files = {id_: Path(file).name for file, id_ in re.findall(r'\[ext_resource [^\]]*path="([^"]+)" id="([^"]+)"\]', text)}
+    moves = {move: files[id_] for move, id_ in re.findall(r'^(\w+) = ExtResource\("([^"]+)"\)', text, re.M) if id_ in files}
+    missing = [move for move in SIX_MOVES if move not in moves]
+    if missing:
+        raise ResultsError(f"{path}: no policy for {', '.join(missing)}")
+    return moves
 
 
 def shipped_recipes(recipes_dir: Path = RECIPES_DIR) -> list[Recipe]:
@@ -99,7 +156,8 @@ def summary_row(recipe: Recipe, runs: list[dict[str, Any]]) -> list[str]:
     """The figures that matter of one policy, from its reports: held-out success at sigma 0 and 0.3, the share in
     proximal-to-distal order and the fist's peak speed at sigma 0, the weakest arm size, the hits on the move and the
     left hand's success at sigma 0.3 and the weakest move from the stance's guard at sigma 0.3."""
-    held_out, moving, sizes, hands, stance = (run["report"] for run in runs)
+    by_scenario = {run["measurement"].scenario: run["report"] for run in runs}
+    held_out, moving, sizes, hands, stance = (by_scenario[name] for name in ("held_out", "moving", "sizes", "hands", "stance"))
 
     def success(rows: list[dict[str, Any]], sigma: float) -> tuple[int, int]:
         chosen = [row for row in rows if abs(row["sigma"] - sigma) < 1e-9]
@@ -135,8 +193,59 @@ def summary_table(rows: list[list[str]], link_prefix: str) -> str:
     return "\n".join(lines)
 
 
+def hand_row(move: str, stance: str) -> str:
+    """The `stance` and `body` scenarios' row for a move's hand in a stance."""
+    hand = "left" if (move in LEAD_MOVES) == (stance == "orthodox") else "right"
+    return f"{'lead' if move in LEAD_MOVES else 'rear'} hand, {stance} ({hand})"
+
+
+def moves_table(reports: dict[str, list[dict[str, Any]]], policy_recipes: dict[str, str]) -> str | None:
+    """Each move of the default moveset from the stance's guard: its success at the head and the body (the lower of the
+    two stances), its naturalness medians (orthodox, sigma 0) and the targets it misses; None unless every policy of the
+    moveset was measured. `policy_recipes`: policy file name -> recipe name."""
+    moveset = moveset_policies()
+    recipe_of = {move: policy_recipes.get(file) for move, file in moveset.items()}
+    if any(name is None or name not in reports for name in recipe_of.values()):
+        return None
+
+    def report(move: str, scenario: str) -> dict[str, Any]:
+        return next(run["report"] for run in reports[str(recipe_of[move])] if run["measurement"].scenario == scenario)
+
+    def lands(move: str, scenario: str, sigma: float) -> str:
+        rows = [row for row in _rows(report(move, scenario)) if abs(row["sigma"] - sigma) < 1e-9
+                and row["condition"] in (hand_row(move, "orthodox"), hand_row(move, "southpaw"))]
+        return f"{100 * min(row['success_rate'] for row in rows):.1f}%"
+
+    def medians(move: str) -> dict[str, Any]:
+        natural = report(move, "stance")["evaluations"][0]["naturalness"]
+        row = next(n for n in natural if n["condition"] == hand_row(move, "orthodox") and n["sigma"] == 0.0)
+        figures: dict[str, Any] = row["medians"]
+        return figures
+
+    figures = {move: medians(move) for move in SIX_MOVES}
+    shown = (("time_to_contact_s", "{:.3f} s"), ("path_over_chord", "{:.2f}"), ("fist_peak_speed_mps", "{:.2f} m/s"),
+             ("side_angle_at_contact_deg", "{:.0f}°"), ("rise_share_at_contact", "{:.2f}"),
+             ("elbow_bend_at_contact_deg", "{:.0f}°"), ("off_fist_from_guard_m", "{:.2f} m"), ("trunk_flexion_deg", "{:.0f}°"))
+    header = ["move", "policy", "head, sigma 0", "head, 0.3", "body, sigma 0", "body, 0.3", "time to contact", "path/chord",
+              "fist peak speed", "side approach", "rising share", "elbow bend", "off fist from guard", "waist flexion",
+              "a boxer's shape: missed"]
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    times = {move: figures[move]["time_to_contact_s"] for move in SIX_MOVES}
+    for move in SIX_MOVES:
+        missed = [target.label() for target in MOVE_TARGETS if move in target.moves and not target.met(figures[move][target.figure])]
+        if move in HOOKS and (figures[move]["fist_peak_speed_mps"] or 0.0) < (figures["cross"]["fist_peak_speed_mps"] or 0.0):
+            missed.append("fist_peak_speed_mps >= the cross's")
+        if move == "jab" and any(time is not None and time < (times["jab"] or float("inf")) for other, time in times.items() if other != "jab"):
+            missed.append("the quickest to land")
+        cells = [f"`{move}`", f"`{moveset[move]}`", *(lands(move, scenario, sigma) for scenario in ("stance", "body") for sigma in (0.0, 0.3)),
+                 *("-" if figures[move][key] is None else form.format(figures[move][key]) for key, form in shown),
+                 ", ".join(missed) or "none"]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def write_results(recipes: list[Recipe], reports: dict[str, list[dict[str, Any]]], command: str) -> list[Path]:
-    """BENCHMARKS.md's summary and per-policy sections, and the policies' README table."""
+    """BENCHMARKS.md's summary and per-policy sections, the six moves' table, and the policies' README table."""
     from punch_trainer.pipelines.bench import BENCHMARKS_FILE, machine_description, write_section
 
     # The README is checked first, so a refused run leaves both files as they were.
@@ -154,6 +263,14 @@ def write_results(recipes: list[Recipe], reports: dict[str, list[dict[str, Any]]
                  "images of its placements); from the stance: the `stance` scenario's lowest row at sigma 0.3. The reports of "
                  "each policy follow, one section each.")
     write_section(SUMMARY_SECTION, command, explained + "\n\n" + summary_table(rows, ""))
+    moves = moves_table(reports, {recipe.policy.name: recipe.name for recipe in recipes})
+    if moves is not None:
+        write_section(MOVES_SECTION, command, (
+            "Each move of the default moveset (`boxing.tres`) from the stance's guard (`stance_pose`), both stances: the "
+            "lower of the two stances' success at the head (the `stance` scenario) and the body (`body`, targets 1.00-1.20 "
+            "m high), then its naturalness medians (orthodox, sigma 0; docs/naturalness.md) and the figures of a boxer's "
+            "move it misses (docs/moves.md). Moves that share a policy differ by hand: the lead hand's from its side.\n\n"
+            + moves))
     for recipe in recipes:
         body = []
         for run in reports[recipe.name]:

@@ -87,6 +87,8 @@ class Scenario:
     seed: int
     volume: Literal["policy", "spec"]
     conditions: tuple[Condition, ...]
+    height_m: tuple[float, float] | None = None
+    """a band of target heights that replaces the volume's (a body band below the head band); None: the volume's"""
     noisy_punches: int = 1
     search_iterations: int = 0
     naturalness: bool = False
@@ -99,7 +101,7 @@ CONDITION_KEYS = ("name", "sigmas", "noise_decisions", "noise_seed", "start", "a
                   "stance", "stance_pose")
 SCENARIO_KEYS = ("name", "description", "success", "placements", "noisy_punches", "search_iterations", "naturalness",
                  "conditions")
-PLACEMENT_KEYS = ("count", "seed", "volume")
+PLACEMENT_KEYS = ("count", "seed", "volume", "height_m")
 MOTION_KEYS = tuple(field.name for field in fields(Motion))
 
 
@@ -267,6 +269,15 @@ def build_scenario(data: Mapping[str, Any], source: str) -> Scenario:
     volume = placements.get("volume", "policy")
     if volume not in ("policy", "spec"):
         raise ScenarioError(f"{source}: placements.volume is \"policy\" or \"spec\", not {volume!r}")
+    height_m = None
+    if "height_m" in placements:
+        band = placements["height_m"]
+        if not isinstance(band, list) or len(band) != 2:
+            raise ScenarioError(f"{source}: placements.height_m is [low, high] in metres")
+        low, high = (float(_number("placements.height_m", value, 0.0, 3.0)) for value in band)
+        if low > high:
+            raise ScenarioError(f"{source}: placements.height_m [{low:g}, {high:g}] runs downward")
+        height_m = (low, high)
     success = data.get("success", "hit")
     if success not in ("hit", "return"):
         raise ScenarioError(f"{source}: success is \"hit\" or \"return\", not {success!r}")
@@ -291,7 +302,7 @@ def build_scenario(data: Mapping[str, Any], source: str) -> Scenario:
     if not isinstance(naturalness, bool):
         raise ScenarioError(f"{source}: naturalness is true or false")
     return Scenario(name=str(name), description=str(data.get("description", "")), source=source, success=success,
-                    placements=count, seed=seed, volume=volume, conditions=tuple(conditions),
+                    placements=count, seed=seed, volume=volume, conditions=tuple(conditions), height_m=height_m,
                     noisy_punches=int(_number("noisy_punches", data.get("noisy_punches", 1), 1, 1000, whole=True)),
                     search_iterations=int(_number("search_iterations", data.get("search_iterations", 0), 0, 100_000, whole=True)),
                     naturalness=naturalness)

@@ -39,7 +39,7 @@ from punch_trainer.reward.rewards import EpisodeScorer, Reward, load_reward
 from punch_trainer.reward.style import DEFAULT_STYLE, style_label, style_named
 from punch_trainer.reward.style import MAX_WEIGHT as MAX_STYLE_WEIGHT
 from punch_trainer.sim.backend import LOCAL, Backend
-from punch_trainer.sim.conditions import ARM_SCALE_RANGE
+from punch_trainer.sim.conditions import ARM_SCALE_RANGE, EpisodeConditions, EpisodeStart
 from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.rollouts import RolloutPool
 from punch_trainer.sim.server_group import SimulatorRestarts
@@ -75,7 +75,7 @@ def reach_default_notes() -> dict[str, str]:
 @dataclass
 class TrainArgs:
     reward: str = SearchArgs.reward
-    """a preset (straight, straight100, hook, swing) or FILE.py:FUNCTION"""
+    """a preset (straight, straight100, hook, hook_sweep, swing, uppercut) or FILE.py:FUNCTION"""
     style: str = DEFAULT_STYLE
     """the motion style added to the reward in every stage (docs/style.md): boxing, a human's punch; none, the reward
     alone (the paper's); or FILE.toml:NAME, a style of a file (recipes/styles.toml: the shipped policies')"""
@@ -120,6 +120,9 @@ class TrainArgs:
     """volume: rollouts per placement and iteration"""
     default_share: float = VolumeArgs.default_share
     """volume: share of A2C episodes with the bag at the default placement"""
+    stance_share: float = VolumeArgs.stance_share
+    """volume: share of A2C episodes (and validation placements) that start in a boxing stance's guard, orthodox or
+    southpaw (`PunchController.stance_pose`); the others start in the square guard"""
     motions: Literal["move", "stand"] = "move"
     """volume: 'move': A2C's characters walk, turn, lunge and bob while they punch and targets are carried past
     them (docs/moving.md), and so do half the validation placements; 'stand': every character stands still"""
@@ -227,6 +230,7 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
     dataset_paths = [out / "search" / "dataset.npz"]
     volume = VolumeArgs(grid=parse_grid(args.grid), search_iterations=args.volume_search_iterations,
                         search_rollouts=args.volume_search_rollouts, default_share=args.default_share,
+                        stance_share=args.stance_share,
                         motions=MotionRange() if args.motions == "move" else None,
                         arms=ArmRange(arm_scale=arm_range(args.arm_range)) if args.arms == "sized" else None)
     reach, punches, grid_bests = None, search.best_actions[None], [search.best_return]
@@ -242,13 +246,20 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
     # left idle by a long pretraining before their idle timeout ends them (PunchVectorEnv.reset).
     restarts = SimulatorRestarts(env.restart)
     try:
-        conditions = (ConditionSampler(reach, punches, volume, seed=args.seed + 1, default_bag=env.info.default_bag)
+        stance_guards = np.array([env.info.stance_guard_actions[name] for name in ("orthodox", "southpaw")], dtype=np.float32)
+        conditions = (ConditionSampler(reach, punches, volume, seed=args.seed + 1, default_bag=env.info.default_bag,
+                                       stance_guards=stance_guards)
                       if reach is not None else None)
-        validation = reach.sample(np.random.default_rng(args.seed + 2), env.num_envs) if reach is not None else None
-        if validation is not None and volume.motions is not None:
-            validation = volume.motions.draw(np.random.default_rng(args.seed + 2), validation)
-        if validation is not None and volume.arms is not None:
-            validation = volume.arms.draw(np.random.default_rng(args.seed + 3), validation)
+        validation: list[EpisodeConditions] | EpisodeStart | None = None
+        if conditions is not None and reach is not None:
+            placements = reach.sample(np.random.default_rng(args.seed + 2), env.num_envs)
+            if volume.motions is not None:
+                placements = volume.motions.draw(np.random.default_rng(args.seed + 2), placements)
+            if volume.arms is not None:
+                placements = volume.arms.draw(np.random.default_rng(args.seed + 3), placements)
+            validation = placements
+            if volume.stance_share > 0:
+                validation = EpisodeStart(placements, conditions.stance_lead_ins(np.random.default_rng(args.seed + 4), env.num_envs))
         pretrained = load_checkpoint(out / "pretrain", "pretrain") if resume else None
         if pretrained is None:
             statistics = (restarts.run(functools.partial(distribution_observations, env, conditions, punches))
@@ -321,7 +332,7 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
         f"sigma at least {a2c_args.sigma_floor}): "
         f"best noise-free return {max(h['eval_return'] for h in a2c_history):.4f}",
         f"- exported policy (onnxruntime, sigma 0) in the simulator: return {exported_return:.4f} = {100 * ratio:.1f}% of the search's best",
-        f"- reach: {args.reach}" + (f" ({len(grid_bests)} search placements; on {len(validation or [])} validation placements, "
+        f"- reach: {args.reach}" + (f" ({len(grid_bests)} search placements; on {env.num_envs} validation placements, "
                                     f"sigma 0: success {100 * validated.success_rate:.1f}%, mean return {validated.mean_return:.4f})"
                                     if validated is not None else " (the default placement only)"),
         f"- the exported policy's punch: peak right-fist speed {motion['peak_fist_speed_mps']:.2f} m/s; {impact}",

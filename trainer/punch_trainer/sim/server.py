@@ -75,6 +75,9 @@ class ServerInfo:
     """the target placements training covers by default (punch_core::spec::REACH_VOLUME)"""
     mirror: MirrorRules
     """how features, observations, actions and episode conditions mirror, left for right (punch_core::contract::mirror)"""
+    stance_guard_actions: dict[str, list[float]]
+    """the action that holds each boxing stance's guard, by stance name (`orthodox`, `southpaw`;
+    punch_core::contract::stance)"""
 
     @property
     def observation_size(self) -> int:
@@ -218,7 +221,7 @@ class TrainingServer(ServerConnection):
         return ServerInfo(f["slot_count"], f["decision_period"], f["physics_hz"], f["spec_hash"], f["spec_version"],
                           f["extension_version"], f["action_names"], f["action_lower_rad"], f["action_upper_rad"],
                           f["observation_names"], f["feature_names"], EpisodeConditions.from_wire(f["default_bag"]), f["reach_volume"],
-                          MirrorRules.from_wire(f["mirror"]))
+                          MirrorRules.from_wire(f["mirror"]), f["stance_guard_actions"])
 
     @property
     def pid(self) -> int | None:

@@ -254,6 +254,15 @@ pub fn targets_from_action(action: &[f32]) -> Option<[f32; DOF_COUNT]> {
     Some(targets)
 }
 
+/// The action that holds these joint targets (rad): `targets_from_action`'s inverse, each target clamped into its
+/// joint's range. A lead-in of it puts a character in that pose before an episode (a stance's guard).
+pub fn action_from_targets(targets: &[f32; DOF_COUNT]) -> [f32; DOF_COUNT] {
+    std::array::from_fn(|i| {
+        let (target, dof) = (targets[i], &DOFS[i]);
+        if target >= 0.0 { (target / dof.upper_rad).min(1.0) } else { (-target / dof.lower_rad).max(-1.0) }
+    })
+}
+
 /// Orientation of the child joint frame relative to the parent joint frame. `parent_rotation` and
 /// `child_rotation` are the bodies' world rotations now; `*_rest_rotation` their world rotations in the
 /// rest pose (where both joint frames are world-aligned).
@@ -382,6 +391,17 @@ mod tests {
     fn commanded_speed_is_capped() {
         let far = Quat::from_rotation_x(3.0);
         assert!((motor_velocities(Quat::IDENTITY, far).length() - MAX_JOINT_SPEED_RAD_S).abs() < 1e-4);
+    }
+
+    #[test]
+    fn an_action_from_targets_gives_those_targets_back() {
+        let targets: [f32; DOF_COUNT] = std::array::from_fn(|i| 0.3 * (DOFS[i].lower_rad + DOFS[i].upper_rad));
+        let back = targets_from_action(&action_from_targets(&targets)).expect("an action");
+        for (a, b) in targets.iter().zip(&back) {
+            assert!((a - b).abs() < 1e-6, "{a} against {b}");
+        }
+        assert_eq!(action_from_targets(&[10.0; DOF_COUNT]), [1.0; DOF_COUNT]);
+        assert_eq!(action_from_targets(&[-10.0; DOF_COUNT]), [-1.0; DOF_COUNT]);
     }
 
     #[test]

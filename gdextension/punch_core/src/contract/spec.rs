@@ -15,8 +15,10 @@ use glam::Vec3;
 use serde_json::{Map, Value, json};
 
 use crate::contract::arm_size::ArmScale;
+use crate::contract::character::action_from_targets;
 use crate::contract::mirror;
 use crate::contract::motion::BodyMotion;
+use crate::contract::stance::Stance;
 
 pub use crate::contract::character::{DEFAULT_DECISION_PERIOD, DOF_COUNT, DOFS, PHYSICS_HZ};
 pub use crate::contract::observation::{OBS_DIM, OBS_SPEC_VERSION, observation_names, spec_hash};
@@ -511,7 +513,7 @@ impl PolicySpec {
 
 /// The spec part of the training server's handshake for `decision_period`: versions, hash, rates, sizes,
 /// every name, the action bounds, the default bag placement, the reach volume training covers and the mirror's
-/// rules (`mirror::rules_json`).
+/// rules (`mirror::rules_json`) and the action that holds each stance's guard (`stance_guard_actions`).
 pub fn handshake_fields(decision_period: u32) -> Map<String, Value> {
     let mut fields = Map::new();
     fields.insert("spec_version".into(), json!(OBS_SPEC_VERSION));
@@ -526,6 +528,11 @@ pub fn handshake_fields(decision_period: u32) -> Map<String, Value> {
     fields.insert("default_bag".into(), EpisodeConditions::DEFAULT.to_json());
     fields.insert("reach_volume".into(), REACH_VOLUME.to_json());
     fields.insert("mirror".into(), mirror::rules_json());
+    let guard = |stance: Stance| json!(action_from_targets(&stance.guard_targets()));
+    fields.insert(
+        "stance_guard_actions".into(),
+        json!({"orthodox": guard(Stance::Orthodox), "southpaw": guard(Stance::Southpaw)}),
+    );
     fields
 }
 
