@@ -1,6 +1,7 @@
 ## Your own character: two rigged, skinned humanoids made from CC0 MakeHuman data (a 1.90 m one with Mixamo bone
 ## names and a 1.60 m one with Unreal-style names) punch through a PunchSkeletonModifier under each Skeleton3D.
-## The tall one punches the sandbag, turns to the short one, and the two take turns punching each other. Between
+## The tall one (orthodox) punches the sandbag, turns to the short one (southpaw), and the two take turns punching each
+## other, each throwing the six moves in turn (jab, cross, hooks, uppercuts) with its stance's hands. Between
 ## punches each skeleton plays its own idle (a guard with breathing, bouncing knees and a nodding head, built in
 ## code below as an ordinary Animation in an AnimationPlayer); a punch blends the controller's simulated upper body
 ## in over the animation and back out. The simulated bodies are hidden: only the skinned characters show.
@@ -25,6 +26,8 @@ const BAG_YAW := 2.5
 ## Metres between the fighters' shoulders: the far end of the policies' reach (0.6-0.85 m), so that the skinned
 ## bodies keep apart.
 const SPARRING_DISTANCE_M := 0.8
+## The moves each fighter throws in turn.
+const MOVES: Array[StringName] = [&"jab", &"cross", &"lead_hook", &"rear_hook", &"lead_uppercut", &"rear_uppercut"]
 ## Each turn of the exchange: who punches, and at what.
 const TURNS := [[0, "bag"], [0, "opponent"], [1, "opponent"]]
 ## Seconds between one punch's recovery and the next punch; seconds a turn toward the bag takes.
@@ -106,6 +109,7 @@ func _add_fighter(file: String, rig: Node3D, place: Transform3D, index: int) -> 
 	var skeleton: Skeleton3D = rig.find_children("*", "Skeleton3D", true, false)[0]
 	var character := add_character(self, place)  # anywhere: the modifier puts it on the rig
 	var controller := add_controller(character, null, 0.0, index + 1)
+	controller.stance = PunchController.ORTHODOX if index == 0 else PunchController.SOUTHPAW
 	var modifier := PunchSkeletonModifier.new()
 	modifier.controller = controller
 	modifier.blend_in_s = 0.05  # the punches land 0.06 s in: the skinned fist must be there by then
@@ -165,11 +169,12 @@ func _physics_process(delta: float) -> void:
 	# Two physics frames after the turn the modifier has placed the simulated body on the turned rig.
 	if _turning.s >= TURN_S + 2.0 * delta:
 		var turn: Array = TURNS[(_turn - 1) % TURNS.size()]
-		var controller: PunchController = _fighters[turn[0]].controller
+		var fighter: Dictionary = _fighters[turn[0]]
+		var controller: PunchController = fighter.controller
 		controller.target = _bag if turn[1] == "bag" else _fighters[1 - turn[0]].character.get_node("Torso")
 		_landed = false
 		_turning = {}
-		controller.punch()
+		controller.punch(MOVES[fighter.punches % MOVES.size()])
 
 
 ## An idle made in code, as a game's animator would make it: the guard (upper arms down and forward, forearms up),
