@@ -26,7 +26,7 @@ def test_every_shipped_policy_has_its_generated_row_and_section():
         assert f"`{recipe.policy.name}`" in table, f"run punch results: {recipe.policy.name} has no row"
         assert f"<!-- The shipped {recipe.name}:start -->" in benchmarks, f"run punch results: no section for {recipe.name}"
     assert "<!-- The shipped policies:start -->" in benchmarks
-
+    assert f"<!-- {results.MOVES_SECTION}:start -->" in benchmarks, "run punch results: the six moves have no table"
 
 
 def test_a_readme_without_its_markers_is_refused(tmp_path, monkeypatch):
@@ -42,7 +42,7 @@ def test_a_readme_without_its_markers_is_refused(tmp_path, monkeypatch):
 @pytest.mark.godot
 def test_results_measure_a_recipes_policy_and_rewrite_the_docs(tmp_path, monkeypatch, capsys):
     """A real (small) run: every measurement through Godot, the summary row in both files, one section per policy,
-    replaced whole by a second run, the text around it kept."""
+    replaced whole by a second run (which reads the measurements back), the text around it kept."""
     readme = tmp_path / "README.md"
     shutil.copyfile(results.POLICIES_README, readme)
     benchmarks = tmp_path / "BENCHMARKS.md"
@@ -60,6 +60,8 @@ def test_results_measure_a_recipes_policy_and_rewrite_the_docs(tmp_path, monkeyp
     arguments = ["results", str(PROJECT_ROOT / "recipes" / "straight.toml"), "--out", str(tmp_path / "runs")]
     for _ in range(2):
         assert cli_main.main(arguments) == 0
+    # The second run read every measurement back (the same policy file, the same commands) instead of playing it.
+    assert capsys.readouterr().out.count("measured before") == len(results.MEASUREMENTS)
     table = marked_table(readme.read_text())
     row = next(line for line in table.splitlines() if line.startswith("| `straight.onnx`"))
     cells = [cell.strip() for cell in row.strip("|").split("|")]

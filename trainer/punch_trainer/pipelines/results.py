@@ -10,6 +10,8 @@ a policy changes (`punch recipe ... --install`).
 
 from __future__ import annotations
 
+import hashlib
+import json
 import re
 import shlex
 from dataclasses import dataclass, field
@@ -132,17 +134,34 @@ def shipped_recipes(recipes_dir: Path = RECIPES_DIR) -> list[Recipe]:
     return recipes
 
 
+MEASURED_FILE = "measured.json"
+"""beside a measurement's report: the policy's SHA-256 and the command it was measured with"""
+
+
 def measure(recipes: list[Recipe], out: Path, *, progress: bool = True, backend: Backend = LOCAL) -> dict[str, list[dict[str, Any]]]:
     """Every measurement of every recipe's policy: {recipe name: [the evaluator's report, one per measurement]}.
-    Each run's report.md and plots stay in `out/<name>/<scenario>`."""
+    Each run's report.md and plots stay in `out/<name>/<scenario>`; a measurement already there of the same policy
+    file (its SHA-256) by the same command is read back instead of played again, so after one policy changes only
+    its measurements run."""
     reports: dict[str, list[dict[str, Any]]] = {}
     for recipe in recipes:
         policy = PROJECT_ROOT / recipe.policy
         if not policy.is_file():
             raise ResultsError(f"{recipe.path}: its policy {recipe.policy} is missing (make it: punch recipe {recipe.path} --install)")
+        stamp = {"policy_sha256": hashlib.sha256(policy.read_bytes()).hexdigest()}
         reports[recipe.name] = []
         for measurement in MEASUREMENTS:
-            run_dir, report = run_eval(measurement.args(policy, out / recipe.name / measurement.scenario), progress, backend=backend)
+            run_dir = out / recipe.name / measurement.scenario
+            wanted = {**stamp, "command": measurement.command(recipe.policy)}
+            measured = run_dir / MEASURED_FILE
+            if measured.is_file() and json.loads(measured.read_text()) == wanted and (run_dir / "eval.json").is_file():
+                report = json.loads((run_dir / "eval.json").read_text())
+                if progress:
+                    print(f"{recipe.name} {measurement.scenario}: measured before ({run_dir})", flush=True)
+            else:
+                measured.unlink(missing_ok=True)
+                run_dir, report = run_eval(measurement.args(policy, run_dir), progress, backend=backend)
+                measured.write_text(json.dumps(wanted) + "\n")
             reports[recipe.name].append({"measurement": measurement, "report": report, "markdown": (run_dir / "report.md").read_text()})
     return reports
 
