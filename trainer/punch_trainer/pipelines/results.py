@@ -295,7 +295,9 @@ def write_results(recipes: list[Recipe], reports: dict[str, list[dict[str, Any]]
         for run in reports[recipe.name]:
             body += [f"### `{run['measurement'].command(recipe.policy)}`", "", *benchmarks_body(run["markdown"], depth=1), ""]
         write_section(f"The shipped {recipe.name}", command, "\n".join(body).strip())
+    moves_link = (f"; each move of the default moveset: [BENCHMARKS.md, \"{MOVES_SECTION}\"](../../../BENCHMARKS.md#the-six-moves)"
+                  if moves is not None else "")
     table = (f"{start}\n{summary_table(rows, '../../../')}\n\nMeasured by `{command}` on {machine_description()}; every "
-             f"report: [BENCHMARKS.md, \"{SUMMARY_SECTION}\"](../../../BENCHMARKS.md#the-shipped-policies).\n{end}")
+             f"report: [BENCHMARKS.md, \"{SUMMARY_SECTION}\"](../../../BENCHMARKS.md#the-shipped-policies){moves_link}.\n{end}")
     POLICIES_README.write_text(pattern.sub(lambda _: table, text))
     return [BENCHMARKS_FILE, POLICIES_README]
