@@ -150,7 +150,8 @@ def test_from_the_stances_guard_the_character_turns_and_still_lands(tmp_path):
 
 def test_training_starts_in_the_guard_the_game_stands_in():
     """The training server's `stance_guard_actions`: a lead-in holding the orthodox guard leaves the character as
-    `stance_pose` holds it in the game (trunk turned 30° right, the lead elbow opened); the southpaw's is its mirror."""
+    `stance_pose` holds it in the game (trunk turned 30° right, the lead elbow opened), before an episode and before a
+    search's rollout alike (a chunk of 3 rollouts on 2 characters: padded); the southpaw's is its mirror."""
     import numpy as np
 
     from punch_trainer.learn.volume import STANCE_LEAD_IN_DECISIONS
@@ -170,6 +171,15 @@ def test_training_starts_in_the_guard_the_game_stands_in():
     assert waist[0] == pytest.approx(0.0, abs=1.0) and waist[1] == pytest.approx(-30.0, abs=2.0), waist
     assert waist[2] == pytest.approx(30.0, abs=2.0), waist
     assert lead_elbow[1, 0] > 10.0 and lead_elbow[2, 1] > 10.0 and abs(lead_elbow[1, 1]) < 2.0, lead_elbow
+    # The trajectory search's open-loop rollouts start there too, after the same lead-in.
+    from punch_trainer.sim.rollouts import RolloutPool
+
+    with RolloutPool(1, 2) as pool:
+        features, _ = pool.run(np.zeros((3, 4, pool.info.action_size), dtype=np.float32), lead_in=lead_in)
+        with pytest.raises(ValueError, match="lead-in of shape"):
+            pool.run(np.zeros((3, 4, pool.info.action_size), dtype=np.float32), lead_in=lead_in[:2])
+    rolled = np.degrees(features[:, 0, names.index("angle_waist_rotation")])
+    assert rolled == pytest.approx(waist, abs=1.0), (rolled, waist)
 
 
 def test_body_shots_are_drawn_in_the_body_band(tmp_path):

@@ -121,12 +121,17 @@ def step_message(actions: np.ndarray) -> Message:
     return Message("step", arrays={"actions": np.asarray(actions, dtype=np.float32)})
 
 
-def rollout_message(actions: np.ndarray, *, bags: Bags = None, smoothing_window: int = 1) -> Message:
-    """Open-loop raw actions [N, decisions, A] for every slot, from a fresh reset."""
+def rollout_message(actions: np.ndarray, *, bags: Bags = None, smoothing_window: int = 1,
+                    lead_in: np.ndarray | None = None) -> Message:
+    """Open-loop raw actions [N, decisions, A] for every slot, from a fresh reset (after `lead_in` [N, decisions, A],
+    unrecorded, when given: a start from a stance's guard)."""
     fields: dict[str, object] = {"smoothing_window": smoothing_window}
     if bags is not None:
         fields["bags"] = _wire_bags(bags)
-    return Message("rollout", fields, {"actions": np.asarray(actions, dtype=np.float32)})
+    arrays = {"actions": np.asarray(actions, dtype=np.float32)}
+    if lead_in is not None:
+        arrays["lead_in"] = np.asarray(lead_in, dtype=np.float32)
+    return Message("rollout", fields, arrays)
 
 
 def close_message() -> Message:

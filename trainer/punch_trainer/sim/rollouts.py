@@ -41,13 +41,16 @@ class RolloutPool:
         return self._restarts.count
 
     def run(self, actions: np.ndarray, smoothing_window: int = 1,
-            bags: list[EpisodeConditions] | None = None) -> tuple[np.ndarray, np.ndarray]:
+            bags: list[EpisodeConditions] | None = None, lead_in: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Raw actions [M, decisions, 10] -> (features [M, frames, F], executed actions [M, decisions, 10]).
-        `bags`: one placement per sequence (default: the spec's)."""
+        `bags`: one placement per sequence (default: the spec's); `lead_in`: [M, decisions, 10] each sequence plays
+        first, unrecorded (a start from a stance's guard; default: the square guard at rest)."""
         actions = np.asarray(actions, dtype=np.float32)
         count = actions.shape[0]
         if bags is not None and len(bags) != count:
             raise ValueError(f"{len(bags)} bag placements for {count} action sequences")
+        if lead_in is not None and (lead_in.ndim != 3 or lead_in.shape[0] != count or lead_in.shape[2] != actions.shape[2]):
+            raise ValueError(f"a lead-in of shape {lead_in.shape} for {count} action sequences of {actions.shape[2]} values")
         features, executed = [], []
         per_process = self.characters_per_process
         for start in range(0, count, self.slots):
@@ -55,12 +58,18 @@ class RolloutPool:
             padded = np.zeros((self.slots, *actions.shape[1:]), dtype=np.float32)
             padded[:len(chunk)] = chunk  # unused slots run the guard pose; their results are dropped
             parts = np.split(padded, len(self.servers))
+            lead_ins: list[np.ndarray | None] = [None] * len(parts)
+            if lead_in is not None:
+                padded_lead_in = np.zeros((self.slots, *lead_in.shape[1:]), dtype=np.float32)
+                padded_lead_in[:len(chunk)] = lead_in[start:start + self.slots]
+                lead_ins = list(np.split(padded_lead_in, len(self.servers)))
             if bags is None:
-                messages = [rollout_message(part, smoothing_window=smoothing_window) for part in parts]
+                messages = [rollout_message(part, smoothing_window=smoothing_window, lead_in=lead_ins[p]) for p, part in enumerate(parts)]
             else:
                 chunk_bags = bags[start:start + self.slots]
                 chunk_bags = chunk_bags + [self.info.default_bag] * (self.slots - len(chunk_bags))
-                messages = [rollout_message(part, smoothing_window=smoothing_window, bags=chunk_bags[p * per_process:(p + 1) * per_process])
+                messages = [rollout_message(part, smoothing_window=smoothing_window, bags=chunk_bags[p * per_process:(p + 1) * per_process],
+                                            lead_in=lead_ins[p])
                             for p, part in enumerate(parts)]
             replies = self._restarts.run(functools.partial(self._exchange, messages))
             features.append(np.concatenate([r.arrays["features"] for r in replies])[:len(chunk)])

@@ -83,6 +83,8 @@ pub struct Session {
     episode_started: bool,
     /// Where each slot's bag hangs in the episode being reset (a lead-in's punch moves it; it is put back).
     placements: Vec<EpisodeConditions>,
+    /// A rollout's open-loop actions and decisions, waiting for its lead-in to end.
+    pending_rollout: Option<(Vec<f32>, usize)>,
 }
 
 /// Longest lead-in of a reset, decisions.
@@ -103,6 +105,7 @@ impl Session {
             run: None,
             episode_started: false,
             placements: Vec::new(),
+            pending_rollout: None,
         }
     }
 
@@ -251,12 +254,14 @@ impl Session {
         if decisions == 0 {
             return Err("a rollout needs at least one decision".into());
         }
-        if message.arrays.iter().any(|a| a.name == "lead_in") {
-            return Err("a rollout starts from the guard: send a lead-in with reset and use steps".into());
-        }
         let mut reset = message.clone();
         reset.header.insert("frames".into(), json!(decisions * self.decision_period));
-        self.reset(&reset, world)?;
+        let outcome = self.reset(&reset, world)?;
+        if matches!(outcome, Outcome::Running) {
+            // A lead-in plays first (a start from a stance's guard, or after a punch): the rollout follows it.
+            self.pending_rollout = Some((actions, decisions));
+            return Ok(outcome);
+        }
         self.begin(Command::Rollout, decisions * self.decision_period, actions, decisions, world);
         Ok(Outcome::Running)
     }
@@ -351,7 +356,14 @@ impl Session {
                 for (slot, placement) in self.placements.iter().enumerate() {
                     world.place_bag(slot, placement);
                 }
-                Some(self.start_episode(spec, world))
+                let started = self.start_episode(spec, world);
+                match self.pending_rollout.take() {
+                    Some((actions, decisions)) => {
+                        self.begin(Command::Rollout, decisions * self.decision_period, actions, decisions, world);
+                        None
+                    }
+                    None => Some(started),
+                }
             }
             None => Some(self.reply(run)),
         }
@@ -591,6 +603,27 @@ mod tests {
             let reset = message(json!({"type": "reset"}), Some(Array::new("lead_in", shape, vec![bad; count])));
             assert_eq!(reply(session.handle(&reset, &mut world)).message_type(), "error");
         }
+    }
+
+    #[test]
+    fn a_rollout_with_a_lead_in_starts_where_the_lead_in_left_each_character() {
+        let (mut session, mut world) = (Session::new(5), FakeWorld::new(2));
+        let mut lead_in = vec![0.0; 2 * 3 * DOF_COUNT];
+        lead_in[..3 * DOF_COUNT].fill(0.8); // slot 0 moves before its rollout, slot 1 stays in guard
+        let rollout = Message::new("rollout")
+            .with_array(Array::new("actions", vec![2, 2, DOF_COUNT], vec![0.0; 2 * 2 * DOF_COUNT]))
+            .with_array(Array::new("lead_in", vec![2, 3, DOF_COUNT], lead_in));
+        assert!(matches!(session.handle(&rollout, &mut world), Outcome::Running));
+        let (done, frames) = run(&mut session, &mut world);
+        assert_eq!((done.message_type(), frames), ("rollout_done", 25), "15 lead-in frames, then 10 recorded");
+        let features = done.array("features", &[2, 10, FEATURE_COUNT]).expect("only the rollout's frames");
+        let bag_z = feature_index("bag_pos_z").expect("feature");
+        let first = |slot: usize| features.data[slot * 10 * FEATURE_COUNT + bag_z];
+        assert!(first(0) < first(1) - 0.05, "slot 0 starts nearer its bag: {} against {}", first(0), first(1));
+        // The next rollout without one starts from the guard again.
+        let plain = Message::new("rollout").with_array(Array::new("actions", vec![2, 2, DOF_COUNT], vec![0.0; 40]));
+        assert!(matches!(session.handle(&plain, &mut world), Outcome::Running));
+        assert_eq!(run(&mut session, &mut world).1, 10);
     }
 
     #[test]
