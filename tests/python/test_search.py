@@ -78,3 +78,25 @@ def test_baselines_run_on_the_same_environment():
             best = [row["best_return"] for row in history]
             assert len(history) == 3 and best == sorted(best), f"{method.__name__}: best return must never fall"
             assert history[-1]["rollouts"] == 48
+
+
+@pytest.mark.godot
+def test_a_search_may_start_from_a_stances_guard():
+    """`placement_search(lead_in=...)`: every rollout of a placement plays its lead-in first (here the square guard at
+    one placement, the orthodox guard held at the other), so its best trajectory starts there."""
+    from punch_trainer.learn.reach import placement
+    from punch_trainer.learn.search import placement_search
+    from punch_trainer.learn.volume import STANCE_LEAD_IN_DECISIONS
+    from punch_trainer.reward.rewards import load_reward
+    from punch_trainer.sim.rollouts import RolloutPool
+
+    reward = load_reward("straight")
+    args = SearchArgs(reward="straight", seed=0, iterations=2, rollouts=8, plateau_iterations=0)
+    with RolloutPool(1, 16) as pool:
+        guard = np.array(pool.info.stance_guard_actions["orthodox"], dtype=np.float32)
+        lead_in = np.zeros((2, STANCE_LEAD_IN_DECISIONS, pool.info.action_size), dtype=np.float32)
+        lead_in[1] = guard
+        results = placement_search(args, reward, pool, progress=False, placements=[placement(0.7, 1.35, 0.0)] * 2,
+                                   neighbours=0, lead_in=lead_in)
+    waist = [np.degrees(r.best_features[0, r.feature_names.index("angle_waist_rotation")]) for r in results]
+    assert waist[0] == pytest.approx(0.0, abs=3.0) and waist[1] == pytest.approx(-30.0, abs=3.0), waist

@@ -172,12 +172,15 @@ def trajectory_search(args: SearchArgs, reward: Reward, pool: RolloutPool, progr
 
 def placement_search(args: SearchArgs, reward: Reward, pool: RolloutPool, progress: bool = True,
                      run_dir: Path | None = None, placements: list[EpisodeConditions] | None = None,
-                     init_mu: np.ndarray | None = None, neighbours: int = 4) -> list[SearchResult]:
+                     init_mu: np.ndarray | None = None, neighbours: int = 4,
+                     lead_in: np.ndarray | None = None) -> list[SearchResult]:
     """Runs TTR at several bag placements at once (one table per placement, all rollouts in the same
     batches); None: the default placement only. Each placement's search may start from `init_mu` (a best
     trajectory found elsewhere, [decisions, A], or one per placement: a warm start), and from the second iteration on one of its rollouts is the
     best so far of one of its `neighbours` nearest placements, so what one placement finds spreads to the
-    others. Stops when no placement improved for `plateau_iterations`.
+    others. Stops when no placement improved for `plateau_iterations`. `lead_in` ([L, A], or [placements, L, A]):
+    raw actions every rollout plays first, unrecorded, so that the search starts where they leave the character
+    (a stance's guard: the server's `stance_guard_actions` held); None: the square guard at rest.
 
     With `run_dir` it checkpoints after every iteration and first continues from the checkpoint it finds
     there: the tables, the bests and the sampler's state, so a resumed search ends exactly where an
@@ -196,7 +199,11 @@ def placement_search(args: SearchArgs, reward: Reward, pool: RolloutPool, progre
 
     def returns_of(actions: np.ndarray, per_placement: int) -> tuple[np.ndarray, Terms, np.ndarray, np.ndarray]:
         bags = None if placements is None else [bag for bag in placements for _ in range(per_placement)]
-        features, executed = pool.run(actions.reshape(-1, decisions, action_size), args.smoothing_window, bags)
+        starts = None
+        if lead_in is not None:
+            per_start = np.broadcast_to(lead_in, (count, *np.shape(lead_in)[-2:]))
+            starts = np.repeat(per_start, per_placement, axis=0).astype(np.float32)
+        features, executed = pool.run(actions.reshape(-1, decisions, action_size), args.smoothing_window, bags, starts)
         returns, terms = score_terms(reward, features, names)
         return returns.reshape(count, per_placement), terms, features, executed
 
