@@ -82,8 +82,10 @@ def test_baselines_run_on_the_same_environment():
 
 @pytest.mark.godot
 def test_a_search_may_start_from_a_stances_guard():
-    """`placement_search(lead_in=...)`: every rollout of a placement plays its lead-in first (here the square guard at
-    one placement, the orthodox guard held at the other), so its best trajectory starts there."""
+    """`placement_search(lead_in=...)`: every rollout plays the lead-in first (here the orthodox guard held), so the
+    best trajectories start there, and `record_datasets` with the same lead-in records them again exactly (it raises
+    otherwise)."""
+    from punch_trainer.learn.dataset import record_datasets
     from punch_trainer.learn.reach import placement
     from punch_trainer.learn.search import placement_search
     from punch_trainer.learn.volume import STANCE_LEAD_IN_DECISIONS
@@ -91,12 +93,13 @@ def test_a_search_may_start_from_a_stances_guard():
     from punch_trainer.sim.rollouts import RolloutPool
 
     reward = load_reward("straight")
-    args = SearchArgs(reward="straight", seed=0, iterations=2, rollouts=8, plateau_iterations=0)
+    args = SearchArgs(reward="straight", seed=0, iterations=2, rollouts=8, plateau_iterations=0, characters_per_process=16)
+    places = [placement(0.7, 1.35, 0.0), placement(0.75, 1.4, 0.1)]
     with RolloutPool(1, 16) as pool:
         guard = np.array(pool.info.stance_guard_actions["orthodox"], dtype=np.float32)
-        lead_in = np.zeros((2, STANCE_LEAD_IN_DECISIONS, pool.info.action_size), dtype=np.float32)
-        lead_in[1] = guard
-        results = placement_search(args, reward, pool, progress=False, placements=[placement(0.7, 1.35, 0.0)] * 2,
-                                   neighbours=0, lead_in=lead_in)
+        lead_in = np.tile(guard, (STANCE_LEAD_IN_DECISIONS, 1))
+        results = placement_search(args, reward, pool, progress=False, placements=places, neighbours=0, lead_in=lead_in)
     waist = [np.degrees(r.best_features[0, r.feature_names.index("angle_waist_rotation")]) for r in results]
-    assert waist[0] == pytest.approx(0.0, abs=3.0) and waist[1] == pytest.approx(-30.0, abs=3.0), waist
+    assert waist == pytest.approx([-30.0, -30.0], abs=3.0), waist
+    datasets = record_datasets(results, reward, args, places, lead_in=lead_in)
+    assert len(datasets) == 2 and all(len(d["observations"]) == len(results[0].best_actions) for d in datasets)

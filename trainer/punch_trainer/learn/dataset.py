@@ -37,12 +37,15 @@ def record_dataset(result: SearchResult, reward: Reward, args: SearchArgs, *, ba
 
 
 def record_datasets(results: list[SearchResult], reward: Reward, args: SearchArgs, bags: list[EpisodeConditions] | None = None,
-                    reach: ReachVolume | None = None, *, backend: Backend = LOCAL) -> list[dict[str, np.ndarray]]:
+                    reach: ReachVolume | None = None, *, backend: Backend = LOCAL,
+                    lead_in: np.ndarray | None = None) -> list[dict[str, np.ndarray]]:
     """Steps through best trajectories one decision at a time, each in the slot it was found in, of a server
     of the same size as the search's (so that each is bitwise the same trajectory: docs/env.md, Episodes),
     with its bag placement (`bags`, default: the spec's), on `backend`, and stores what each decision saw and did. The
     recording must reproduce the search's features exactly. `reach` (default: the one placement) goes into
-    each dataset's policy contract, so every policy trained on them states what it covers."""
+    each dataset's policy contract, so every policy trained on them states what it covers. `lead_in` [L, A]: what
+    every rollout of the search played first (`placement_search`'s, one start for all), played again before each
+    recording."""
     slot_count = args.characters_per_process
     placed: list[EpisodeConditions | None] = list(bags) if bags else [None] * len(results)
     recorded: list[dict[str, np.ndarray] | None] = [None] * len(results)
@@ -61,7 +64,7 @@ def record_datasets(results: list[SearchResult], reward: Reward, args: SearchArg
             slot_bags = [info.default_bag] * slot_count
             for slot, index in by_slot.items():
                 slot_bags[slot] = placed[index] or info.default_bag
-            passed = restarts.run(functools.partial(_play_pass, group, results, by_slot, slot_bags, reward, args))
+            passed = restarts.run(functools.partial(_play_pass, group, results, by_slot, slot_bags, reward, args, lead_in))
             contract = dict(passed.policy_metadata, **{REACH_VOLUME: reach.to_json()})
             for slot, index in by_slot.items():
                 recorded[index] = _dataset(results[index], reward, args, info, contract, slot_bags[slot],
@@ -82,11 +85,13 @@ class _Pass:
 
 
 def _play_pass(group: ServerGroup, results: list[SearchResult], by_slot: dict[int, int], slot_bags: list[EpisodeConditions],
-               reward: Reward, args: SearchArgs) -> _Pass:
-    """Plays the trajectories `by_slot` (slot -> result) decision by decision on the group's server."""
+               reward: Reward, args: SearchArgs, lead_in: np.ndarray | None = None) -> _Pass:
+    """Plays the trajectories `by_slot` (slot -> result) decision by decision on the group's server, every slot after
+    `lead_in` [L, A] when given."""
     group.replace_idle()
     server, info, slot_count = group.servers[0], group.info, len(slot_bags)
-    reply = server.reset(reward.frames, bags=slot_bags, smoothing_window=args.smoothing_window)
+    starts = None if lead_in is None else np.tile(np.asarray(lead_in, dtype=np.float32), (slot_count, 1, 1))
+    reply = server.reset(reward.frames, bags=slot_bags, smoothing_window=args.smoothing_window, lead_in=starts)
     played = _Pass(reply.fields["policy_metadata"], [[reply.arrays["observations"][slot]] for slot in range(slot_count)],
                    [[] for _ in range(slot_count)], [[] for _ in range(slot_count)])
     for decision in range(len(results[0].best_actions)):

@@ -27,7 +27,15 @@ from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.pretrain import PretrainArgs, fit_critic, pretrain
 from punch_trainer.learn.reach import ReachVolume
 from punch_trainer.learn.search import SearchArgs, SearchResult, placement_search
-from punch_trainer.learn.volume import ArmRange, ConditionSampler, MotionRange, VolumeArgs, distribution_observations, validate
+from punch_trainer.learn.volume import (
+    STANCE_LEAD_IN_DECISIONS,
+    ArmRange,
+    ConditionSampler,
+    MotionRange,
+    VolumeArgs,
+    distribution_observations,
+    validate,
+)
 from punch_trainer.learn.warm_start import SNAPSHOT_KIND, warm_start
 from punch_trainer.options import bounds
 from punch_trainer.pipelines.search import run_search
@@ -120,6 +128,10 @@ class TrainArgs:
     """volume: rollouts per placement and iteration"""
     default_share: float = VolumeArgs.default_share
     """volume: share of A2C episodes with the bag at the default placement"""
+    search_stances: bool = False
+    """volume: also search over the grid from each stance's guard (orthodox and southpaw, after a lead-in holding it)
+    and pretrain on those punches too: the start a policy needs for `--stance-share` (a rear uppercut from the
+    orthodox guard is found by the search, never by A2C alone: experiments/notebook.md)"""
     stance_share: float = VolumeArgs.stance_share
     """volume: share of A2C episodes (and validation placements) that start in a boxing stance's guard, orthodox or
     southpaw (`PunchController.stance_pose`); the others start in the square guard"""
@@ -178,24 +190,35 @@ def parse_grid(text: str) -> tuple[int, int, int]:
 def search_volume(args: TrainArgs, volume: VolumeArgs, reward: Reward, centre: SearchResult, progress: bool,
                   resume: bool, backend: Backend) -> tuple[list[Path], ReachVolume, list[float], np.ndarray]:
     """The search over the reach volume's grid, warm-started from the default placement's best (`centre`),
-    and one dataset per placement in volume_search/datasets/. Returns the dataset paths, the reach, each
-    placement's best return and best actions [P, decisions, A]."""
-    out = args.run_dir() / "volume_search"
-    search_args = SearchArgs(reward=args.reward, style=args.style, style_weight=args.style_weight, frames=reward.frames, seed=args.seed, out=out,
-                             iterations=volume.search_iterations, rollouts=volume.search_rollouts,
-                             sigma_init=volume.search_sigma_init, processes=args.processes, characters_per_process=64,
-                             smoothing_window=args.smoothing_window)
+    and one dataset per placement in volume_search/datasets/; with `args.search_stances`, the same from each stance's
+    guard too (volume_search_orthodox/, volume_search_southpaw/: every rollout after a lead-in holding it). Returns
+    the dataset paths (every start's), the reach, each placement's best return and best actions [P, decisions, A]
+    (the square guard's)."""
+    starts = ["square", *(["orthodox", "southpaw"] if args.search_stances else [])]
+    paths: list[Path] = []
+    square: list[SearchResult] = []
     with RolloutPool(args.processes, 64, backend=backend) as pool:
         reach = ReachVolume.from_json(pool.info.reach_volume)
         placements = reach.grid(volume.grid)
-        bests = placement_search(search_args, reward, pool, progress, run_dir=out, placements=placements,
-                                 init_mu=centre.best_actions)
-    paths = [out / "datasets" / f"placement_{index:03d}.npz" for index in range(len(bests))]
-    if not (resume and all(path.exists() for path in paths)):
-        paths[0].parent.mkdir(parents=True, exist_ok=True)
-        for path, dataset in zip(paths, record_datasets(bests, reward, search_args, placements, reach, backend=backend), strict=True):
-            np.savez_compressed(path, **dataset)  # type: ignore[arg-type]  # numpy's stub types **kwargs as its bool option
-    return paths, reach, [b.best_return for b in bests], np.stack([b.best_actions for b in bests])
+        for start in starts:
+            out = args.run_dir() / ("volume_search" if start == "square" else f"volume_search_{start}")
+            lead_in = None if start == "square" else np.tile(
+                np.array(pool.info.stance_guard_actions[start], dtype=np.float32), (STANCE_LEAD_IN_DECISIONS, 1))
+            search_args = SearchArgs(reward=args.reward, style=args.style, style_weight=args.style_weight, frames=reward.frames,
+                                     seed=args.seed, out=out, iterations=volume.search_iterations, rollouts=volume.search_rollouts,
+                                     sigma_init=volume.search_sigma_init, processes=args.processes, characters_per_process=64,
+                                     smoothing_window=args.smoothing_window)
+            bests = placement_search(search_args, reward, pool, progress, run_dir=out, placements=placements,
+                                     init_mu=centre.best_actions, lead_in=lead_in)
+            square = square or bests
+            start_paths = [out / "datasets" / f"placement_{index:03d}.npz" for index in range(len(bests))]
+            if not (resume and all(path.exists() for path in start_paths)):
+                start_paths[0].parent.mkdir(parents=True, exist_ok=True)
+                for path, dataset in zip(start_paths, record_datasets(bests, reward, search_args, placements, reach, backend=backend,
+                                                                      lead_in=lead_in), strict=True):
+                    np.savez_compressed(path, **dataset)  # type: ignore[arg-type]  # numpy's stub types **kwargs as its bool option
+            paths += start_paths
+    return paths, reach, [b.best_return for b in square], np.stack([b.best_actions for b in square])
 
 
 def arm_range(values: list[float]) -> tuple[float, float]:
