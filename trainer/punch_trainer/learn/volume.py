@@ -41,6 +41,14 @@ from punch_trainer.sim.env import PunchVectorEnv
 STANCE_LEAD_IN_DECISIONS = 8
 """decisions a lead-in holds a stance's guard before the episode (0.33 s at 120 Hz and 5 frames a decision: the
 trunk's 30 degree turn has settled)"""
+
+
+def holding(action: np.ndarray | list[float]) -> np.ndarray:
+    """A lead-in [STANCE_LEAD_IN_DECISIONS, A] that holds `action` (a stance's guard: the server's
+    `stance_guard_actions`)."""
+    return np.tile(np.asarray(action, dtype=np.float32), (STANCE_LEAD_IN_DECISIONS, 1))
+
+
 DISTRIBUTION_DRAWS = 10**9
 """the first "update" number of the draws for the observation statistics (A2C updates count from 1)"""
 

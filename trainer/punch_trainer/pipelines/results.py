@@ -213,9 +213,9 @@ def summary_table(rows: list[list[str]], link_prefix: str) -> str:
 
 
 def hand_row(move: str, stance: str) -> str:
-    """The `stance` and `body` scenarios' row for a move's hand in a stance."""
-    hand = "left" if (move in LEAD_MOVES) == (stance == "orthodox") else "right"
-    return f"{'lead' if move in LEAD_MOVES else 'rear'} hand, {stance} ({hand})"
+    """How the `stance` and `body` scenarios' row for a move's hand in a stance begins (the rest names the hand,
+    which the controller's `hand_for` gave the evaluator)."""
+    return f"{'lead' if move in LEAD_MOVES else 'rear'} hand, {stance}"
 
 
 def moves_table(reports: dict[str, list[dict[str, Any]]], policy_recipes: dict[str, str]) -> str | None:
@@ -232,12 +232,12 @@ def moves_table(reports: dict[str, list[dict[str, Any]]], policy_recipes: dict[s
 
     def lands(move: str, scenario: str, sigma: float) -> str:
         rows = [row for row in _rows(report(move, scenario)) if abs(row["sigma"] - sigma) < 1e-9
-                and row["condition"] in (hand_row(move, "orthodox"), hand_row(move, "southpaw"))]
+                and row["condition"].startswith((hand_row(move, "orthodox"), hand_row(move, "southpaw")))]
         return f"{100 * min(row['success_rate'] for row in rows):.1f}%"
 
     def medians(move: str) -> dict[str, Any]:
         natural = report(move, "stance")["evaluations"][0]["naturalness"]
-        row = next(n for n in natural if n["condition"] == hand_row(move, "orthodox") and n["sigma"] == 0.0)
+        row = next(n for n in natural if n["condition"].startswith(hand_row(move, "orthodox")) and n["sigma"] == 0.0)
         figures: dict[str, Any] = row["medians"]
         return figures
 

@@ -28,12 +28,12 @@ from punch_trainer.learn.pretrain import PretrainArgs, fit_critic, pretrain
 from punch_trainer.learn.reach import ReachVolume
 from punch_trainer.learn.search import SearchArgs, SearchResult, placement_search
 from punch_trainer.learn.volume import (
-    STANCE_LEAD_IN_DECISIONS,
     ArmRange,
     ConditionSampler,
     MotionRange,
     VolumeArgs,
     distribution_observations,
+    holding,
     validate,
 )
 from punch_trainer.learn.warm_start import SNAPSHOT_KIND, warm_start
@@ -83,7 +83,7 @@ def reach_default_notes() -> dict[str, str]:
 @dataclass
 class TrainArgs:
     reward: str = SearchArgs.reward
-    """a preset (straight, straight100, hook, hook_sweep, swing, uppercut) or FILE.py:FUNCTION"""
+    """a preset (straight, straight100, hook, swing, uppercut) or FILE.py:FUNCTION"""
     style: str = DEFAULT_STYLE
     """the motion style added to the reward in every stage (docs/style.md): boxing, a human's punch; none, the reward
     alone (the paper's); or FILE.toml:NAME, a style of a file (recipes/styles.toml: the shipped policies')"""
@@ -202,8 +202,7 @@ def search_volume(args: TrainArgs, volume: VolumeArgs, reward: Reward, centre: S
         placements = reach.grid(volume.grid)
         for start in starts:
             out = args.run_dir() / ("volume_search" if start == "square" else f"volume_search_{start}")
-            lead_in = None if start == "square" else np.tile(
-                np.array(pool.info.stance_guard_actions[start], dtype=np.float32), (STANCE_LEAD_IN_DECISIONS, 1))
+            lead_in = None if start == "square" else holding(pool.info.stance_guard_actions[start])
             search_args = SearchArgs(reward=args.reward, style=args.style, style_weight=args.style_weight, frames=reward.frames,
                                      seed=args.seed, out=out, iterations=volume.search_iterations, rollouts=volume.search_rollouts,
                                      sigma_init=volume.search_sigma_init, processes=args.processes, characters_per_process=64,

@@ -9,7 +9,7 @@ sum is the reward; each term is logged on its own). Frames the physics guard fla
         near = np.maximum(0.0, 0.3 - f["fist_r_bag_distance"]) ** 2
         return {"forward": near * 10.0 * f["fist_r_vel_z"], "soon": -0.01 * np.ones_like(near)}
 
-The presets are the paper's Table 2, a hook that sweeps in from the side and an uppercut, with d the distance from the right fist to the bag's
+The presets are the paper's Table 2 and an uppercut, with d the distance from the right fist to the bag's
 centre of mass and v the right fist's velocity (z toward the bag, x the character's left, y up).
 """
 
@@ -30,7 +30,6 @@ from punch_trainer.reward.sandbox import IsolatedFunction, result_terms
 from punch_trainer.reward.sandbox import RewardError as RewardError
 from punch_trainer.reward.sandbox import Terms as Terms
 from punch_trainer.reward.style import CONTACT_IMPULSE_NS, Style
-from punch_trainer.scene import SCENE_ARM_LENGTHS_M
 
 
 def first_right_contact(features: np.ndarray, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
@@ -65,25 +64,6 @@ def swing(f: Frames) -> Terms:
     return {"forward": near * 500.0 * f["fist_r_vel_z"], "sideways": near * 500.0 * 0.5 * f["fist_r_vel_x"]}
 
 
-def _shoulder_to_bag(f: Frames) -> tuple[np.ndarray, np.ndarray]:
-    """The horizontal unit vector (x, z) from the right shoulder to the bag: the scene's shoulder turned with the
-    waist (its flexion leaves the horizontal line nearly as it is)."""
-    half_width, turn = 0.5 * SCENE_ARM_LENGTHS_M[2], f["angle_waist_rotation"]
-    dx = f["bag_pos_x"] + half_width * np.cos(turn)
-    dz = f["bag_pos_z"] - half_width * np.sin(turn)
-    length = np.maximum(np.hypot(dx, dz), 1e-6)
-    return dx / length, dz / length
-
-
-def hook_sweep(f: Frames) -> Terms:
-    """The hook that sweeps in from the side (not the paper's): max(0, 0.3 - d)^2 * 10 * (a + 1.5 c), with a the
-    fist's horizontal velocity along the line from its shoulder to the bag and c across it, toward the body's middle.
-    At a given speed the best direction lies 56 degrees off that line (a boxing hook's, docs/moves.md, at least 35)."""
-    near, (ux, uz) = _near(f), _shoulder_to_bag(f)
-    vx, vz = f["fist_r_vel_x"], f["fist_r_vel_z"]
-    return {"along": near * 10.0 * (vx * ux + vz * uz), "across": near * 10.0 * 1.5 * (vx * uz - vz * ux)}
-
-
 def uppercut(f: Frames) -> Terms:
     """The uppercut (not the paper's): max(0, 0.3 - d)^2 * 10 * (v_z + v_y), the fist coming in and up, plus 5 times
     the upward impulse the fist gives the bag (N s): rising near the bag without touching it earns less than lifting
@@ -112,7 +92,6 @@ PRESETS = {
     "straight": Reward("straight", straight, 50),
     "straight100": Reward("straight100", straight, 100),
     "hook": Reward("hook", hook, 50),
-    "hook_sweep": Reward("hook_sweep", hook_sweep, 50),
     "swing": Reward("swing", swing, 50, search_clip_epsilon=0.1),
     "uppercut": Reward("uppercut", uppercut, 50),
 }
