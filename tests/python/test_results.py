@@ -56,6 +56,7 @@ def test_results_measure_a_recipes_policy_and_rewrite_the_docs(tmp_path, monkeyp
         Measurement("hands", {"placements": 2, "sigmas": [0.0, 0.3]}),
         Measurement("stance", {"placements": 2, "conditions": ["lead hand, orthodox (left)"]}),
         Measurement("body", {"placements": 2, "conditions": ["rear hand, orthodox (right)"]}),
+        Measurement("stance_moving", {"placements": 2, "conditions": ["rear hand, moving: forward 0.7 m/s"]}),
     ))
     arguments = ["results", str(PROJECT_ROOT / "recipes" / "straight.toml"), "--out", str(tmp_path / "runs")]
     for _ in range(2):
@@ -93,7 +94,10 @@ def test_the_moves_table_names_the_shape_each_move_misses():
                 rows += [{"condition": name, "sigma": sigma, "success_rate": rate} for sigma in (0.0, 0.3)]
                 natural.append({"condition": name, "sigma": 0.0, "medians": figures})
         report = {"evaluations": [{"rows": rows, "naturalness": natural}]}
-        return [{"measurement": Measurement(scenario), "report": report} for scenario in ("stance", "body")]
+        around = [{"condition": f"{role} hand, {kind}: x", "sigma": 0.0, "success_rate": rate}
+                  for role in ("lead", "rear") for kind in ("moving", "arms")]
+        return [{"measurement": Measurement(scenario), "report": report} for scenario in ("stance", "body")] + \
+            [{"measurement": Measurement("stance_moving"), "report": {"evaluations": [{"rows": around}]}}]
 
     reports = {"straight": runs(medians(time_to_contact_s=0.2), medians(time_to_contact_s=0.15)),
                "hook": runs(medians(side_angle_at_contact_deg=17.0, fist_peak_speed_mps=6.0), medians(), rate=0.5),

@@ -302,9 +302,9 @@ def env_table(results: list[EnvThroughput]) -> str:
     return "\n".join(lines)
 
 
-def write_section(name: str, command: str, body: str) -> Path:
-    """Replaces (or appends) the section `name` of BENCHMARKS.md."""
-    stamp = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
+def write_section(name: str, command: str, body: str, measured: datetime.datetime | None = None) -> Path:
+    """Replaces (or appends) the section `name` of BENCHMARKS.md, stamped with when it was `measured` (default: now)."""
+    stamp = (measured or datetime.datetime.now(datetime.UTC)).strftime("%Y-%m-%d %H:%M UTC")
     section = (f"<!-- {name}:start -->\n## {name}\n\nCommand: `{command}`  \nMachine: {machine_description()}  \n"
                f"Measured: {stamp}\n\n{body}\n<!-- {name}:end -->")
     text = BENCHMARKS_FILE.read_text() if BENCHMARKS_FILE.exists() else "# Benchmarks\n\nMeasured figures; each section names the command that produced it.\n"

@@ -10,6 +10,7 @@ a policy changes (`punch recipe ... --install`).
 
 from __future__ import annotations
 
+import datetime
 import hashlib
 import json
 import re
@@ -72,6 +73,8 @@ MEASUREMENTS = (
     # volume) and at the body (targets 1.00-1.20 m high).
     Measurement("stance", {"placements": 2048}),
     Measurement("body", {"placements": 2048}),
+    # From the stance's guard walking, turning and with sized arms, as the rear and the lead hand's move.
+    Measurement("stance_moving"),
 )
 
 SIX_MOVES = ("jab", "cross", "lead_hook", "rear_hook", "lead_uppercut", "rear_uppercut")
@@ -162,7 +165,9 @@ def measure(recipes: list[Recipe], out: Path, *, progress: bool = True, backend:
                 measured.unlink(missing_ok=True)
                 run_dir, report = run_eval(measurement.args(policy, run_dir), progress, backend=backend)
                 measured.write_text(json.dumps(wanted) + "\n")
-            reports[recipe.name].append({"measurement": measurement, "report": report, "markdown": (run_dir / "report.md").read_text()})
+            measured_at = datetime.datetime.fromtimestamp((run_dir / "eval.json").stat().st_mtime, datetime.UTC)
+            reports[recipe.name].append({"measurement": measurement, "report": report, "markdown": (run_dir / "report.md").read_text(),
+                                         "measured": measured_at})
     return reports
 
 
@@ -213,8 +218,9 @@ def summary_table(rows: list[list[str]], link_prefix: str) -> str:
 
 
 def hand_row(move: str, stance: str) -> str:
-    """How the `stance` and `body` scenarios' row for a move's hand in a stance begins (the rest names the hand,
-    which the controller's `hand_for` gave the evaluator)."""
+    """How the scenarios' rows for a move's hand begin: `{lead|rear} hand, {stance}` in `stance` and `body` (the
+    rest names the hand, which the controller's `hand_for` gave the evaluator), `{lead|rear} hand, {kind}` in
+    `stance_moving` (kind: `moving` or `arms`)."""
     return f"{'lead' if move in LEAD_MOVES else 'rear'} hand, {stance}"
 
 
@@ -230,9 +236,9 @@ def moves_table(reports: dict[str, list[dict[str, Any]]], policy_recipes: dict[s
     def report(move: str, scenario: str) -> dict[str, Any]:
         return next(run["report"] for run in reports[str(recipe_of[move])] if run["measurement"].scenario == scenario)
 
-    def lands(move: str, scenario: str, sigma: float) -> str:
+    def lands(move: str, scenario: str, sigma: float, kinds: tuple[str, ...] = ("orthodox", "southpaw")) -> str:
         rows = [row for row in _rows(report(move, scenario)) if abs(row["sigma"] - sigma) < 1e-9
-                and row["condition"].startswith((hand_row(move, "orthodox"), hand_row(move, "southpaw")))]
+                and row["condition"].startswith(tuple(hand_row(move, kind) for kind in kinds))]
         return f"{100 * min(row['success_rate'] for row in rows):.1f}%"
 
     def medians(move: str) -> dict[str, Any]:
@@ -245,7 +251,8 @@ def moves_table(reports: dict[str, list[dict[str, Any]]], policy_recipes: dict[s
     shown = (("time_to_contact_s", "{:.3f} s"), ("path_over_chord", "{:.2f}"), ("fist_peak_speed_mps", "{:.2f} m/s"),
              ("side_angle_at_contact_deg", "{:.0f}°"), ("rise_share_at_contact", "{:.2f}"),
              ("elbow_bend_at_contact_deg", "{:.0f}°"), ("off_fist_from_guard_m", "{:.2f} m"), ("trunk_flexion_deg", "{:.0f}°"))
-    header = ["move", "policy", "head, sigma 0", "head, 0.3", "body, sigma 0", "body, 0.3", "time to contact", "path/chord",
+    header = ["move", "policy", "head, sigma 0", "head, 0.3", "body, sigma 0", "body, 0.3", "on the move, sigma 0",
+              "arms 0.75 and 1.25, sigma 0", "time to contact", "path/chord",
               "fist peak speed", "side approach", "rising share", "elbow bend", "off fist from guard", "waist flexion",
               "a boxer's shape: missed"]
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
@@ -257,6 +264,7 @@ def moves_table(reports: dict[str, list[dict[str, Any]]], policy_recipes: dict[s
         if move == "jab" and any(time is not None and time < (times["jab"] or float("inf")) for other, time in times.items() if other != "jab"):
             missed.append("the quickest to land")
         cells = [f"`{move}`", f"`{moveset[move]}`", *(lands(move, scenario, sigma) for scenario in ("stance", "body") for sigma in (0.0, 0.3)),
+                 lands(move, "stance_moving", 0.0, ("moving",)), lands(move, "stance_moving", 0.0, ("arms",)),
                  *("-" if figures[move][key] is None else form.format(figures[move][key]) for key, form in shown),
                  ", ".join(missed) or "none"]
         lines.append("| " + " | ".join(cells) + " |")
@@ -281,20 +289,26 @@ def write_results(recipes: list[Recipe], reports: dict[str, list[dict[str, Any]]
                  "scenario's arms; the left hand: the `hands` scenario's southpaw row (the policy mirrored, at the mirror "
                  "images of its placements); from the stance: the `stance` scenario's lowest row at sigma 0.3. The reports of "
                  "each policy follow, one section each.")
-    write_section(SUMMARY_SECTION, command, explained + "\n\n" + summary_table(rows, ""))
+    def oldest(names: list[str]) -> datetime.datetime | None:
+        """When the oldest measurement of these recipes was made (a section's stamp, when some were read back)."""
+        stamps: list[datetime.datetime] = [run["measured"] for name in names for run in reports[name]]
+        return min(stamps, default=None)
+
+    write_section(SUMMARY_SECTION, command, explained + "\n\n" + summary_table(rows, ""), oldest([r.name for r in recipes]))
     moves = moves_table(reports, {recipe.policy.name: recipe.name for recipe in recipes})
     if moves is not None:
         write_section(MOVES_SECTION, command, (
             "Each move of the default moveset (`boxing.tres`) from the stance's guard (`stance_pose`), both stances: the "
             "lower of the two stances' success at the head (the `stance` scenario) and the body (`body`, targets 1.00-1.20 "
-            "m high), then its naturalness medians (orthodox, sigma 0; docs/naturalness.md) and the figures of a boxer's "
+            "m high); the lowest walking 0.7 or 1.4 m/s or turning 90°/s either way, and with arms 0.75 or 1.25 times the "
+            "body's (`stance_moving`, orthodox: the southpaw's is its mirror image), then its naturalness medians (orthodox, sigma 0; docs/naturalness.md) and the figures of a boxer's "
             "move it misses (docs/moves.md). Moves that share a policy differ by hand: the lead hand's from its side.\n\n"
-            + moves))
+            + moves), oldest([r.name for r in recipes]))
     for recipe in recipes:
         body = []
         for run in reports[recipe.name]:
             body += [f"### `{run['measurement'].command(recipe.policy)}`", "", *benchmarks_body(run["markdown"], depth=1), ""]
-        write_section(f"The shipped {recipe.name}", command, "\n".join(body).strip())
+        write_section(f"The shipped {recipe.name}", command, "\n".join(body).strip(), oldest([recipe.name]))
     moves_link = (f"; each move of the default moveset: [BENCHMARKS.md, \"{MOVES_SECTION}\"](../../../BENCHMARKS.md#the-six-moves)"
                   if moves is not None else "")
     table = (f"{start}\n{summary_table(rows, '../../../')}\n\nMeasured by `{command}` on {machine_description()}; every "
