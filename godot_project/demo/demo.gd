@@ -199,7 +199,7 @@ func _on_sigma_changed(value: float) -> void:
 	_sigma_value.text = "%.2f" % value
 
 
-func _on_punch_started(move: StringName, hand: StringName) -> void:
+func _on_punch_started(move: StringName, hand: StringName, _combo_index: int) -> void:
 	_hits.clear()
 	_last_punch.text = "%s, %s hand: ..." % ["swing" if move == &"" else _move_label(move), hand]
 

@@ -24,7 +24,7 @@ func _initialize() -> void:
 	root.add_child(_demo)
 	(_demo.get_node("%Repeat") as CheckBox).button_pressed = false
 	_controller = _demo.get_node("PunchController")
-	_controller.punch_started.connect(func(move, hand):
+	_controller.punch_started.connect(func(move, hand, _combo_index):
 		_current.started.append([String(move), String(hand)]))
 	_controller.hit.connect(func(_impulse, _speed, position, body, _push, hand):
 		var on_bag: bool = body != null and body == _demo.get("_bag")

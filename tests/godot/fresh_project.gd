@@ -1,6 +1,6 @@
 ## Run in a new Godot project that holds only the addon and a policy (--policy=PATH): a character, a sandbag in
 ## front of it and a PunchController, wired by hand. Prints `FRESH_PROJECT <json>`: the settings problems the
-## controller finds, whether punch() started (twice: the second ends the first, interrupted; the settings
+## controller finds, whether punch() started (twice: the second follows the first at its contact; the settings
 ## error is logged once), and every `punch_finished`. With --apply it first sets the physics
 ## settings the way the editor plugin does (and saves project.godot).
 extends SceneTree

@@ -50,7 +50,7 @@ func _initialize() -> void:
 			controller.set("noise_decisions", 1)
 		_report[name] = {"finished": [], "recovered": 0, "started": 0, "first_noise": [], "features": [],
 			"first_angles": [], "first_means": []}
-		controller.connect("punch_started", func(_move, _hand): _report[name].started += 1)
+		controller.connect("punch_started", func(_move, _hand, _combo_index): _report[name].started += 1)
 		controller.connect("punch_finished", func(metrics): _on_finished(name, controller, metrics))
 		controller.connect("recovered", func(): _on_recovered(name, controller))
 		if name.begins_with("ready"):

@@ -27,7 +27,7 @@ func _physics_process(_delta: float) -> bool:
 	_step_frames += 1
 	if _frames == 1:
 		_you = _duel.get("_fighters")[0]
-		_you.controller.punch_started.connect(func(_move, _hand): _report.styles.append(_you.style))
+		_you.controller.punch_started.connect(func(_move, _hand, _combo_index): _report.styles.append(_you.style))
 	match _step:
 		0:  # the autopilot plays a second, then W is held
 			if _frames == 120:

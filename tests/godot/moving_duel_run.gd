@@ -29,7 +29,7 @@ func _watch() -> void:
 			"out_of_reach": 0, "by_style": {}, "last": null}
 		_sides[fighter.name] = side
 		fighter.controller.target_out_of_reach.connect(func(_offset, _nearest): side.out_of_reach += 1)
-		fighter.controller.punch_started.connect(func(_move, _hand):
+		fighter.controller.punch_started.connect(func(_move, _hand, _combo_index):
 			side.by_style[fighter.style] = side.by_style.get(fighter.style, 0) + 1)
 
 

@@ -29,7 +29,7 @@ func _initialize() -> void:
 		controller.set("target", sandbag.get_node("Bag"))
 		controller.set("policy", load(policy))
 		root.add_child(controller)
-		controller.connect("punch_started", func(_move, _hand): _report.started += 1)
+		controller.connect("punch_started", func(_move, _hand, _combo_index): _report.started += 1)
 		controller.connect("hit", func(impulse, speed, position, _body, _push, _hand): _report.hits.append([pair, impulse, speed, position.x]))
 		controller.connect("punch_finished", func(metrics): metrics["pair"] = pair; _report.finished.append(metrics))
 		_controllers.append(controller)

@@ -78,7 +78,7 @@ func _begin_phase(phase: String) -> void:
 	_scene = _build_scene(phase == "rest_nan")
 	_entry = {"frames": _length, "attempts": 0, "started": 0, "finished": 0, "errors_in_finished": [],
 		"written_degenerate": -1, "written_after": -1}
-	_scene.controller.connect("punch_started", func(_move, _hand): _entry.started += 1)
+	_scene.controller.connect("punch_started", func(_move, _hand, _combo_index): _entry.started += 1)
 	_scene.controller.connect("punch_finished", func(metrics: Dictionary):
 		_entry.finished += 1
 		if metrics.has("error"):

@@ -216,8 +216,9 @@ def test_whatever_signal_handlers_do_every_start_gets_one_finish_and_other_punch
     assert endings["new_policy_in_started"] == ["S", "F:completed", "S", "F:completed"]
     assert np.abs(np.subtract(new_policy["first_means"][0], report["bystander"]["first_means"][0])).max() < 1e-3
     assert np.abs(np.subtract(*new_policy["first_means"])).max() > 0.05
-    assert endings["punch_in_hit"] == ["S", "F:interrupted", "S", "F:completed"]
-    assert endings["punch_in_started"] == ["S", "F:interrupted", "S", "F:completed"]
+    # A punch asked for during one waits for its contact (its cancel window), then follows it.
+    assert endings["punch_in_hit"] == ["S", "F:chained", "S", "F:completed"]
+    assert endings["punch_in_started"] == ["S", "F:chained", "S", "F:completed"]
     assert report["punch_in_hit"]["punch_returned"] == [True, True]
     # Refused outside the tree; two controllers on one character: the second takes over, with a warning.
     assert report["outside_tree"]["punch_returned"] == [False] and report["outside_tree"]["events"] == []

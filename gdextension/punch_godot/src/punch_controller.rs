@@ -9,7 +9,7 @@ use std::rc::Rc;
 use std::time::Instant;
 
 use glam::Vec3;
-use godot::builtin::{StringName, VarDictionary, Vector2, Vector3};
+use godot::builtin::{GString, StringName, VarArray, VarDictionary, Vector2, Vector3};
 use godot::classes::notify::NodeNotification;
 use godot::classes::{Engine, INode, Node, Node3D, PhysicsShapeQueryParameters3D, SceneTree, SphereShape3D};
 use godot::global::{godot_error, godot_warn};
@@ -61,6 +61,15 @@ struct Throw {
     policy: Rc<PunchingPolicy>,
     hand: Hand,
     punch_move: Option<Move>,
+    /// From the fist's first contact (or the punch's last frame) to the cancel window, s (`PunchMoveset`).
+    cancel_delay_s: f32,
+}
+
+/// A punch ready to start: its start, its policy's identity (for the noise), and the character it drives.
+struct Prepared {
+    start: PunchStart<Rc<PunchingPolicy>>,
+    identity: usize,
+    character: Gd<PunchCharacter>,
 }
 
 /// The signals of this class, as the frame pass and the class's own functions emit them.
@@ -235,9 +244,10 @@ impl PunchController {
     const SOUTHPAW: i64 = 1;
 
     /// Emitted when a punch begins: the move (`&"jab"` ... `&"rear_uppercut"`; empty for `policy` thrown with no
-    /// move) and the hand that throws it (`&"left"` or `&"right"`).
+    /// move), the hand that throws it (`&"left"` or `&"right"`), and its index in its string of punches (0: thrown
+    /// on its own; 1, 2, ...: the punches that followed it from the queue, `combo()` or `punch()` during a punch).
     #[signal]
-    fn punch_started(move_name: StringName, hand: StringName);
+    fn punch_started(move_name: StringName, hand: StringName, combo_index: i64);
 
     /// Emitted when a punch starts with the target outside the policy's reach volume (`reach_volume()`), so
     /// it may miss. The punch still goes at the target while it is at most 0.3 m outside (policies reach a little
@@ -263,9 +273,9 @@ impl PunchController {
     /// m/s), `hits`,
     /// `strongest_hit_ns` (the largest fist impulse of one frame), `ended` ("completed"; "interrupted":
     /// cancelled, restarted, taken over by another controller, or the controller left the scene tree before
-    /// its last frame; "error": it stopped on an error, given in `error` and logged), and `interrupted` (true
-    /// unless completed). Every `punch_started` is followed by exactly one `punch_finished`, so code waiting
-    /// for it never waits forever.
+    /// its last frame; "chained": ended at its cancel window for the next punch of a combo; "error": it stopped on
+    /// an error, given in `error` and logged), and `interrupted` (true unless completed). Every `punch_started` is
+    /// followed by exactly one `punch_finished`, so code waiting for it never waits forever.
     #[signal]
     fn punch_finished(metrics: VarDictionary);
 
@@ -274,33 +284,51 @@ impl PunchController {
     #[signal]
     fn recovered();
 
+    /// Emitted after the last `punch_finished` of a string of punches (a punch and those that followed it from
+    /// the queue; a punch on its own is a string of one): how many of them `landed` (the punching fist struck
+    /// something) and how many were `thrown`. A string ends when its last punch ends with nothing waiting, or
+    /// on `cancel()`, `recover()`, an error, or a punch started by a new string.
+    #[signal]
+    fn combo_finished(landed: i64, thrown: i64);
+
     /// Throws `move_name` ("jab", "cross", "lead_hook", "rear_hook", "lead_uppercut", "rear_uppercut") with
     /// the hand `stance` gives it, playing `moveset`'s policy for it; with no move, `default_move`, or when that
-    /// is empty too, `policy` with the right hand. A punch already running ends first, interrupted. It starts at
-    /// once from the guard pose, else after a return to guard (`guard_first`) or from the current pose. Returns
-    /// false (with the reason in the log) when the move is none of the six or the moveset has no policy for it,
-    /// the controller is not in the scene tree, the policy, the character or the target is missing or unusable,
-    /// or the project's physics settings are not the policy's. A target outside the policy's reach gets
-    /// `target_out_of_reach`, and a punch at it (0.3 m out at most).
+    /// is empty too, `policy` with the right hand. Asked for while a punch runs, the move waits (one deep: a later
+    /// call replaces it) for the running punch's cancel window and then follows it (`combo()`); `cancel()` first
+    /// to start one at once. A punch starts at once from the guard pose, else after a return to guard
+    /// (`guard_first`) or from the current pose. Returns false (with the reason in the log) when the move is none of
+    /// the six or the moveset has no policy for it, the controller is not in the scene tree, the policy, the
+    /// character or the target is missing or unusable, or the project's physics settings are not the policy's. A
+    /// target outside the policy's reach gets `target_out_of_reach`, and a punch at it (0.3 m out at most).
     #[func(gd_self)]
-    fn punch(mut this: Gd<Self>, #[opt(default = "")] move_name: StringName) -> bool {
-        let started = this.bind_mut().start_punch(&move_name);
-        let started = match started {
-            Ok(character) => {
-                Self::take_over(&this, character);
-                true
-            }
-            Err(error) => {
-                if !error.is_empty() {
-                    godot_error!("PunchController '{}': {error}", this.get_name());
-                }
-                false
-            }
-        };
-        Self::emit_events(&mut this);
-        started
+    fn punch(this: Gd<Self>, #[opt(default = "")] move_name: StringName) -> bool {
+        Self::throw(this, &[move_name])
     }
 
+    /// Throws `moves` one after another, a combination (`[&"jab", &"cross", &"lead_hook"]`): each starts at the
+    /// one before's cancel window (`PunchMoveset`'s cancel delays), from wherever the arms are (or from guard,
+    /// with `guard_first`). While a punch runs the whole string waits for its window, replacing what waited.
+    /// Each punch has its own `punch_started` (with its index in the string) and `punch_finished`; `combo_finished`
+    /// follows the last. Returns false (nothing thrown or queued, the reason in the log) when any move cannot be
+    /// thrown, as `punch()` does.
+    #[func(gd_self)]
+    fn combo(this: Gd<Self>, moves: VarArray) -> bool {
+        let names: Result<Vec<StringName>, String> = moves
+            .iter_shared()
+            .map(|name| {
+                name.try_to::<StringName>()
+                    .or_else(|_| name.try_to::<GString>().map(|name| StringName::from(&name)))
+                    .map_err(|_| format!("combo() takes move names; {name} is not one"))
+            })
+            .collect();
+        match names {
+            Ok(names) => Self::throw(this, &names),
+            Err(error) => {
+                godot_error!("PunchController '{}': {error}", this.get_name());
+                false
+            }
+        }
+    }
     /// The hand (`&"left"` or `&"right"`) that throws `move_name` in `stance` (ORTHODOX or SOUTHPAW); empty when
     /// the move is none of the six. The left hand punches at the mirror image of where the right hand's policy
     /// aims: a target for it belongs on the character's left (+X) as a right-hand target on its right.
@@ -438,7 +466,12 @@ impl PunchController {
     fn throw_of(&self, move_name: &StringName) -> Result<Throw, String> {
         let name = if move_name.is_empty() { self.default_move.to_string() } else { move_name.to_string() };
         if name.is_empty() {
-            return Ok(Throw { policy: self.punching_policy()?, hand: Hand::Right, punch_move: None });
+            return Ok(Throw {
+                policy: self.punching_policy()?,
+                hand: Hand::Right,
+                punch_move: None,
+                cancel_delay_s: 0.0,
+            });
         }
         let punch_move = Move::from_name(&name).map_err(|error| error.to_string())?;
         let moveset = match &self.moveset {
@@ -450,24 +483,77 @@ impl PunchController {
             format!("the moveset '{}' has no policy for '{punch_move}': set one in its inspector", moveset.get_path())
         })?;
         let policy = policy.bind_mut().punching()?;
-        Ok(Throw { policy, hand: punch_move.hand(self.stance.into()), punch_move: Some(punch_move) })
+        let cancel_delay_s = moveset.bind().cancel_delay_s_of(punch_move);
+        Ok(Throw { policy, hand: punch_move.hand(self.stance.into()), punch_move: Some(punch_move), cancel_delay_s })
     }
 
-    /// Starts a punch (its events queued); returns the character it drives.
+    /// Throws `moves` one after another: while a punch runs (or moves wait for its cancel window) they replace
+    /// what waited; else the first starts now and the others wait for it. Every move is checked first: one that
+    /// cannot be thrown refuses them all. Returns the character a punch started now drives.
+    fn ask(&mut self, moves: &[StringName]) -> Result<Option<Gd<PunchCharacter>>, String> {
+        for name in moves {
+            self.checked(name)?;
+        }
+        let names = moves.iter().map(StringName::to_string);
+        if self.lifecycle.is_busy() {
+            self.lifecycle.enqueue(names);
+            return Ok(None);
+        }
+        let (first, rest) = moves.split_first().ok_or("no moves given")?;
+        let character = self.start_punch(first)?;
+        self.lifecycle.enqueue(rest.iter().map(StringName::to_string));
+        Ok(Some(character))
+    }
+
+    /// Starts a punch now (its events queued); returns the character it drives.
     fn start_punch(&mut self, move_name: &StringName) -> Result<Gd<PunchCharacter>, String> {
-        self.lifecycle.interrupt();
-        self.act_now();
+        let Prepared { start, identity, character } = self.prepare(move_name)?;
+        self.lifecycle.start(start, identity, self.noise());
+        self.drive_from_now(character.clone());
+        Ok(character)
+    }
+
+    /// Starts the queued move due now, chained to the punch before it (in the frame pass, before the frame is
+    /// sensed); one that cannot be thrown is dropped, with the reason in the log.
+    fn chain_due(&mut self) {
+        let Some(name) = self.lifecycle.due().map(StringName::from) else { return };
+        let prepared = self.prepare(&name).and_then(|Prepared { start, identity, character }| {
+            match live(&self.driven).is_some_and(|driven| driven == character) {
+                true => Ok((start, identity)),
+                false => Err("the controller's character changed during the combo".to_string()),
+            }
+        });
+        match prepared {
+            Ok((start, identity)) => self.lifecycle.chain(start, identity, self.noise()),
+            Err(error) => {
+                godot_error!("PunchController '{}': the queued '{name}' is dropped: {error}", self.base().get_name());
+                self.lifecycle.drop_due();
+            }
+        }
+    }
+
+    /// What `punch(move_name)` would throw, and at which character and target, when it can be thrown now (the
+    /// reason when not).
+    fn checked(&self, move_name: &StringName) -> Result<(Throw, Gd<PunchCharacter>, Target), String> {
         if !self.base().is_inside_tree() || self.leaving_tree {
             return Err("the controller is not in the scene tree: add it to the scene before punching (punches \
                         run on the scene tree's physics frames)"
                 .into());
         }
         PunchControllerRegistry::check_project_settings()?;
-        let Throw { policy, hand, punch_move } = self.throw_of(move_name)?;
-        self.lifecycle.set_guard(self.guard_targets());
-        policy.check_spec(policy.spec.decision_period).map_err(|e| e.to_string())?;
+        let throw = self.throw_of(move_name)?;
+        throw.policy.check_spec(throw.policy.spec.decision_period).map_err(|e| e.to_string())?;
         let character = live(&self.character).ok_or("no character set (or it was freed)")?;
-        let mut target = Target::resolve(live(&self.target).ok_or("no target set (or it was freed)")?);
+        let target = Target::resolve(live(&self.target).ok_or("no target set (or it was freed)")?);
+        geometry_of(&character)?;
+        target.state()?;
+        Ok((throw, character, target))
+    }
+
+    /// The start of `move_name`'s punch of the controller's character at its target (aimed at from now on).
+    fn prepare(&mut self, move_name: &StringName) -> Result<Prepared, String> {
+        let (Throw { policy, hand, punch_move, cancel_delay_s }, character, mut target) = self.checked(move_name)?;
+        self.lifecycle.set_guard(self.guard_targets());
         let mut geometry = geometry_of(&character)?;
         let offset = geometry.root_rotation.inverse() * (target.state()?.position - geometry.root_position);
         // The reach volume is the right hand's: the left hand's is its mirror.
@@ -488,10 +574,10 @@ impl PunchController {
             .with_hand(hand)
             .with_move(punch_move);
         let identity = Rc::as_ptr(&policy) as usize;
-        let start = PunchStart { punch, policy, guard_first: self.guard_first, out_of_reach };
-        self.lifecycle.start(start, identity, self.noise());
-        self.drive_from_now(character.clone());
-        Ok(character)
+        let ticks_per_s = Engine::singleton().get_physics_ticks_per_second() as f32;
+        let cancel_delay_frames = (cancel_delay_s * ticks_per_s).round() as u32;
+        let start = PunchStart { punch, policy, guard_first: self.guard_first, out_of_reach, cancel_delay_frames };
+        Ok(Prepared { start, identity, character })
     }
 
     /// Starts a recovery; returns the character it drives.
@@ -639,6 +725,7 @@ impl PunchController {
     }
 
     fn try_sense(&mut self) -> Result<Option<DecisionRequest>, String> {
+        self.chain_due();
         let character = live(&self.driven).ok_or("the character was freed")?;
         // Mirrored mid-punch (a game flipping its model): its left and right are no longer the policy's. Scale 0
         // or NaN only hold the body where it stood (`PunchCharacter` says so once), so the punch plays on.
@@ -708,6 +795,27 @@ impl PunchController {
         }
     }
 
+    /// `punch()` and `combo()`: throws or queues `moves`, then says what that started.
+    fn throw(mut this: Gd<Self>, moves: &[StringName]) -> bool {
+        let asked = this.bind_mut().ask(moves);
+        let thrown = match asked {
+            Ok(started) => {
+                if let Some(character) = started {
+                    Self::take_over(&this, character);
+                }
+                true
+            }
+            Err(error) => {
+                if !error.is_empty() {
+                    godot_error!("PunchController '{}': {error}", this.get_name());
+                }
+                false
+            }
+        };
+        Self::emit_events(&mut this);
+        thrown
+    }
+
     /// Emits the controller's queued events one at a time, with no borrow held, so that a handler may do
     /// anything (its own events then follow in order). Stops when a handler freed the controller.
     fn emit_events(this: &mut Gd<Self>) {
@@ -724,8 +832,8 @@ impl PunchController {
 /// Emits one event as its signal.
 fn emit(mut signals: Signals<'_>, event: Event) {
     match event {
-        Event::Started { hand, punch_move } => {
-            signals.punch_started().emit(&move_name_of(punch_move), &StringName::from(hand.name()))
+        Event::Started { hand, punch_move, combo_index } => {
+            signals.punch_started().emit(&move_name_of(punch_move), &StringName::from(hand.name()), combo_index as i64)
         }
         Event::OutOfReach { offset, nearest } => signals.target_out_of_reach().emit(vector3(offset), vector3(nearest)),
         Event::Hit(hit) => {
@@ -741,6 +849,7 @@ fn emit(mut signals: Signals<'_>, event: Event) {
         }
         Event::Finished(summary, ending) => signals.punch_finished().emit(&finish_metrics(&summary, &ending)),
         Event::Recovered => signals.recovered().emit(),
+        Event::ComboFinished { landed, thrown } => signals.combo_finished().emit(landed as i64, thrown as i64),
     }
 }
 
@@ -812,6 +921,7 @@ fn finish_metrics(summary: &PunchSummary, ending: &Ending) -> VarDictionary {
     let (ended, error) = match ending {
         Ending::Completed => ("completed", ""),
         Ending::Interrupted => ("interrupted", ""),
+        Ending::Chained => ("chained", ""),
         Ending::Error(error) => ("error", error.as_str()),
     };
     metrics.set("ended", ended);

@@ -12,7 +12,8 @@ use crate::punch_policy::PunchPolicy;
 /// Each policy punches with the right hand; the controller's `stance` says which hand throws a move, and the left
 /// hand plays the policy mirrored, so one policy serves both stances. The addon's moveset is
 /// `res://addons/punch_controller/policies/boxing.tres`; duplicate it (or make a new one) to swap in a policy of
-/// your own for a move. A move left empty is refused by `punch()`, naming it.
+/// your own for a move. A move left empty is refused by `punch()`, naming it. Each move's cancel window (when a
+/// move queued during it starts) is set here too.
 #[derive(GodotClass)]
 #[class(base = Resource, init, tool)]
 pub struct PunchMoveset {
@@ -34,6 +35,28 @@ pub struct PunchMoveset {
     /// 6, the rear uppercut.
     #[export]
     rear_uppercut: Option<Gd<PunchPolicy>>,
+
+    /// The jab's cancel window: a move asked for during a jab (`PunchController.punch` or `combo`) starts this long
+    /// after the jab's fist first lands (or after its last frame, when it lands nothing), in seconds. 0: at contact,
+    /// the quickest combination; longer lets the fist come back first.
+    #[export_group(name = "Cancel windows")]
+    #[export(range = (0.0, 1.0, 0.01, or_greater, suffix = "s"))]
+    jab_cancel_delay_s: f32,
+    /// The cross's cancel window (as `jab_cancel_delay_s`), in seconds.
+    #[export(range = (0.0, 1.0, 0.01, or_greater, suffix = "s"))]
+    cross_cancel_delay_s: f32,
+    /// The lead hook's cancel window (as `jab_cancel_delay_s`), in seconds.
+    #[export(range = (0.0, 1.0, 0.01, or_greater, suffix = "s"))]
+    lead_hook_cancel_delay_s: f32,
+    /// The rear hook's cancel window (as `jab_cancel_delay_s`), in seconds.
+    #[export(range = (0.0, 1.0, 0.01, or_greater, suffix = "s"))]
+    rear_hook_cancel_delay_s: f32,
+    /// The lead uppercut's cancel window (as `jab_cancel_delay_s`), in seconds.
+    #[export(range = (0.0, 1.0, 0.01, or_greater, suffix = "s"))]
+    lead_uppercut_cancel_delay_s: f32,
+    /// The rear uppercut's cancel window (as `jab_cancel_delay_s`), in seconds.
+    #[export(range = (0.0, 1.0, 0.01, or_greater, suffix = "s"))]
+    rear_uppercut_cancel_delay_s: f32,
     base: Base<Resource>,
 }
 
@@ -68,5 +91,18 @@ impl PunchMoveset {
             Move::RearUppercut => &self.rear_uppercut,
         }
         .clone()
+    }
+
+    /// How long after `punch_move`'s contact (or last frame) its cancel window opens, s (never negative).
+    pub fn cancel_delay_s_of(&self, punch_move: Move) -> f32 {
+        let delay_s = match punch_move {
+            Move::Jab => self.jab_cancel_delay_s,
+            Move::Cross => self.cross_cancel_delay_s,
+            Move::LeadHook => self.lead_hook_cancel_delay_s,
+            Move::RearHook => self.rear_hook_cancel_delay_s,
+            Move::LeadUppercut => self.lead_uppercut_cancel_delay_s,
+            Move::RearUppercut => self.rear_uppercut_cancel_delay_s,
+        };
+        if delay_s.is_finite() { delay_s.max(0.0) } else { 0.0 }
     }
 }

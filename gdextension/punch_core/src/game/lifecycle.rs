@@ -3,7 +3,13 @@
 //! events the game hears of, in the order they happened.
 //!
 //! The promise kept here: every `Event::Started` is followed by exactly one `Event::Finished`, however the
-//! punch ends (its last frame, a new punch, `cancel`, an error, the controller leaving the game). The Godot
+//! punch ends (its last frame, a new punch, `cancel`, an error, the controller leaving the game).
+//!
+//! Combos: a move asked for while a punch runs waits in a queue (`enqueue`) for the running punch's cancel window,
+//! which opens a designer's delay after the punching fist first lands (or after the punch's last frame, when it
+//! lands nothing); then the running punch ends (`Ending::Chained`) and the queued one starts from where the arms
+//! are. A punch and those chained from it are a string: each punch's `Started` carries its index in it, and
+//! one `Event::ComboFinished` follows the string's last `Finished`. The Godot
 //! layer (`PunchController`) reads the engine into `FrameReading`s and `Touch`es, drives the joints with the
 //! commands it gets back, and turns each event into a signal, one at a time (`next_event`), so that a signal
 //! handler that starts another punch hears of the first one's end before the second one's start.
@@ -25,8 +31,9 @@ pub type MotorCommands = [Vec3; 5];
 /// Something the game hears of (a signal of `PunchController`).
 #[derive(Debug, Clone, PartialEq)]
 pub enum Event {
-    /// A punch began: the hand that throws it and the move it is (None: a policy played as it is).
-    Started { hand: Hand, punch_move: Option<Move> },
+    /// A punch began: the hand that throws it, the move it is (None: a policy played as it is) and its index in
+    /// its string of chained punches (0: started on its own).
+    Started { hand: Hand, punch_move: Option<Move>, combo_index: u32 },
     /// The punch just started goes at the nearest point the policy covers: the target was outside its reach
     /// volume. The target's offset in the character's frame, and that point (world coordinates).
     OutOfReach { offset: Vec3, nearest: Vec3 },
@@ -36,6 +43,9 @@ pub enum Event {
     Finished(PunchSummary, Ending),
     /// The character is back in its guard pose (or the recovery's time is up).
     Recovered,
+    /// A string of punches is over (it follows its last punch's `Finished`): how many of its punches landed
+    /// (the punching fist struck something) and how many were thrown.
+    ComboFinished { landed: u32, thrown: u32 },
 }
 
 /// How a punch ended.
@@ -45,6 +55,8 @@ pub enum Ending {
     Completed,
     /// It was ended early: cancelled, replaced by another punch, or its controller left the game.
     Interrupted,
+    /// It was ended at its cancel window, for the punch queued after it.
+    Chained,
     /// It stopped on an error (the message says which).
     Error(String),
 }
@@ -87,6 +99,20 @@ pub struct PunchStart<P> {
     /// Return to guard first (the character is away from it: the end of an earlier punch, mid-recovery).
     pub guard_first: bool,
     pub out_of_reach: Option<(Vec3, Vec3)>,
+    /// Physics frames from the punching fist's first contact (or the punch's last frame) to its cancel window,
+    /// when a punch queued after it starts.
+    pub cancel_delay_frames: u32,
+}
+
+/// The string of chained punches that runs.
+#[derive(Debug, Clone, Copy, Default)]
+struct Tally {
+    /// The running (or last) punch's index in the string.
+    index: u32,
+    /// Punches of the string that landed, the running one not yet counted.
+    landed: u32,
+    /// The running punch's fist has landed.
+    running_landed: bool,
 }
 
 enum Phase<P> {
@@ -111,6 +137,15 @@ pub struct Lifecycle<P: Clone> {
     last_record: PunchRecord,
     /// The guard a recovery drives to (rad, action order; all 0: the square guard).
     guard: [f32; DOF_COUNT],
+    /// Moves asked for while a punch ran, oldest first, by the caller's names: the caller builds each one's
+    /// `PunchStart` when it is due (`due`, `chain`).
+    queued: VecDeque<String>,
+    /// Physics frames until the running (or last) punch's cancel window opens; None while it has not landed.
+    window_in: Option<u32>,
+    /// The running punch's `PunchStart::cancel_delay_frames`.
+    cancel_delay_frames: u32,
+    /// The string of punches running, if one is.
+    string: Option<Tally>,
 }
 
 impl<P: Clone> Default for Lifecycle<P> {
@@ -123,6 +158,10 @@ impl<P: Clone> Default for Lifecycle<P> {
             hold_next: false,
             last_record: PunchRecord::default(),
             guard: [0.0; DOF_COUNT],
+            queued: VecDeque::new(),
+            window_in: None,
+            cancel_delay_frames: 0,
+            string: None,
         }
     }
 }
@@ -141,7 +180,49 @@ impl<P: Clone> Lifecycle<P> {
     /// True while the controller drives its character, or has something left to say or do: the game must
     /// keep calling `begin_frame` and `act`, and taking the events.
     pub fn is_active(&self) -> bool {
-        !matches!(self.phase, Phase::Idle) || self.hold_next || !self.events.is_empty()
+        !matches!(self.phase, Phase::Idle) || self.hold_next || !self.events.is_empty() || !self.queued.is_empty()
+    }
+
+    /// True while a move asked for now waits (`enqueue`) rather than starting at once: a punch runs, or moves
+    /// wait for its cancel window.
+    pub fn is_busy(&self) -> bool {
+        self.is_punching() || !self.queued.is_empty()
+    }
+
+    /// The moves waiting for the running punch's cancel window, oldest first.
+    pub fn queued(&self) -> impl Iterator<Item = &str> {
+        self.queued.iter().map(String::as_str)
+    }
+
+    /// Queues `moves` (the caller's names) after the running punch, replacing what waited: the first starts at
+    /// the running punch's cancel window, each later one at the one before's (`due`, `chain`).
+    pub fn enqueue(&mut self, moves: impl IntoIterator<Item = String>) {
+        self.queued = moves.into_iter().collect();
+    }
+
+    /// The queued move due now (its predecessor's cancel window is open): the caller builds its `PunchStart` and
+    /// calls `chain`, before `begin_frame`, or `drop_due` when it cannot be thrown.
+    pub fn due(&self) -> Option<&str> {
+        let open = self.window_in == Some(0) && !matches!(self.phase, Phase::Guarding(..));
+        self.queued.front().map(String::as_str).filter(|_| open)
+    }
+
+    /// Drops the queued move due now (it could not be thrown: the caller reported why); the next one, if any, is
+    /// due at once. The string ends when nothing runs or waits.
+    pub fn drop_due(&mut self) {
+        self.queued.pop_front();
+        if self.queued.is_empty() && !self.is_punching() {
+            self.end_string();
+        }
+    }
+
+    /// Starts the queued move due now (`due`): the running punch ends (`Ending::Chained`), and `start` plays on
+    /// from where the arms are (or returns to guard first) as the next punch of the string.
+    pub fn chain(&mut self, start: PunchStart<P>, identity: usize, noise: NoiseSettings) {
+        self.end_punch(Ending::Chained);
+        self.queued.pop_front();
+        let index = self.string.map_or(0, |tally| tally.index + 1);
+        self.begin(start, identity, noise, index);
     }
 
     /// The guard every later recovery drives to, and a punch returns to first (`PunchStart::guard_first`): joint
@@ -160,10 +241,18 @@ impl<P: Clone> Lifecycle<P> {
         self.events.pop_front()
     }
 
-    /// Starts a punch; one that is running ends first (interrupted). `identity` tells policies apart for
-    /// the noise: a new seed or a new policy starts a new sequence of punches.
+    /// Starts a punch now, on its own: one that is running ends first (interrupted), and what was queued is
+    /// dropped. `identity` tells policies apart for the noise: a new seed or a new policy starts a new sequence
+    /// of punches.
     pub fn start(&mut self, start: PunchStart<P>, identity: usize, noise: NoiseSettings) {
+        self.queued.clear();
         self.interrupt();
+        self.end_string();
+        self.begin(start, identity, noise, 0);
+    }
+
+    /// Starts `start` as punch `combo_index` of the string (0: a new string).
+    fn begin(&mut self, start: PunchStart<P>, identity: usize, noise: NoiseSettings, combo_index: u32) {
         if self.noise_key != Some((noise.seed, identity)) {
             self.noise = RuntimeNoise::new(noise.seed as u64, noise.sigma, noise.noisy_decisions);
             self.noise_key = Some((noise.seed, identity));
@@ -179,7 +268,10 @@ impl<P: Clone> Lifecycle<P> {
             false => Phase::Punching(punch, start.policy),
         };
         self.hold_next = false;
-        self.events.push_back(Event::Started { hand, punch_move });
+        self.window_in = None;
+        self.cancel_delay_frames = start.cancel_delay_frames;
+        self.string = Some(Tally { index: combo_index, running_landed: false, ..self.string.unwrap_or_default() });
+        self.events.push_back(Event::Started { hand, punch_move, combo_index });
         if let Some((offset, nearest)) = start.out_of_reach {
             self.events.push_back(Event::OutOfReach { offset, nearest });
         }
@@ -193,17 +285,21 @@ impl<P: Clone> Lifecycle<P> {
     /// Ends what runs on an error: a punch with `Finished` and the message (the next punch starts a new
     /// noise sequence), a recovery where it is. The joints then hold.
     pub fn fail(&mut self, error: &str) {
+        self.queued.clear();
         if self.end_punch(Ending::Error(error.to_string())) {
             self.noise_key = None;
         } else if self.is_recovering() {
             self.phase = Phase::Idle;
             self.hold_next = true;
         }
+        self.end_string();
     }
 
     /// Ends the punch or recovery that is running; the joints then hold the pose they are in.
     pub fn cancel(&mut self) {
+        self.queued.clear();
         self.interrupt();
+        self.end_string();
         if matches!(std::mem::replace(&mut self.phase, Phase::Idle), Phase::Recovering(..)) {
             self.hold_next = true;
         }
@@ -212,7 +308,9 @@ impl<P: Clone> Lifecycle<P> {
     /// Drives the character back to its guard pose (ending a punch that is running); `Recovered` comes
     /// when it is there.
     pub fn recover(&mut self, geometry: CharacterGeometry) {
+        self.queued.clear();
         self.interrupt();
+        self.end_string();
         self.phase = Phase::Recovering(Box::new(Recovery::new(geometry, self.guard)), [Vec3::ZERO; 5]);
         self.hold_next = false;
     }
@@ -221,6 +319,9 @@ impl<P: Clone> Lifecycle<P> {
     /// return to guard; says whether a punch plays this frame (the caller then reads the target and calls
     /// `sense`).
     pub fn begin_frame(&mut self, reading: &FrameReading) -> FrameNeeds {
+        if let Some(frames) = &mut self.window_in {
+            *frames = frames.saturating_sub(1);
+        }
         match &mut self.phase {
             Phase::Idle => FrameNeeds::Nothing,
             Phase::Recovering(recovery, commands) => {
@@ -271,12 +372,21 @@ impl<P: Clone> Lifecycle<P> {
     ) -> Option<(P, Box<[f32; OBS_DIM]>)> {
         let Phase::Punching(punch, policy) = &mut self.phase else { return None };
         let (hits, sensed) = punch.sense(reading, touches);
+        if hits.iter().any(|hit| hit.hand == punch.hand()) {
+            // The punching fist landed: the cancel window opens the designer's delay from now.
+            self.window_in.get_or_insert(self.cancel_delay_frames);
+            if let Some(tally) = &mut self.string {
+                tally.running_landed = true;
+            }
+        }
         self.events.extend(hits.into_iter().map(Event::Hit));
         match sensed {
             Sensed::Hold => None,
             Sensed::Decide(observation) => Some((policy.clone(), observation)),
             Sensed::Finished(summary, record) => {
                 self.events.push_back(Event::Finished(summary, Ending::Completed));
+                self.window_in.get_or_insert(self.cancel_delay_frames);
+                self.count_finished_punch(true);
                 self.last_record = record.unwrap_or_default();
                 self.phase = Phase::Idle;
                 self.hold_next = true;
@@ -331,9 +441,30 @@ impl<P: Clone> Lifecycle<P> {
         };
         let (summary, record) = punch.interrupt();
         self.last_record = record.unwrap_or_default();
+        let chained = ending == Ending::Chained;
         self.events.push_back(Event::Finished(summary, ending));
+        self.count_finished_punch(chained);
         self.hold_next = true;
         true
+    }
+
+    /// Counts the punch that just finished in its string; the string ends with it unless `goes_on` and a move
+    /// waits to chain.
+    fn count_finished_punch(&mut self, goes_on: bool) {
+        if let Some(tally) = &mut self.string {
+            tally.landed += u32::from(std::mem::take(&mut tally.running_landed));
+        }
+        if !goes_on || self.queued.is_empty() {
+            self.queued.clear();
+            self.end_string();
+        }
+    }
+
+    /// Ends the running string of punches (`ComboFinished`), if there is one.
+    fn end_string(&mut self) {
+        if let Some(tally) = self.string.take() {
+            self.events.push_back(Event::ComboFinished { landed: tally.landed, thrown: tally.index + 1 });
+        }
     }
 }
 
@@ -355,7 +486,13 @@ mod tests {
 
     fn start(policy: Policy, guard_first: bool) -> PunchStart<Policy> {
         let spec = PolicySpec::new(5, 50, 1).expect("valid");
-        PunchStart { punch: Punch::new(rest_geometry(), spec, true), policy, guard_first, out_of_reach: None }
+        PunchStart {
+            punch: Punch::new(rest_geometry(), spec, true),
+            policy,
+            guard_first,
+            out_of_reach: None,
+            cancel_delay_frames: 0,
+        }
     }
 
     /// One physics frame of the fake world as `PunchController` plays it; returns the policy asked (if a
@@ -366,6 +503,9 @@ mod tests {
         noise: NoiseSettings,
         decide: impl FnOnce(Policy) -> Result<Vec<f32>, CoreError>,
     ) -> (Option<Policy>, Drive) {
+        if let Some(policy) = lifecycle.due().map(|name| name.parse::<Policy>().expect("a policy number")) {
+            lifecycle.chain(start(policy, false), policy as usize, noise);
+        }
         let reading = world.read_slot(0);
         let mut asked = None;
         let mut mean = None;
@@ -409,10 +549,11 @@ mod tests {
         }
         assert_eq!(decided_at, (0..50).step_by(5).collect::<Vec<_>>(), "a character in guard punches at once");
         let events = events(&mut lifecycle);
-        assert_eq!(events[0], Event::Started { hand: Hand::Right, punch_move: None });
+        assert_eq!(events[0], Event::Started { hand: Hand::Right, punch_move: None, combo_index: 0 });
         assert!(matches!(events[1], Event::Hit(hit) if hit.collider == FAKE_BAG_ID));
         let Event::Finished(summary, Ending::Completed) = &events[2] else { panic!("{events:?}") };
-        assert_eq!((summary.frames, summary.hits, events.len()), (50, 1, 3));
+        assert_eq!((summary.frames, summary.hits, events.len()), (50, 1, 4));
+        assert_eq!(events[3], Event::ComboFinished { landed: 1, thrown: 1 }, "a punch on its own is a string of one");
         assert!(!lifecycle.is_active() && lifecycle.last_record().observations.len() == 10 * OBS_DIM);
     }
 
@@ -427,7 +568,8 @@ mod tests {
         assert_eq!(asked, [2, 2, 2], "the new punch asks its own policy");
         let ends: Vec<_> = events(&mut lifecycle).into_iter().filter(|e| !matches!(e, Event::Hit(_))).collect();
         assert!(
-            matches!(&ends[..], [Event::Started { .. }, Event::Finished(summary, Ending::Interrupted), Event::Started { .. }]
+            matches!(&ends[..], [Event::Started { .. }, Event::Finished(summary, Ending::Interrupted),
+                Event::ComboFinished { thrown: 1, .. }, Event::Started { combo_index: 0, .. }]
                 if summary.frames == 12 && summary.interrupted),
             "{ends:?}"
         );
@@ -519,10 +661,75 @@ mod tests {
         assert_ne!(played_actions(&mut lifecycle, 2, NoiseSettings { seed: 5, ..noisy }), first);
     }
 
+    #[test]
+    fn a_queued_punch_starts_at_the_running_ones_contact_plus_its_delay_and_the_string_ends_once() {
+        for delay in [0u32, 7] {
+            let (mut lifecycle, mut world) = (Lifecycle::default(), FakeWorld::new(1));
+            lifecycle.start(PunchStart { cancel_delay_frames: delay, ..start(1, false) }, 1, CALM);
+            lifecycle.enqueue(["2".to_string(), "2".to_string()]);
+            assert!(lifecycle.is_busy());
+            let mut heard = Vec::new();
+            let mut first_hit_at = None;
+            let mut second_started_at = None;
+            for index in 0..200 {
+                frame(&mut lifecycle, &mut world, CALM, forward);
+                for event in events(&mut lifecycle) {
+                    match event {
+                        Event::Hit(_) if first_hit_at.is_none() => first_hit_at = Some(index),
+                        Event::Started { combo_index: 1, .. } => second_started_at = Some(index),
+                        _ => {}
+                    }
+                    heard.push(event);
+                }
+            }
+            let (hit, started) = (first_hit_at.expect("the first punch lands"), second_started_at.expect("chained"));
+            // The hit is sensed in frame `hit`; the window opens `delay` frames on, the next punch one frame later.
+            assert_eq!(started, hit + delay as usize + 1, "delay {delay}");
+            let kinds: Vec<_> = heard
+                .iter()
+                .filter_map(|event| match event {
+                    Event::Started { combo_index, .. } => Some(format!("S{combo_index}")),
+                    Event::Finished(_, ending) => Some(format!("F:{ending:?}")),
+                    Event::ComboFinished { landed, thrown } => Some(format!("C{landed}/{thrown}")),
+                    _ => None,
+                })
+                .collect();
+            assert_eq!(kinds, ["S0", "F:Chained", "S1", "F:Chained", "S2", "F:Completed", "C3/3"], "delay {delay}");
+            assert!(!lifecycle.is_active());
+        }
+    }
+
+    #[test]
+    fn a_punch_that_lands_nothing_opens_its_window_at_its_last_frame() {
+        let (mut lifecycle, mut world) = (Lifecycle::default(), FakeWorld::new(1));
+        let away = |_| Ok(vec![0.0; 10]); // the guard held: the bag is never touched
+        lifecycle.start(start(1, false), 1, CALM);
+        lifecycle.enqueue(["2".to_string()]);
+        let mut last_frame_of_first = None;
+        for index in 0..60 {
+            frame(&mut lifecycle, &mut world, CALM, away);
+            if last_frame_of_first.is_none()
+                && events(&mut lifecycle).iter().any(|e| matches!(e, Event::Finished(_, Ending::Completed)))
+            {
+                last_frame_of_first = Some(index);
+                assert!(lifecycle.is_busy() && lifecycle.due() == Some("2"), "due at the next frame");
+            }
+        }
+        assert_eq!(last_frame_of_first, Some(50));
+        let heard = events(&mut lifecycle);
+        assert!(matches!(heard[0], Event::Started { combo_index: 1, .. }), "{heard:?}");
+    }
+
     /// What a game may do between frames, in any order.
     #[derive(Debug, Clone)]
     enum Call {
-        Punch { policy: Policy, guard_first: bool },
+        /// `start`: a punch now, on its own (what was queued is dropped).
+        Punch {
+            policy: Policy,
+            guard_first: bool,
+        },
+        /// What `PunchController.punch`/`combo` do: queue the moves while busy, else start the first now.
+        Ask(Vec<Policy>),
         Cancel,
         Recover,
         Fail,
@@ -533,6 +740,8 @@ mod tests {
     fn call() -> impl Strategy<Value = Call> {
         prop_oneof![
             (0..3u8, any::<bool>()).prop_map(|(policy, guard_first)| Call::Punch { policy, guard_first }),
+            prop::collection::vec(0..3u8, 1..5).prop_map(Call::Ask),
+            prop::collection::vec(0..3u8, 1..5).prop_map(Call::Ask),
             Just(Call::Cancel),
             Just(Call::Recover),
             Just(Call::Fail),
@@ -541,44 +750,116 @@ mod tests {
         ]
     }
 
+    /// What the game has heard, checked as it hears it: one finish per start, one `ComboFinished` per string after
+    /// its last finish, and each queued move started once, in order, unless dropped.
+    #[derive(Debug, Default)]
+    struct Listener {
+        punch_open: bool,
+        /// The open string's last punch index.
+        string: Option<u32>,
+        /// The moves the game queued and has not seen start or dropped.
+        waiting: VecDeque<Policy>,
+        /// The last punch ended chained: the next event must be its successor's start.
+        chained: bool,
+    }
+
+    impl Listener {
+        fn hear(&mut self, event: &Event) -> Result<(), TestCaseError> {
+            prop_assert!(
+                !self.chained || matches!(event, Event::Started { .. }),
+                "a chained punch's end, then {event:?}"
+            );
+            match event {
+                Event::Started { combo_index, .. } => {
+                    prop_assert!(!self.punch_open, "a start before the last punch finished");
+                    self.punch_open = true;
+                    self.chained = false;
+                    match (*combo_index, self.string) {
+                        (0, None) => self.string = Some(0),
+                        (index, Some(last)) if index == last + 1 => {
+                            prop_assert!(self.waiting.pop_front().is_some(), "a chained start nobody queued");
+                            self.string = Some(index);
+                        }
+                        other => prop_assert!(false, "start {other:?} out of its string"),
+                    }
+                }
+                Event::OutOfReach { .. } | Event::Hit(_) => prop_assert!(self.punch_open, "{event:?} outside a punch"),
+                Event::Finished(_, ending) => {
+                    prop_assert!(self.punch_open, "a finish with no punch");
+                    self.punch_open = false;
+                    self.chained = *ending == Ending::Chained;
+                    if matches!(ending, Ending::Interrupted | Ending::Error(_)) {
+                        self.waiting.clear();
+                    }
+                }
+                Event::Recovered => prop_assert!(!self.punch_open, "recovered during a punch"),
+                Event::ComboFinished { landed, thrown } => {
+                    prop_assert!(!self.punch_open, "a string ended during a punch");
+                    prop_assert_eq!(Some(*thrown), self.string.map(|last| last + 1));
+                    prop_assert!(landed <= thrown);
+                    prop_assert!(self.waiting.is_empty(), "a string ended with moves waiting: {:?}", self.waiting);
+                    self.string = None;
+                }
+            }
+            Ok(())
+        }
+    }
+
     proptest! {
+        #![proptest_config(ProptestConfig::with_cases(10_000))]
         #[test]
-        fn every_start_is_followed_by_exactly_one_finish(calls in prop::collection::vec(call(), 1..25)) {
+        fn every_start_has_one_finish_every_string_one_end_and_no_queued_move_is_lost_or_doubled(
+            calls in prop::collection::vec(call(), 1..25)
+        ) {
             let (mut lifecycle, mut world) = (Lifecycle::default(), FakeWorld::new(1));
-            let mut heard = Vec::new();
+            let mut listener = Listener::default();
             for call in calls {
                 match call {
-                    Call::Punch { policy, guard_first } => lifecycle.start(start(policy, guard_first), policy as usize, CALM),
-                    Call::Cancel => lifecycle.cancel(),
-                    Call::Recover => lifecycle.recover(rest_geometry()),
-                    Call::Fail => lifecycle.fail("the character was freed"),
+                    Call::Punch { policy, guard_first } => {
+                        listener.waiting.clear();
+                        lifecycle.start(start(policy, guard_first), policy as usize, CALM)
+                    }
+                    Call::Ask(moves) => {
+                        let mut moves: VecDeque<_> = moves.into();
+                        if !lifecycle.is_busy() {
+                            let first = moves.pop_front().expect("one move at least");
+                            listener.waiting.clear();
+                            lifecycle.start(start(first, false), first as usize, CALM);
+                        }
+                        lifecycle.enqueue(moves.iter().map(u8::to_string));
+                        listener.waiting = moves;
+                    }
+                    Call::Cancel | Call::Recover | Call::Fail => {
+                        listener.waiting.clear();
+                        match call {
+                            Call::Cancel => lifecycle.cancel(),
+                            Call::Recover => lifecycle.recover(rest_geometry()),
+                            _ => lifecycle.fail("the character was freed"),
+                        }
+                    }
                     Call::Frames(count) => {
                         for _ in 0..count {
                             frame(&mut lifecycle, &mut world, CALM, forward);
+                            for event in events(&mut lifecycle) { listener.hear(&event)?; }
                         }
                     }
                     Call::FailedInference => {
                         frame(&mut lifecycle, &mut world, CALM, |_| Err(CoreError::Inference("failed".into())));
                     }
                 }
-                heard.extend(events(&mut lifecycle));
+                for event in events(&mut lifecycle) { listener.hear(&event)?; }
+                prop_assert_eq!(listener.punch_open, lifecycle.is_punching());
+                let queued: Vec<String> = lifecycle.queued().map(str::to_string).collect();
+                let expected: Vec<String> = listener.waiting.iter().map(u8::to_string).collect();
+                prop_assert_eq!(queued, expected);
             }
-            let mut open = false;
-            for event in &heard {
-                match event {
-                    Event::Started { .. } => { prop_assert!(!open, "a start before the last punch finished: {heard:?}"); open = true }
-                    Event::OutOfReach { .. } => prop_assert!(open, "out of reach outside a punch"),
-                    Event::Finished(..) => { prop_assert!(open, "a finish with no punch: {heard:?}"); open = false }
-                    Event::Hit(_) => prop_assert!(open, "a hit outside a punch"),
-                    Event::Recovered => prop_assert!(!open, "recovered during a punch"),
-                }
+            // However it got here, a game that lets frames run hears every queued move start, and the end.
+            for _ in 0..1000 {
+                frame(&mut lifecycle, &mut world, CALM, forward);
+                for event in events(&mut lifecycle) { listener.hear(&event)?; }
             }
-            prop_assert_eq!(open, lifecycle.is_punching());
-            // However it got here, a game that lets frames run hears the end.
-            for _ in 0..200 { frame(&mut lifecycle, &mut world, CALM, forward); }
-            let finishes = events(&mut lifecycle).iter().filter(|e| matches!(e, Event::Finished(..))).count();
             prop_assert!(!lifecycle.is_active(), "done, and nothing left to say");
-            prop_assert_eq!(finishes, usize::from(open));
+            prop_assert!(!listener.punch_open && listener.string.is_none() && listener.waiting.is_empty(), "{listener:?}");
         }
     }
 }
