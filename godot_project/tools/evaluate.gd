@@ -21,7 +21,13 @@
 ##   sandbag riding along: its hook pinned to a kinematic body that is the holder's child (a joint does not
 ##   follow its node), the bag `top_level`, hanging from the carried hook under physics at the holder's velocity;
 ## - `target`: a motion of the sandbag's hook alone (the character stands): a kinematic body that moves itself
-##   every physics frame (`sync_to_physics`), the bag starting at the hook's velocity.
+##   every physics frame (`sync_to_physics`), the bag starting at the hook's velocity;
+## - `move`: the move thrown (`punch(move)`, the policy as the moveset's for it, in the episode's `stance`; a
+##   left-hand move at the mirror image of the placement), `stance`, `stance_pose`;
+## - `combo`: a list of moves thrown as one `combo()` with the addon's moveset (every move's shipped policy; the
+##   placement as given, for both hands), the episode ending at `combo_finished`;
+## - `until_recovered`: the character returns to guard after its (last) punch (`auto_recover`), and the episode
+##   ends at `recovered`.
 ## A motion (the moving node's own frame at the start: +Z ahead, +X its left, +Y up): `velocity_mps` [left, up,
 ## forward] (turning while walking walks an arc), `turn_dps` (about +Y, positive to the left), `lunge_m` over
 ## `lunge_s` (forward, minimum-jerk, begins with the punch), `bob_m` at `bob_hz` (vertical, a sine). An empty
@@ -32,9 +38,11 @@
 ## (tools/punch_pair.gd), so every punch starts from the same state whatever its batch.
 ##
 ## Output in DIR: `episodes.json` with one row per episode, in order: [hits on the target (the controller's
-## `hit` signal with the target's Bag as the body), target_out_of_reach signals, how far outside the reach
-## volume the target was at the last of them (m), how the punch ended, how far the moved node went (m, straight
-## line), upper arm, forearm, shoulder width (m, as `arm_lengths()` reports them)]; `arm_scale_range`; the
+## `hit` signal with the target's Bag as the body; a combo's: its punches that struck it), target_out_of_reach
+## signals, how far outside the reach volume the target was at the last of them (m), how the (last) punch ended,
+## how far the moved node went (m, straight line), upper arm, forearm, shoulder width (m, as `arm_lengths()`
+## reports them), timings: per punch [its `punch_started`, its first hit on the target (-1: none)] in physics frames
+## from the command, and with `until_recovered` the frame of `recovered` (-1: none) as a last entry]; `arm_scale_range`; the
 ## feature names, frames and decisions of a punch; the controllers' inference counts and their work per
 ## physics frame per batch (and, with `--idle-frames=N`, per idle frame: each batch's characters stand N frames
 ## after their punches, for `punch bench inference`). With `--record=1` also features.f32 [episodes, frames, F],
@@ -43,6 +51,8 @@
 extends SceneTree
 
 const PunchPair := preload("res://tools/punch_pair.gd")
+## The moveset a combo plays.
+const ADDON_MOVESET := "res://addons/punch_controller/policies/boxing.tres"
 
 
 ## The node a game moves: the character's holder (`body`) or the target's hook (`target`) run the same motion.
@@ -116,6 +126,10 @@ class Slot:
 	var lead_frames := 0
 	## The move it throws (empty: the policy, with the right hand).
 	var move := &""
+	## The moves of a combo it throws instead (empty: one punch).
+	var combo: Array = []
+	## The physics frame (`_frame`) of its command.
+	var commanded_at := 0
 
 
 const KINDS := ["features", "observations", "mean_actions", "actions"]
@@ -139,6 +153,8 @@ var _controller_frame_usec := []
 var _idle_frame_usec := []
 var _idle_frames_left := -1
 var _scale_range := Vector2.ZERO
+## Physics frames since the run started.
+var _frame := 0
 
 
 func _initialize() -> void:
@@ -175,6 +191,7 @@ func _initialize() -> void:
 func _physics_process(_delta: float) -> bool:
 	if _failed:
 		return true
+	_frame += 1
 	var waiting := false
 	for slot in _slots:
 		if slot.lead_frames > 0:
@@ -226,7 +243,7 @@ func _start_batch() -> void:
 	PunchProbe.take_frame_cost_usec()
 	for slot in _slots:
 		if slot.motion != null and not slot.motion_with_punch:
-			slot.motion.lunge_start_s = float(_episodes[slot.row[8]].get("lead_s", 0.0))
+			slot.motion.lunge_start_s = float(_episodes[slot.row[-1]].get("lead_s", 0.0))
 			_start_motion(slot)
 	for slot in _slots:
 		if slot.lead_frames == 0 and not _punch(slot):
@@ -243,6 +260,7 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 	# A move (the policy as the moveset's policy for it, thrown in the episode's stance): a left-hand move punches
 	# at the mirror image of the placement, drawn from the right hand's reach volume.
 	var move := StringName(episode.get("move", ""))
+	var combo: Array = episode.get("combo", [])
 	var stance := PunchController.SOUTHPAW if episode.get("stance", "orthodox") == "southpaw" else PunchController.ORTHODOX
 	if move != &"" and PunchController.hand_for(move, stance) == &"left":
 		offset.x = -offset.x
@@ -266,10 +284,18 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 		controller.set("moveset", moveset)
 		controller.set("stance", stance)
 		slot.move = move
+	if not combo.is_empty():
+		if move != &"":
+			_fail("episode %d has both a move and a combo" % index)
+			return null
+		controller.set("moveset", load(ADDON_MOVESET))
+		controller.set("stance", stance)
+		slot.combo = combo
 	controller.set("stance_pose", bool(episode.get("stance_pose", false)))
 	if _record:
 		PunchProbe.set_recording(controller, true)
-	controller.set("auto_recover", false)  # each batch's scene is freed after its punches
+	var until_recovered := bool(episode.get("until_recovered", false))
+	controller.set("auto_recover", until_recovered)  # else: each batch's scene is freed after its punches
 	var character: Node3D = controller.get("character")
 	_scale_range = character.call("arm_scale_range")
 	var arms: Array = episode.get("arms", [1.0, 1.0])
@@ -280,7 +306,7 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 	var sized: Vector3 = character.call("arm_lengths")
 	var bag: RigidBody3D = controller.get("target")
 	slot.controller = controller
-	slot.row = [0, 0, 0.0, "", 0.0, sized.x, sized.y, sized.z, index]
+	slot.row = [0, 0, 0.0, "", 0.0, sized.x, sized.y, sized.z, [], index]
 	if holder != null:
 		var hook: PinJoint3D = bag.get_parent().get_node("Hook")
 		# The body the hook is pinned to, placed before it enters the tree (a kinematic body moved into place
@@ -311,9 +337,25 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 	slot.motion_with_punch = target_motion != null or lead_s == 0.0
 	slot.lead_frames = roundi(lead_s * Engine.physics_ticks_per_second)
 	var row := slot.row
+	var timings: Array = row[8]
+	controller.connect("punch_started", func(_move, _hand, _combo_index):
+		timings.append([_frame - slot.commanded_at, -1]))
 	controller.connect("hit", func(_impulse, _speed, _position, body, _push, _hand):
 		if body == bag:
-			row[0] += 1)
+			row[0] += 1
+			if not timings.is_empty() and timings[-1][1] < 0:
+				timings[-1][1] = _frame - slot.commanded_at)
+	var finish := func() -> void:
+		if slot.moved != null:
+			slot.moved.set("motion", null)
+			row[4] = snappedf(slot.moved.global_position.length(), 0.001)
+		_pending -= 1
+	if until_recovered:
+		controller.connect("recovered", func():
+			timings.append(_frame - slot.commanded_at)
+			finish.call())
+	elif not combo.is_empty():
+		controller.connect("combo_finished", func(_landed, _thrown): finish.call())
 	controller.connect("target_out_of_reach", func(offset_now: Vector3, nearest: Vector3):
 		row[1] += 1
 		row[2] = snappedf(offset_now.distance_to(character.global_transform.affine_inverse() * nearest), 0.001))
@@ -332,13 +374,13 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 			row[0] = 0
 			row[1] = 0
 			row[2] = 0.0
+			timings.clear()
+			slot.commanded_at = _frame
 			controller.call("punch", slot.move)
 			return
 		row[3] = metrics.get("ended", "")
-		if slot.moved != null:
-			slot.moved.set("motion", null)
-			row[4] = snappedf(slot.moved.global_position.length(), 0.001)
-		_pending -= 1)
+		if slot.combo.is_empty() and not until_recovered:
+			finish.call())
 	return slot
 
 
@@ -352,7 +394,10 @@ func _start_motion(slot: Slot) -> void:
 ## Starts a slot's punch (and the motion that starts with it); false when the controller refused.
 func _punch(slot: Slot) -> bool:
 	slot.lead_frames = -1
-	if not slot.controller.call("punch", slot.move):
+	slot.commanded_at = _frame
+	var thrown: bool = slot.controller.call("combo", slot.combo) if not slot.combo.is_empty() \
+		else slot.controller.call("punch", slot.move)
+	if not thrown:
 		_fail("PunchController refused to punch (see the error above)")
 		return false
 	if slot.motion != null and slot.motion_with_punch:

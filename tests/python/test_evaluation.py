@@ -94,6 +94,10 @@ def test_scales_and_proportions_make_the_sizes_conditions_in_order():
     ({"conditions": [{"name": "a"}, {"name": "a"}]}, "two conditions named 'a' at sigma 0"),
     ({"success": "hits", "conditions": [{"name": "a"}]}, "success is \"hit\" or \"return\""),
     ({"placements": {"count": 0}, "conditions": [{"name": "a"}]}, "placements.count 0"),
+    ({"placements": {"side_m": [0.1, -0.1]}, "conditions": [{"name": "a"}]}, "placements.side_m \\[0.1, -0.1\\] runs downward"),
+    ({"conditions": [{"name": "a", "combo": ["jab", "haymaker"]}]}, "combo is a list of moves"),
+    ({"conditions": [{"name": "a", "combo": ["jab"], "move": "cross"}]}, "a move or a combo, not both"),
+    ({"success": "return", "conditions": [{"name": "a", "combo": ["jab"]}]}, "a combo's success is \"hit\""),
 ])
 def test_a_scenario_that_cannot_be_played_is_refused_with_its_reason(data, message):
     with pytest.raises(ScenarioError, match=message):
@@ -101,7 +105,7 @@ def test_a_scenario_that_cannot_be_played_is_refused_with_its_reason(data, messa
 
 
 def test_unknown_scenarios_and_conditions_are_refused_naming_what_there_is(tmp_path):
-    with pytest.raises(ScenarioError, match="no scenario named 'nope'; the shipped ones are body, hands, held_out, moving, sizes, stance, stance_moving"):
+    with pytest.raises(ScenarioError, match="no scenario named 'nope'; the shipped ones are body, combos, frame_data, hands, held_out, moving, sizes, stance, stance_moving"):
         scenario_of(EvalArgs(policy=POLICY, scenario="nope"))
     with pytest.raises(ScenarioError, match="unknown condition\\(s\\) 'moonwalk'; the scenario's are: standing"):
         scenario_of(EvalArgs(policy=POLICY, scenario="moving", conditions=["moonwalk"]))

@@ -27,6 +27,7 @@ def test_every_shipped_policy_has_its_generated_row_and_section():
         assert f"<!-- The shipped {recipe.name}:start -->" in benchmarks, f"run punch results: no section for {recipe.name}"
     assert "<!-- The shipped policies:start -->" in benchmarks
     assert f"<!-- {results.MOVES_SECTION}:start -->" in benchmarks, "run punch results: the six moves have no table"
+    assert f"<!-- {results.COMBOS_SECTION}:start -->" in benchmarks, "run punch results: no combos and frame data"
 
 
 def test_a_readme_without_its_markers_is_refused(tmp_path, monkeypatch):
@@ -58,11 +59,15 @@ def test_results_measure_a_recipes_policy_and_rewrite_the_docs(tmp_path, monkeyp
         Measurement("body", {"placements": 2, "conditions": ["rear hand, orthodox (right)"]}),
         Measurement("stance_moving", {"placements": 2, "conditions": ["rear hand, moving: forward 0.7 m/s"]}),
     ))
+    monkeypatch.setattr(results, "MOVESET_MEASUREMENTS", (
+        Measurement("combos", {"placements": 2, "sigmas": [0.0], "conditions": ["1-2-3, southpaw"]}),
+        Measurement("frame_data", {"placements": 2, "sigmas": [0.0], "conditions": ["1 jab"]}),
+    ))
     arguments = ["results", str(PROJECT_ROOT / "recipes" / "straight.toml"), "--out", str(tmp_path / "runs")]
     for _ in range(2):
         assert cli_main.main(arguments) == 0
     # The second run read every measurement back (the same policy file, the same commands) instead of playing it.
-    assert capsys.readouterr().out.count("measured before") == len(results.MEASUREMENTS)
+    assert capsys.readouterr().out.count("measured before") == len(results.MEASUREMENTS) + len(results.MOVESET_MEASUREMENTS)
     table = marked_table(readme.read_text())
     row = next(line for line in table.splitlines() if line.startswith("| `straight.onnx`"))
     cells = [cell.strip() for cell in row.strip("|").split("|")]
@@ -74,6 +79,9 @@ def test_results_measure_a_recipes_policy_and_rewrite_the_docs(tmp_path, monkeyp
     assert "kept" in text and text.count("## The shipped straight") == 1 and text.count("## The shipped policies") == 1
     assert "--scenario moving --placements 2 --conditions standing 'forward 0.7 m/s'" in text
     assert "| standing | 0.00 | 2 |" in text and "![" not in text
+    # The moveset's combos and frame data, with when each punch landed.
+    assert text.count(f"## {results.COMBOS_SECTION}") == 1 and "| 1-2-3, southpaw | 0.00 | 2 |" in text
+    assert "| 1 jab | 0.00 | 2 |" in text and "contact to back in guard (s, median)" in text
     assert (tmp_path / "runs" / "straight" / "held_out" / "report.md").is_file()
     capsys.readouterr()
 

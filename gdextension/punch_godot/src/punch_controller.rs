@@ -9,7 +9,7 @@ use std::rc::Rc;
 use std::time::Instant;
 
 use glam::Vec3;
-use godot::builtin::{GString, StringName, VarArray, VarDictionary, Vector2, Vector3};
+use godot::builtin::{GString, PackedStringArray, StringName, VarArray, VarDictionary, Vector2, Vector3};
 use godot::classes::notify::NodeNotification;
 use godot::classes::{Engine, INode, Node, Node3D, PhysicsShapeQueryParameters3D, SceneTree, SphereShape3D};
 use godot::global::{godot_error, godot_warn};
@@ -393,6 +393,13 @@ impl PunchController {
     #[func]
     pub fn is_punching(&self) -> bool {
         self.lifecycle.is_punching()
+    }
+
+    /// The moves waiting for the running punch's cancel window (`punch()` or `combo()` during a punch), in the order
+    /// they will be thrown.
+    #[func]
+    fn queued_moves(&self) -> PackedStringArray {
+        self.lifecycle.queued().map(GString::from).collect()
     }
 
     /// True while the character returns to its guard pose.

@@ -232,7 +232,10 @@ def episodes_of(scenario: Scenario, still: list[EpisodeConditions], swinging: li
                     "sigma": sigma, "noise_decisions": condition.noise_decisions,
                     "seed": condition.noise_seed * SEED_STRIDE[0] + index * SEED_STRIDE[1] + e,
                     "start": condition.start, "arms": list(condition.arms), "lead_s": condition.lead_s,
-                    "move": condition.move, "stance": condition.stance, "stance_pose": condition.stance_pose}
+                    "move": condition.move, "stance": condition.stance, "stance_pose": condition.stance_pose,
+                    "until_recovered": condition.until_recovered}
+                if condition.combo:
+                    episode["combo"] = list(condition.combo)
                 if condition.body is not None:
                     episode["body"] = condition.body.to_wire()
                 if condition.target is not None:
@@ -257,7 +260,7 @@ def play_policy(policy: Path, episodes: list[dict[str, Any]], groups: list[Group
         results = []
         for index, group in enumerate(groups):
             rows = meta["rows"][group.start:group.start + group.count]
-            result: dict[str, Any] = {"rows": rows}
+            result: dict[str, Any] = {"rows": rows, "physics_hz": physics_hz}
             if reward is not None:
                 features = np.array(recorded(directory, meta, "features", group.start, group.count))
                 analysis = analyse_punches(features, names, reward)
@@ -269,7 +272,9 @@ def play_policy(policy: Path, episodes: list[dict[str, Any]], groups: list[Group
                     result["features"] = features
                     result["actions"] = np.array(recorded(directory, meta, "actions", group.start, group.count))
             else:
-                result["success"] = np.array([row[0] > 0 for row in rows], dtype=bool)
+                # Every punch struck the target (a combo's each once; one punch's at least once).
+                needed = max(1, len(group.condition.combo))
+                result["success"] = np.array([row[0] >= needed for row in rows], dtype=bool)
             results.append(result)
     return {"groups": results, "feature_names": names, "physics_hz": physics_hz, "arm_scale_range": meta["arm_scale_range"]}
 
@@ -328,6 +333,13 @@ class Row:
     """success "return": the mean of return / the best known at that placement (None without a search)"""
     impact_spread_m: float | None = None
     """success "return": the mean distance of the first contacts from their mean (m)"""
+    contact_s: list[float | None] | None = None
+    """per punch (a combo's, in order): the median time from the command to its first contact with the target, over
+    the punches that made one (s; a single punch's is its startup)"""
+    last_contact_max_s: float | None = None
+    """the longest time from the command to the last punch's contact, over the successes (s)"""
+    recovery_s: float | None = None
+    """`until_recovered`: the median time from the last punch's contact to `recovered` (s)"""
 
     def to_json(self) -> dict[str, Any]:
         return {**asdict(self), "success_interval": list(self.success_interval)}
@@ -352,7 +364,24 @@ def make_row(group: Group, result: dict[str, Any], placements: int, best: np.nda
                moved_m=float(np.median([float(row[4]) for row in rows])), arms=size_label(*group.condition.arms),
                arm_lengths_m=[round(float(v), 4) for v in lengths],
                missed_placements=sorted({int(p) for p, ok in zip(placement, won, strict=True) if not ok}),
-               return_fraction_of_search_best=fraction, impact_spread_m=result.get("impact_spread_m"))
+               return_fraction_of_search_best=fraction, impact_spread_m=result.get("impact_spread_m"),
+               **timing_figures(group, rows, won, float(result["physics_hz"])))
+
+
+def timing_figures(group: Group, rows: list[list[Any]], won: np.ndarray, physics_hz: float) -> dict[str, Any]:
+    """`Row.contact_s`, `last_contact_max_s` and `recovery_s` from evaluate.gd's timings (physics frames from the
+    command: per punch [started, first contact or -1], then `recovered` with `until_recovered`)."""
+    punches = max(1, len(group.condition.combo))
+    timings = [row[8] for row in rows]
+    contacts = [[t[i][1] for t in timings if len(t) > i and isinstance(t[i], list) and t[i][1] >= 0] for i in range(punches)]
+    last = [t[punches - 1][1] for t, ok in zip(timings, won, strict=True) if ok and len(t) >= punches]
+    figures: dict[str, Any] = {
+        "contact_s": [round(float(np.median(c)) / physics_hz, 4) if c else None for c in contacts],
+        "last_contact_max_s": round(max(last) / physics_hz, 4) if last else None}
+    if group.condition.until_recovered:
+        back = [t[-1] - t[-2][1] for t in timings if len(t) > punches and t[-1] >= 0 and t[-2][1] >= 0]
+        figures["recovery_s"] = round(float(np.median(back)) / physics_hz, 4) if back else None
+    return figures
 
 
 def run_eval(args: EvalArgs, progress: bool = True, *, backend: Backend = LOCAL) -> tuple[Path, dict[str, Any]]:
@@ -377,6 +406,8 @@ def run_eval(args: EvalArgs, progress: bool = True, *, backend: Backend = LOCAL)
         reach = ReachVolume.from_json(metadata[0].reach_volume)
     if scenario.height_m is not None:
         reach = dataclasses.replace(reach, height_m=scenario.height_m)
+    if scenario.side_m is not None:
+        reach = dataclasses.replace(reach, side_m=scenario.side_m)
     still, swinging = draw_placements(scenario, reach)
     episodes, groups = episodes_of(scenario, still, swinging)
     out = Path(args.out or Path(args.policy).parent / f"eval_{scenario.name}_{int(time.time())}")
@@ -441,11 +472,15 @@ def markdown_rows(scenario: Scenario, rows: list[dict[str, Any]]) -> list[str]:
     sized = any(c.arms != (1.0, 1.0) for c in scenario.conditions)
     moves = any(c.moves() for c in scenario.conditions)
     reach = any(row["out_of_reach"] for row in rows)
+    timed = any(c.combo or c.until_recovered for c in scenario.conditions)
+    recovering = any(c.until_recovered for c in scenario.conditions)
     header = ["condition", "sigma", "punches", "success", "its 95% interval"]
     header += ["return / best known", "impact spread (cm)"] if returns else []
     header += ["upper arm / forearm / shoulders (m)"] if sized else []
     header += ["moved (m)"] if moves else []
     header += ["out of reach at the start (successes in reach)"] if reach else []
+    header += ["contact after the command, each punch (s, median)", "last contact, longest (s)"] if timed else []
+    header += ["contact to back in guard (s, median)"] if recovering else []
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for row in rows:
         low, high = row["success_interval"]
@@ -461,8 +496,16 @@ def markdown_rows(scenario: Scenario, rows: list[dict[str, Any]]) -> list[str]:
         if reach:
             cells.append(f"{row['out_of_reach']} ({row['in_reach_successes']}/{row['punches'] - row['out_of_reach']})"
                          if row["out_of_reach"] else "-")
+        if timed:
+            cells += [" / ".join(_seconds(v) for v in row.get("contact_s") or []) or "-", _seconds(row.get("last_contact_max_s"))]
+        if recovering:
+            cells.append(f"{row['recovery_s']:.2f}" if row.get("recovery_s") is not None else "-")
         lines.append("| " + " | ".join(cells) + " |")
     return lines
+
+
+def _seconds(value: float | None) -> str:
+    return f"{value:.2f}" if value is not None else "-"
 
 
 def benchmarks_body(report_md: str, depth: int = 1) -> list[str]:

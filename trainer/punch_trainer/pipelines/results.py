@@ -77,6 +77,15 @@ MEASUREMENTS = (
     Measurement("stance_moving"),
 )
 
+MOVESET_MEASUREMENTS = (
+    # Combinations thrown with combo() and every move alone (startup and recovery), with the default moveset.
+    Measurement("combos"),
+    Measurement("frame_data"),
+)
+MOVESET_KEY = "moveset"
+"""`measure`'s key (and output folder) of the default moveset's measurements"""
+COMBOS_SECTION = "Combos and frame data"
+
 SIX_MOVES = ("jab", "cross", "lead_hook", "rear_hook", "lead_uppercut", "rear_uppercut")
 LEAD_MOVES = ("jab", "lead_hook", "lead_uppercut")
 
@@ -142,33 +151,47 @@ MEASURED_FILE = "measured.json"
 
 
 def measure(recipes: list[Recipe], out: Path, *, progress: bool = True, backend: Backend = LOCAL) -> dict[str, list[dict[str, Any]]]:
-    """Every measurement of every recipe's policy: {recipe name: [the evaluator's report, one per measurement]}.
-    Each run's report.md and plots stay in `out/<name>/<scenario>`; a measurement already there of the same policy
-    file (its SHA-256) by the same command is read back instead of played again, so after one policy changes only
-    its measurements run."""
+    """Every measurement of every recipe's policy: {recipe name: [the evaluator's report, one per measurement]}, and
+    the default moveset's (`MOVESET_MEASUREMENTS`) under `MOVESET_KEY`. Each run's report.md and plots stay in
+    `out/<name>/<scenario>`; a measurement already there of the same policy files (their SHA-256) by the same
+    command is read back instead of played again, so after one policy changes only its measurements run."""
     reports: dict[str, list[dict[str, Any]]] = {}
     for recipe in recipes:
         policy = PROJECT_ROOT / recipe.policy
         if not policy.is_file():
             raise ResultsError(f"{recipe.path}: its policy {recipe.policy} is missing (make it: punch recipe {recipe.path} --install)")
-        stamp = {"policy_sha256": hashlib.sha256(policy.read_bytes()).hexdigest()}
-        reports[recipe.name] = []
-        for measurement in MEASUREMENTS:
-            run_dir = out / recipe.name / measurement.scenario
-            wanted = {**stamp, "command": measurement.command(recipe.policy)}
-            measured = run_dir / MEASURED_FILE
-            if measured.is_file() and json.loads(measured.read_text()) == wanted and (run_dir / "eval.json").is_file():
-                report = json.loads((run_dir / "eval.json").read_text())
-                if progress:
-                    print(f"{recipe.name} {measurement.scenario}: measured before ({run_dir})", flush=True)
-            else:
-                measured.unlink(missing_ok=True)
-                run_dir, report = run_eval(measurement.args(policy, run_dir), progress, backend=backend)
-                measured.write_text(json.dumps(wanted) + "\n")
-            measured_at = datetime.datetime.fromtimestamp((run_dir / "eval.json").stat().st_mtime, datetime.UTC)
-            reports[recipe.name].append({"measurement": measurement, "report": report, "markdown": (run_dir / "report.md").read_text(),
-                                         "measured": measured_at})
+        stamp = {"policy_sha256": sha256_of(policy)}
+        reports[recipe.name] = [_measured(measurement, recipe.policy, out / recipe.name / measurement.scenario, stamp,
+                                          progress, backend) for measurement in MEASUREMENTS]
+    # The moveset's combos play every move's policy: its measurements are stamped with all of them.
+    files = sorted(set(moveset_policies().values()))
+    stamp = {"moveset_sha256": sha256_of(MOVESET), **{f"{name}_sha256": sha256_of(MOVESET.parent / name) for name in files}}
+    placements_policy = (MOVESET.parent / moveset_policies()["jab"]).relative_to(PROJECT_ROOT)
+    reports[MOVESET_KEY] = [_measured(measurement, placements_policy, out / MOVESET_KEY / measurement.scenario, stamp,
+                                      progress, backend) for measurement in MOVESET_MEASUREMENTS]
     return reports
+
+
+def sha256_of(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _measured(measurement: Measurement, policy: Path, run_dir: Path, stamp: dict[str, str], progress: bool,
+              backend: Backend) -> dict[str, Any]:
+    """One measurement, read back when `run_dir` holds one with the same stamp and command, else played."""
+    wanted = {**stamp, "command": measurement.command(policy)}
+    measured = run_dir / MEASURED_FILE
+    if measured.is_file() and json.loads(measured.read_text()) == wanted and (run_dir / "eval.json").is_file():
+        report = json.loads((run_dir / "eval.json").read_text())
+        if progress:
+            print(f"{run_dir.parent.name} {measurement.scenario}: measured before ({run_dir})", flush=True)
+    else:
+        measured.unlink(missing_ok=True)
+        run_dir, report = run_eval(measurement.args(PROJECT_ROOT / policy, run_dir), progress, backend=backend)
+        measured.write_text(json.dumps(wanted) + "\n")
+    measured_at = datetime.datetime.fromtimestamp((run_dir / "eval.json").stat().st_mtime, datetime.UTC)
+    return {"measurement": measurement, "report": report, "markdown": (run_dir / "report.md").read_text(), "measured": measured_at,
+            "command": wanted["command"]}
 
 
 def _rows(report: dict[str, Any]) -> list[dict[str, Any]]:
@@ -304,6 +327,14 @@ def write_results(recipes: list[Recipe], reports: dict[str, list[dict[str, Any]]
             "body's (`stance_moving`, orthodox: the southpaw's is its mirror image), then its naturalness medians (orthodox, sigma 0; docs/naturalness.md) and the figures of a boxer's "
             "move it misses (docs/moves.md). Moves that share a policy differ by hand: the lead hand's from its side.\n\n"
             + moves), oldest([r.name for r in recipes]))
+    if MOVESET_KEY in reports:
+        body = ["The default moveset (`boxing.tres`) thrown as a game throws it: combinations with `combo()`, each punch "
+                "starting at the one before's cancel window (its contact; the moveset's delays are 0) after a return to guard "
+                "(`guard_first`), and each move alone for its frame data (docs/combos.md). The `--policy` only gives the "
+                "placements' volume; every move plays its own policy.", ""]
+        for run in reports[MOVESET_KEY]:
+            body += [f"### `{run['command']}`", "", *benchmarks_body(run["markdown"], depth=1), ""]
+        write_section(COMBOS_SECTION, command, "\n".join(body).strip(), oldest([MOVESET_KEY]))
     for recipe in recipes:
         body = []
         for run in reports[recipe.name]:

@@ -71,6 +71,12 @@ class Condition:
     """the controller's stance, which says the move's hand"""
     stance_pose: bool = False
     """the character stands in the stance's guard (`PunchController.stance_pose`) and punches from there"""
+    combo: tuple[str, ...] = ()
+    """moves thrown as one `combo()` with the addon's moveset (every move's shipped policy), at the placement as drawn
+    for both hands; a punch succeeds when every one of them struck the target"""
+    until_recovered: bool = False
+    """the character returns to guard after its (last) punch and the episode waits for it (the frame data's
+    recovery)"""
 
     def moves(self) -> bool:
         return self.body is not None or self.target is not None
@@ -89,6 +95,8 @@ class Scenario:
     conditions: tuple[Condition, ...]
     height_m: tuple[float, float] | None = None
     """a band of target heights that replaces the volume's (a body band below the head band); None: the volume's"""
+    side_m: tuple[float, float] | None = None
+    """a band of target sides that replaces the volume's (a combo's target, in front of both hands); None: the volume's"""
     noisy_punches: int = 1
     search_iterations: int = 0
     naturalness: bool = False
@@ -98,10 +106,11 @@ class Scenario:
 
 
 CONDITION_KEYS = ("name", "sigmas", "noise_decisions", "noise_seed", "start", "arms", "lead_s", "body", "target", "move",
-                  "stance", "stance_pose")
+                  "stance", "stance_pose", "combo", "until_recovered")
+COMBO_MOVES = ("jab", "cross", "lead_hook", "rear_hook", "lead_uppercut", "rear_uppercut")
 SCENARIO_KEYS = ("name", "description", "success", "placements", "noisy_punches", "search_iterations", "naturalness",
                  "conditions")
-PLACEMENT_KEYS = ("count", "seed", "volume", "height_m")
+PLACEMENT_KEYS = ("count", "seed", "volume", "height_m", "side_m")
 MOTION_KEYS = tuple(field.name for field in fields(Motion))
 
 
@@ -247,13 +256,37 @@ def _condition(index: int, table: Any, defaults: Mapping[str, Any], scenario_sig
     stance_pose = merged.get("stance_pose", False)
     if not isinstance(stance_pose, bool):
         raise ScenarioError(f"{where}: stance_pose is true or false, not {stance_pose!r}")
+    until_recovered = merged.get("until_recovered", False)
+    if not isinstance(until_recovered, bool):
+        raise ScenarioError(f"{where}: until_recovered is true or false, not {until_recovered!r}")
+    combo = merged.get("combo", [])
+    if not isinstance(combo, list) or any(m not in COMBO_MOVES for m in combo):
+        raise ScenarioError(f"{where}: combo is a list of moves ({', '.join(COMBO_MOVES)}), not {combo!r}")
+    if combo and move:
+        raise ScenarioError(f"{where}: a move or a combo, not both")
+    if combo and start != "guard":
+        raise ScenarioError(f"{where}: a combo starts from guard")
     return Condition(
         name=name, sigmas=_sigmas(f"{where}: sigmas", merged.get("sigmas", "all"), scenario_sigmas),
         noise_seed=int(_number(f"{where}: noise_seed", noise_seed, 0, 2**32 - 1, whole=True)),
         noise_decisions=int(_number(f"{where}: noise_decisions", merged.get("noise_decisions", -1), -1, 10_000, whole=True)),
         start=start, arms=_arms(f"{where}: arms", merged.get("arms", 1.0)),
         lead_s=float(_number(f"{where}: lead_s", merged.get("lead_s", 0.0), 0.0, 10.0)),
-        body=body, target=target, swinging=swinging, move=move, stance=stance, stance_pose=stance_pose)
+        body=body, target=target, swinging=swinging, move=move, stance=stance, stance_pose=stance_pose,
+        combo=tuple(combo), until_recovered=until_recovered)
+
+
+def _band(source: str, placements: Mapping[str, Any], key: str, lowest: float, highest: float) -> tuple[float, float] | None:
+    """placements.`key`, a [low, high] band in metres that replaces the volume's, checked; None when not given."""
+    if key not in placements:
+        return None
+    band = placements[key]
+    if not isinstance(band, list) or len(band) != 2:
+        raise ScenarioError(f"{source}: placements.{key} is [low, high] in metres")
+    low, high = (float(_number(f"placements.{key}", value, lowest, highest)) for value in band)
+    if low > high:
+        raise ScenarioError(f"{source}: placements.{key} [{low:g}, {high:g}] runs downward")
+    return low, high
 
 
 def build_scenario(data: Mapping[str, Any], source: str) -> Scenario:
@@ -269,15 +302,8 @@ def build_scenario(data: Mapping[str, Any], source: str) -> Scenario:
     volume = placements.get("volume", "policy")
     if volume not in ("policy", "spec"):
         raise ScenarioError(f"{source}: placements.volume is \"policy\" or \"spec\", not {volume!r}")
-    height_m = None
-    if "height_m" in placements:
-        band = placements["height_m"]
-        if not isinstance(band, list) or len(band) != 2:
-            raise ScenarioError(f"{source}: placements.height_m is [low, high] in metres")
-        low, high = (float(_number("placements.height_m", value, 0.0, 3.0)) for value in band)
-        if low > high:
-            raise ScenarioError(f"{source}: placements.height_m [{low:g}, {high:g}] runs downward")
-        height_m = (low, high)
+    height_m, side_m = (_band(source, placements, key, low, high) for key, low, high in (("height_m", 0.0, 3.0),
+                                                                                       ("side_m", -1.0, 1.0)))
     success = data.get("success", "hit")
     if success not in ("hit", "return"):
         raise ScenarioError(f"{source}: success is \"hit\" or \"return\", not {success!r}")
@@ -290,6 +316,8 @@ def build_scenario(data: Mapping[str, Any], source: str) -> Scenario:
     if not isinstance(tables, list) or not tables:
         raise ScenarioError(f"{source}: no [[conditions]]")
     conditions = [_condition(i, table, defaults, scenario_sigmas, seed) for i, table in enumerate(tables)]
+    if success == "return" and any(c.combo for c in conditions):
+        raise ScenarioError(f"{source}: a combo's success is \"hit\" (a reward scores one punch)")
     rows = [(c.name, sigma) for c in conditions for sigma in c.sigmas]
     doubled = sorted({row for row in rows if rows.count(row) > 1})
     if doubled:
@@ -302,7 +330,7 @@ def build_scenario(data: Mapping[str, Any], source: str) -> Scenario:
     if not isinstance(naturalness, bool):
         raise ScenarioError(f"{source}: naturalness is true or false")
     return Scenario(name=str(name), description=str(data.get("description", "")), source=source, success=success,
-                    placements=count, seed=seed, volume=volume, conditions=tuple(conditions), height_m=height_m,
+                    placements=count, seed=seed, volume=volume, conditions=tuple(conditions), height_m=height_m, side_m=side_m,
                     noisy_punches=int(_number("noisy_punches", data.get("noisy_punches", 1), 1, 1000, whole=True)),
                     search_iterations=int(_number("search_iterations", data.get("search_iterations", 0), 0, 100_000, whole=True)),
                     naturalness=naturalness)
