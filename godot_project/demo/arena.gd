@@ -75,6 +75,19 @@ func add_controller(character: Node3D, target: Node3D, noise_sigma: float, seed:
 
 
 ## Counts a finished punch; prints the hit rate and quits after `punch_limit` punches.
+## A label 2.1 m above `origin` (a character's feet), turned to the camera when `billboard`.
+func add_label_above(origin: Vector3, billboard := false) -> Label3D:
+	var label := Label3D.new()
+	label.position = origin + Vector3(0, 2.1, 0)
+	label.pixel_size = 0.006
+	label.font_size = 36
+	label.outline_size = 12
+	if billboard:
+		label.billboard = BaseMaterial3D.BILLBOARD_ENABLED
+	add_child(label)
+	return label
+
+
 func count_punch(hit: bool, name_of_scene: String) -> void:
 	punches += 1
 	punches_that_hit += int(hit)

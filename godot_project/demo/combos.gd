@@ -22,16 +22,10 @@ func _ready() -> void:
 		var where := Transform3D(Basis.IDENTITY, Vector3(0, 0, 2.4 * index - 2.4))
 		var character := add_character(self, where)
 		var controller := add_controller(character, null, 0.1, index + 1)
-		var label := Label3D.new()
-		label.position = where.origin + Vector3(0, 2.1, 0)
-		label.pixel_size = 0.006
-		label.font_size = 36
-		label.outline_size = 12
-		label.billboard = BaseMaterial3D.BILLBOARD_ENABLED
-		add_child(label)
+		var label := add_label_above(where.origin, true)
 		var row := {"controller": controller, "sandbag": null, "bag": null, "origin": where.origin, "label": label, "combo": index, "title": "", "marks": [],
 			"landed": false}
-		controller.punch_started.connect(func(move, _hand, combo_index):
+		controller.punch_started.connect(func(move, _hand, _combo_index):
 			row.marks.append("%d" % _number_of(move))
 			row.landed = false
 			_show(row))

@@ -16,12 +16,7 @@ func _ready() -> void:
 		var where := Transform3D(Basis.IDENTITY, Vector3(1.7 * index - 4.25, 0, 0))
 		var character := add_character(self, where)
 		var controller := add_controller(character, null, 0.1, index + 1)
-		var label := Label3D.new()
-		label.position = where.origin + Vector3(0, 2.1, 0)
-		label.pixel_size = 0.006
-		label.font_size = 36
-		label.outline_size = 12
-		add_child(label)
+		var label := add_label_above(where.origin)
 		var row := {"move": MOVES[index], "controller": controller, "sandbag": null, "bag": null, "label": label,
 			"origin": where.origin, "landed": false}
 		controller.hit.connect(func(_impulse, _speed, _position, body, _push, _hand):

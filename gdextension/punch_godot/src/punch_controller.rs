@@ -165,8 +165,9 @@ pub struct PunchController {
     hit_areas: bool,
 
     /// A punch asked for while the character is away from its guard pose (the end of an earlier punch,
-    /// mid-recovery) first returns it to guard under physics, at most 0.5 s, then plays the policy: punches
-    /// land far more often from there (BENCHMARKS.md, "after an earlier punch"). Off: the policy starts from
+    /// mid-recovery, the next punch of a combo) first returns it to guard under physics until every joint is within
+    /// 6° of its guard angle and slower than 1 rad/s (at most 0.5 s), then plays the policy: punches land far more
+    /// often from there (BENCHMARKS.md, "after an earlier punch"). Off: the policy starts from
     /// whatever pose the arms are in. A punch from the guard starts at once either way.
     #[export_group(name = "Behaviour")]
     #[export]

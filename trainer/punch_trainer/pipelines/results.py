@@ -28,6 +28,8 @@ from punch_trainer.sim.godot import PROJECT_ROOT
 RECIPES_DIR = PROJECT_ROOT / "recipes"
 POLICIES_README = PROJECT_ROOT / "addons" / "punch_controller" / "policies" / "README.md"
 MOVESET = PROJECT_ROOT / "addons" / "punch_controller" / "policies" / "boxing.tres"
+EXTENSION_LIBRARY = PROJECT_ROOT / "addons" / "punch_controller" / "bin" / "libpunch_controller.linux.debug.x86_64.so"
+"""the extension headless Godot plays the measurements with (its debug build)"""
 SUMMARY_SECTION = "The shipped policies"
 MOVES_SECTION = "The six moves"
 SUMMARY_MARKERS = ("<!-- punch results:start -->", "<!-- punch results:end -->")
@@ -153,19 +155,22 @@ MEASURED_FILE = "measured.json"
 def measure(recipes: list[Recipe], out: Path, *, progress: bool = True, backend: Backend = LOCAL) -> dict[str, list[dict[str, Any]]]:
     """Every measurement of every recipe's policy: {recipe name: [the evaluator's report, one per measurement]}, and
     the default moveset's (`MOVESET_MEASUREMENTS`) under `MOVESET_KEY`. Each run's report.md and plots stay in
-    `out/<name>/<scenario>`; a measurement already there of the same policy files (their SHA-256) by the same
-    command is read back instead of played again, so after one policy changes only its measurements run."""
+    `out/<name>/<scenario>`; a measurement already there of the same policy files and extension build (their
+    SHA-256) by the same command is read back instead of played again, so after one policy changes only its
+    measurements run."""
     reports: dict[str, list[dict[str, Any]]] = {}
+    # The controller that plays the punches is measured too: a rebuilt extension measures again.
+    extension = {"extension_sha256": sha256_of(EXTENSION_LIBRARY)} if EXTENSION_LIBRARY.is_file() else {}
     for recipe in recipes:
         policy = PROJECT_ROOT / recipe.policy
         if not policy.is_file():
             raise ResultsError(f"{recipe.path}: its policy {recipe.policy} is missing (make it: punch recipe {recipe.path} --install)")
-        stamp = {"policy_sha256": sha256_of(policy)}
+        stamp = {"policy_sha256": sha256_of(policy), **extension}
         reports[recipe.name] = [_measured(measurement, recipe.policy, out / recipe.name / measurement.scenario, stamp,
                                           progress, backend) for measurement in MEASUREMENTS]
     # The moveset's combos play every move's policy: its measurements are stamped with all of them.
     files = sorted(set(moveset_policies().values()))
-    stamp = {"moveset_sha256": sha256_of(MOVESET), **{f"{name}_sha256": sha256_of(MOVESET.parent / name) for name in files}}
+    stamp = {"moveset_sha256": sha256_of(MOVESET), **extension, **{f"{name}_sha256": sha256_of(MOVESET.parent / name) for name in files}}
     placements_policy = (MOVESET.parent / moveset_policies()["jab"]).relative_to(PROJECT_ROOT)
     reports[MOVESET_KEY] = [_measured(measurement, placements_policy, out / MOVESET_KEY / measurement.scenario, stamp,
                                       progress, backend) for measurement in MOVESET_MEASUREMENTS]
@@ -294,6 +299,11 @@ def moves_table(reports: dict[str, list[dict[str, Any]]], policy_recipes: dict[s
     return "\n".join(lines)
 
 
+def _repository_paths(report_md: str) -> str:
+    """A report with the files of this checkout named from its root, the same on every machine."""
+    return report_md.replace(f"{PROJECT_ROOT}/", "")
+
+
 def write_results(recipes: list[Recipe], reports: dict[str, list[dict[str, Any]]], command: str) -> list[Path]:
     """BENCHMARKS.md's summary and per-policy sections, the six moves' table, and the policies' README table."""
     from punch_trainer.pipelines.bench import BENCHMARKS_FILE, machine_description, write_section
@@ -333,12 +343,13 @@ def write_results(recipes: list[Recipe], reports: dict[str, list[dict[str, Any]]
                 "(`guard_first`), and each move alone for its frame data (docs/combos.md). The `--policy` only gives the "
                 "placements' volume; every move plays its own policy.", ""]
         for run in reports[MOVESET_KEY]:
-            body += [f"### `{run['command']}`", "", *benchmarks_body(run["markdown"], depth=1), ""]
+            body += [f"### `{run['command']}`", "", *benchmarks_body(_repository_paths(run["markdown"]), depth=1), ""]
         write_section(COMBOS_SECTION, command, "\n".join(body).strip(), oldest([MOVESET_KEY]))
     for recipe in recipes:
         body = []
         for run in reports[recipe.name]:
-            body += [f"### `{run['measurement'].command(recipe.policy)}`", "", *benchmarks_body(run["markdown"], depth=1), ""]
+            body += [f"### `{run['measurement'].command(recipe.policy)}`", "",
+                     *benchmarks_body(_repository_paths(run["markdown"]), depth=1), ""]
         write_section(f"The shipped {recipe.name}", command, "\n".join(body).strip(), oldest([recipe.name]))
     moves_link = (f"; each move of the default moveset: [BENCHMARKS.md, \"{MOVES_SECTION}\"](../../../BENCHMARKS.md#the-six-moves)"
                   if moves is not None else "")

@@ -263,7 +263,8 @@ impl<P: Clone> Lifecycle<P> {
         self.phase = match start.guard_first {
             // Decided at the next frame's reading: a character already in guard punches in that same frame.
             true => {
-                Phase::Guarding(punch, start.policy, Box::new(Recovery::new(geometry, self.guard)), [Vec3::ZERO; 5])
+                let recovery = Recovery::new(geometry, self.guard).ready_to_punch();
+                Phase::Guarding(punch, start.policy, Box::new(recovery), [Vec3::ZERO; 5])
             }
             false => Phase::Punching(punch, start.policy),
         };

@@ -353,6 +353,8 @@ pub struct Recovery {
     controller: CharacterController,
     guard: [f32; DOF_COUNT],
     frame: u32,
+    /// Within this angle of the guard (rad) and slower than this (rad/s), every joint, it is there.
+    settled: (f32, f32),
 }
 
 impl Recovery {
@@ -362,21 +364,33 @@ impl Recovery {
     pub const SETTLED_ANGLE_RAD: f32 = 0.02;
     /// ... and slower than this (rad/s).
     pub const SETTLED_SPEED_RAD_S: f32 = 0.2;
+    /// Near enough to punch from (`ready_to_punch`): every joint within this angle of its guard angle (rad) ...
+    pub const READY_ANGLE_RAD: f32 = 0.1;
+    /// ... and slower than this (rad/s).
+    pub const READY_SPEED_RAD_S: f32 = 1.0;
 
     /// A recovery to the guard whose joint targets are `guard` (rad, action order; all 0: the square guard).
     pub fn new(geometry: CharacterGeometry, guard: [f32; DOF_COUNT]) -> Self {
         let mut controller = CharacterController::new(geometry, 1);
         controller.set_targets(guard);
-        Self { controller, guard, frame: 0 }
+        Self { controller, guard, frame: 0, settled: (Self::SETTLED_ANGLE_RAD, Self::SETTLED_SPEED_RAD_S) }
+    }
+
+    /// Ends near the guard rather than settled in it (`READY_ANGLE_RAD`, `READY_SPEED_RAD_S`): a return to guard
+    /// before a punch (`guard_first`), which the policies land from as they do from the guard itself.
+    pub fn ready_to_punch(mut self) -> Self {
+        self.settled = (Self::READY_ANGLE_RAD, Self::READY_SPEED_RAD_S);
+        self
     }
 
     /// Motor commands for the next physics step, or None when the character is back in its guard pose (or
     /// the time is up): the caller then stops driving.
     pub fn step(&mut self, reading: &FrameReading) -> Option<[Vec3; 5]> {
         let features = self.controller.features(reading);
+        let (angle_rad, speed_rad_s) = self.settled;
         let settled = (0..DOF_COUNT).all(|i| {
-            (features[columns::ANGLES + i] - self.guard[i]).abs() < Self::SETTLED_ANGLE_RAD
-                && features[columns::SPEEDS + i].abs() < Self::SETTLED_SPEED_RAD_S
+            (features[columns::ANGLES + i] - self.guard[i]).abs() < angle_rad
+                && features[columns::SPEEDS + i].abs() < speed_rad_s
         });
         if settled || self.frame >= Self::MAX_FRAMES {
             return None;
