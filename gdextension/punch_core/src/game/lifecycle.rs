@@ -9,10 +9,11 @@
 //! which opens a designer's delay after the punching fist first lands (or after the punch's last frame, when it
 //! lands nothing); then the running punch ends (`Ending::Chained`) and the queued one starts from where the arms
 //! are. A punch and those chained from it are a string: each punch's `Started` carries its index in it, and
-//! one `Event::ComboFinished` follows the string's last `Finished`. The Godot
-//! layer (`PunchController`) reads the engine into `FrameReading`s and `Touch`es, drives the joints with the
-//! commands it gets back, and turns each event into a signal, one at a time (`next_event`), so that a signal
-//! handler that starts another punch hears of the first one's end before the second one's start.
+//! one `Event::ComboFinished` follows the string's last `Finished`.
+//!
+//! The Godot layer (`PunchController`) reads the engine into `FrameReading`s and `Touch`es, drives the joints
+//! with the commands it gets back, and turns each event into a signal, one at a time (`next_event`), so that a
+//! signal handler that starts another punch hears of the first one's end before the second one's start.
 
 use std::collections::VecDeque;
 
