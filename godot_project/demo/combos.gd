@@ -23,7 +23,8 @@ func _ready() -> void:
 		var character := add_character(self, where)
 		var controller := add_controller(character, null, 0.1, index + 1)
 		var label := add_label_above(where.origin, true)
-		var row := {"controller": controller, "sandbag": null, "bag": null, "origin": where.origin, "label": label, "combo": index, "title": "", "marks": [],
+		var row := {"controller": controller, "sandbag": null, "bag": null, "origin": where.origin, "label": label,
+			"combo": index, "title": "", "marks": [],
 			"landed": false}
 		controller.punch_started.connect(func(move, _hand, _combo_index):
 			row.marks.append("%d" % _number_of(move))

@@ -41,8 +41,8 @@
 ## `hit` signal with the target's Bag as the body; a combo's: its punches that struck it), target_out_of_reach
 ## signals, how far outside the reach volume the target was at the last of them (m), how the (last) punch ended,
 ## how far the moved node went (m, straight line), upper arm, forearm, shoulder width (m, as `arm_lengths()`
-## reports them), timings: per punch [its `punch_started`, its first hit on the target (-1: none)] in physics frames
-## from the command, and with `until_recovered` the frame of `recovered` (-1: none) as a last entry]; `arm_scale_range`; the
+## reports them), timings: per punch [its `punch_started`, its first hit on the target (-1: none)] in physics
+## frames from the command, and with `until_recovered` the frame of `recovered` as a last entry]; `arm_scale_range`; the
 ## feature names, frames and decisions of a punch; the controllers' inference counts and their work per
 ## physics frame per batch (and, with `--idle-frames=N`, per idle frame: each batch's characters stand N frames
 ## after their punches, for `punch bench inference`). With `--record=1` also features.f32 [episodes, frames, F],

@@ -98,7 +98,8 @@ func _command(stream: Stream) -> void:
 	var moves: Array = []
 	for _index in _rng.randi_range(1, 4):
 		moves.append(MOVES[_rng.randi() % MOVES.size()])
-	var busy: bool = controller.call("is_punching") or not (controller.call("queued_moves") as PackedStringArray).is_empty()
+	var queued_before := controller.call("queued_moves") as PackedStringArray
+	var busy: bool = controller.call("is_punching") or not queued_before.is_empty()
 	if roll < 0.45:
 		moves.resize(1)
 	# What waits after the call, set before it: its own signals' handlers (which may call again) come inside it.

@@ -65,6 +65,16 @@ struct Throw {
     cancel_delay_s: f32,
 }
 
+/// A move that can be thrown now (`checked`): what throws it, at which character (its geometry where it stands) and
+/// target (where it is, global).
+struct Checked {
+    throw: Throw,
+    character: Gd<PunchCharacter>,
+    target: Target,
+    geometry: CharacterGeometry,
+    target_position: Vec3,
+}
+
 /// A punch ready to start: its start, its policy's identity (for the noise), and the character it drives.
 struct Prepared {
     start: PunchStart<Rc<PunchingPolicy>>,
@@ -273,7 +283,7 @@ impl PunchController {
     /// `frames`, `peak_fist_speed_mps` (the punching fist's; m/s), `peak_off_fist_speed_mps` (the guard hand's,
     /// m/s), `hits`,
     /// `strongest_hit_ns` (the largest fist impulse of one frame), `ended` ("completed"; "interrupted":
-    /// cancelled, restarted, taken over by another controller, or the controller left the scene tree before
+    /// cancelled, ended by `recover()`, taken over by another controller, or the controller left the scene tree before
     /// its last frame; "chained": ended at its cancel window for the next punch of a combo; "error": it stopped on
     /// an error, given in `error` and logged), and `interrupted` (true unless completed). Every `punch_started` is
     /// followed by exactly one `punch_finished`, so code waiting for it never waits forever.
@@ -542,7 +552,7 @@ impl PunchController {
 
     /// What `punch(move_name)` would throw, and at which character and target, when it can be thrown now (the
     /// reason when not).
-    fn checked(&self, move_name: &StringName) -> Result<(Throw, Gd<PunchCharacter>, Target), String> {
+    fn checked(&self, move_name: &StringName) -> Result<Checked, String> {
         if !self.base().is_inside_tree() || self.leaving_tree {
             return Err("the controller is not in the scene tree: add it to the scene before punching (punches \
                         run on the scene tree's physics frames)"
@@ -553,17 +563,17 @@ impl PunchController {
         throw.policy.check_spec(throw.policy.spec.decision_period).map_err(|e| e.to_string())?;
         let character = live(&self.character).ok_or("no character set (or it was freed)")?;
         let target = Target::resolve(live(&self.target).ok_or("no target set (or it was freed)")?);
-        geometry_of(&character)?;
-        target.state()?;
-        Ok((throw, character, target))
+        let geometry = geometry_of(&character)?;
+        let target_position = target.state()?.position;
+        Ok(Checked { throw, character, target, geometry, target_position })
     }
 
     /// The start of `move_name`'s punch of the controller's character at its target (aimed at from now on).
     fn prepare(&mut self, move_name: &StringName) -> Result<Prepared, String> {
-        let (Throw { policy, hand, punch_move, cancel_delay_s }, character, mut target) = self.checked(move_name)?;
+        let Checked { throw, character, mut target, mut geometry, target_position } = self.checked(move_name)?;
+        let Throw { policy, hand, punch_move, cancel_delay_s } = throw;
         self.lifecycle.set_guard(self.guard_targets());
-        let mut geometry = geometry_of(&character)?;
-        let offset = geometry.root_rotation.inverse() * (target.state()?.position - geometry.root_position);
+        let offset = geometry.root_rotation.inverse() * (target_position - geometry.root_position);
         // The reach volume is the right hand's: the left hand's is its mirror.
         let to_policy = |local: Vec3| if hand.is_mirrored() { mirror_point(local) } else { local };
         let out_of_reach = (!policy.reach.contains(to_policy(offset))).then(|| {

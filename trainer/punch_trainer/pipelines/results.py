@@ -22,6 +22,7 @@ from typing import Any
 from punch_trainer.errors import PunchError
 from punch_trainer.pipelines.evaluation import EvalArgs, benchmarks_body, run_eval
 from punch_trainer.pipelines.recipe import Recipe, load_recipe
+from punch_trainer.pipelines.scenario import scenario_path
 from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.godot import PROJECT_ROOT
 
@@ -169,9 +170,10 @@ def measure(recipes: list[Recipe], out: Path, *, progress: bool = True, backend:
         reports[recipe.name] = [_measured(measurement, recipe.policy, out / recipe.name / measurement.scenario, stamp,
                                           progress, backend) for measurement in MEASUREMENTS]
     # The moveset's combos play every move's policy: its measurements are stamped with all of them.
-    files = sorted(set(moveset_policies().values()))
-    stamp = {"moveset_sha256": sha256_of(MOVESET), **extension, **{f"{name}_sha256": sha256_of(MOVESET.parent / name) for name in files}}
-    placements_policy = (MOVESET.parent / moveset_policies()["jab"]).relative_to(PROJECT_ROOT)
+    policies = moveset_policies()
+    stamp = {"moveset_sha256": sha256_of(MOVESET), **extension,
+             **{f"{name}_sha256": sha256_of(MOVESET.parent / name) for name in sorted(set(policies.values()))}}
+    placements_policy = (MOVESET.parent / policies["jab"]).relative_to(PROJECT_ROOT)
     reports[MOVESET_KEY] = [_measured(measurement, placements_policy, out / MOVESET_KEY / measurement.scenario, stamp,
                                       progress, backend) for measurement in MOVESET_MEASUREMENTS]
     return reports
@@ -184,7 +186,8 @@ def sha256_of(path: Path) -> str:
 def _measured(measurement: Measurement, policy: Path, run_dir: Path, stamp: dict[str, str], progress: bool,
               backend: Backend) -> dict[str, Any]:
     """One measurement, read back when `run_dir` holds one with the same stamp and command, else played."""
-    wanted = {**stamp, "command": measurement.command(policy)}
+    # The scenario's file too: a condition added to it is measured, not read back.
+    wanted = {**stamp, "scenario_sha256": sha256_of(scenario_path(measurement.scenario)), "command": measurement.command(policy)}
     measured = run_dir / MEASURED_FILE
     if measured.is_file() and json.loads(measured.read_text()) == wanted and (run_dir / "eval.json").is_file():
         report = json.loads((run_dir / "eval.json").read_text())
@@ -339,8 +342,8 @@ def write_results(recipes: list[Recipe], reports: dict[str, list[dict[str, Any]]
             + moves), oldest([r.name for r in recipes]))
     if MOVESET_KEY in reports:
         body = ["The default moveset (`boxing.tres`) thrown as a game throws it: combinations with `combo()`, each punch "
-                "starting at the one before's cancel window (its contact; the moveset's delays are 0) after a return to guard "
-                "(`guard_first`), and each move alone for its frame data (docs/combos.md). The `--policy` only gives the "
+                "starting at the one before's cancel window (its contact; the moveset's delays are 0) after a return near the "
+                "guard (`guard_first`), and each move alone for its frame data (docs/combos.md). The `--policy` only gives the "
                 "placements' volume; every move plays its own policy.", ""]
         for run in reports[MOVESET_KEY]:
             body += [f"### `{run['command']}`", "", *benchmarks_body(_repository_paths(run["markdown"]), depth=1), ""]
