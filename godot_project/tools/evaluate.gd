@@ -27,7 +27,13 @@
 ## - `combo`: a list of moves thrown as one `combo()` with the addon's moveset (every move's shipped policy; the
 ##   placement as given, for both hands), the episode ending at `combo_finished`;
 ## - `until_recovered`: the character returns to guard after its (last) punch (`auto_recover`), and the episode
-##   ends at `recovered`.
+##   ends at the first `recovered` after its `combo_finished`;
+## - `guard_first` (default true): `PunchController.guard_first`; false: a punch asked for away from the guard
+##   starts from wherever the arms are;
+## - `reset_target`: each later punch of a combo starts with the bag hanging as placed again (its start, not where
+##   the punches before swung it);
+## - `cancel_delay_s`: a combo's moveset with this cancel delay for every move (the next punch starts that long
+##   after the one before landed, or ended without landing).
 ## A motion (the moving node's own frame at the start: +Z ahead, +X its left, +Y up): `velocity_mps` [left, up,
 ## forward] (turning while walking walks an arc), `turn_dps` (about +Y, positive to the left), `lunge_m` over
 ## `lunge_s` (forward, minimum-jerk, begins with the punch), `bob_m` at `bob_hz` (vertical, a sine). An empty
@@ -53,6 +59,7 @@ extends SceneTree
 const PunchPair := preload("res://tools/punch_pair.gd")
 ## The moveset a combo plays.
 const ADDON_MOVESET := "res://addons/punch_controller/policies/boxing.tres"
+const MOVES: Array[StringName] = [&"jab", &"cross", &"lead_hook", &"rear_hook", &"lead_uppercut", &"rear_uppercut"]
 
 
 ## The node a game moves: the character's holder (`body`) or the target's hook (`target`) run the same motion.
@@ -288,10 +295,16 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 		if move != &"":
 			_fail("episode %d has both a move and a combo" % index)
 			return null
-		controller.set("moveset", load(ADDON_MOVESET))
+		var moveset: Resource = load(ADDON_MOVESET)
+		if episode.has("cancel_delay_s"):
+			moveset = moveset.duplicate()
+			for each in MOVES:
+				moveset.set("%s_cancel_delay_s" % each, float(episode.cancel_delay_s))
+		controller.set("moveset", moveset)
 		controller.set("stance", stance)
 		slot.combo = combo
 	controller.set("stance_pose", bool(episode.get("stance_pose", false)))
+	controller.set("guard_first", bool(episode.get("guard_first", true)))
 	if _record:
 		PunchProbe.set_recording(controller, true)
 	var until_recovered := bool(episode.get("until_recovered", false))
@@ -338,7 +351,11 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 	slot.lead_frames = roundi(lead_s * Engine.physics_ticks_per_second)
 	var row := slot.row
 	var timings: Array = row[8]
-	controller.connect("punch_started", func(_move, _hand, _combo_index):
+	var bag_start := [bag.global_transform, bag.linear_velocity, bag.angular_velocity]
+	var reset_target := bool(episode.get("reset_target", false))
+	controller.connect("punch_started", func(_move, _hand, combo_index: int):
+		if reset_target and combo_index > 0:
+			_put_back(bag, bag_start)
 		timings.append([_frame - slot.commanded_at, -1]))
 	controller.connect("hit", func(_impulse, _speed, _position, body, _push, _hand):
 		if body == bag:
@@ -350,17 +367,21 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 			slot.moved.set("motion", null)
 			row[4] = snappedf(slot.moved.global_position.length(), 0.001)
 		_pending -= 1
+	# A combo's string ends at `combo_finished`; `recovered` before then (a long cancel delay) is between punches.
+	var string_done := [false]
+	controller.connect("combo_finished", func(_landed, _thrown):
+		string_done[0] = true
+		if not until_recovered and not combo.is_empty():
+			finish.call())
 	if until_recovered:
 		controller.connect("recovered", func():
-			timings.append(_frame - slot.commanded_at)
-			finish.call())
-	elif not combo.is_empty():
-		controller.connect("combo_finished", func(_landed, _thrown): finish.call())
+			if string_done[0]:
+				timings.append(_frame - slot.commanded_at)
+				finish.call())
 	controller.connect("target_out_of_reach", func(offset_now: Vector3, nearest: Vector3):
 		row[1] += 1
 		row[2] = snappedf(offset_now.distance_to(character.global_transform.affine_inverse() * nearest), 0.001))
 	var lead_punches := [1 if episode.get("start", "guard") == "after_punch" else 0]
-	var bag_start := [bag.global_transform, bag.linear_velocity, bag.angular_velocity]
 	controller.connect("punch_finished", func(metrics: Dictionary):
 		if metrics.get("ended") == "error":
 			_fail("a punch stopped on an error: %s" % metrics.get("error", "see the error above"))
@@ -368,9 +389,7 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 		if lead_punches[0] > 0:
 			lead_punches[0] -= 1
 			# The character starts where its earlier punch left it; the bag hangs as placed again.
-			bag.global_transform = bag_start[0]
-			bag.linear_velocity = bag_start[1]
-			bag.angular_velocity = bag_start[2]
+			_put_back(bag, bag_start)
 			row[0] = 0
 			row[1] = 0
 			row[2] = 0.0
@@ -382,6 +401,13 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 		if slot.combo.is_empty() and not until_recovered:
 			finish.call())
 	return slot
+
+
+## Hangs the bag as it was placed again: [transform, linear velocity, angular velocity].
+func _put_back(bag: RigidBody3D, placed: Array) -> void:
+	bag.global_transform = placed[0]
+	bag.linear_velocity = placed[1]
+	bag.angular_velocity = placed[2]
 
 
 ## Starts a slot's motion: its node moves from this physics frame on, and the bag that hangs from it (or rides

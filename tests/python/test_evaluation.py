@@ -75,6 +75,18 @@ def test_an_episode_plays_its_condition_with_the_seed_rule():
     assert episodes[groups[2].start]["body"]["velocity_mps"] == [0.0, 0.0, 0.7]
 
 
+def test_a_punch_from_recovery_draws_its_delay_from_its_own_seed_within_the_band():
+    """`from_recovery`: every episode its own cancel delay, the same for the same seed, spread over the band; the
+    arms not sent back to guard first and the bag hung again for the second punch."""
+    scenario = scenario_of(EvalArgs(policy=POLICY, scenario="from_recovery", placements=64, conditions=["jab, then cross"]))
+    episodes, _ = episodes_of(scenario, *draw_placements(scenario, REACH))
+    delays = [e["cancel_delay_s"] for e in episodes]
+    assert all(0.0 <= d <= 0.6 for d in delays) and max(delays) - min(delays) > 0.4 and len(set(delays)) > 60
+    assert all(e["guard_first"] is False and e["reset_target"] and e["until_recovered"] for e in episodes)
+    again, _ = episodes_of(scenario, *draw_placements(scenario, REACH))
+    assert [e["cancel_delay_s"] for e in again] == delays
+
+
 def test_scales_and_proportions_make_the_sizes_conditions_in_order():
     scenario = scenario_of(EvalArgs(policy=POLICY, scenario="sizes", scales=[0.75, 1.0, 1.25], proportions=[(0.7, 0.85)]))
     assert [(c.name, c.arms) for c in scenario.conditions] == [
@@ -98,6 +110,11 @@ def test_scales_and_proportions_make_the_sizes_conditions_in_order():
     ({"conditions": [{"name": "a", "combo": ["jab", "haymaker"]}]}, "combo is a list of moves"),
     ({"conditions": [{"name": "a", "combo": ["jab"], "move": "cross"}]}, "a move or a combo, not both"),
     ({"success": "return", "conditions": [{"name": "a", "combo": ["jab"]}]}, "a combo's success is \"hit\""),
+    ({"conditions": [{"name": "a", "cancel_delay_s": [0.0, 0.5]}]}, "cancel_delay_s delays a combo's next punch; it needs a combo"),
+    ({"conditions": [{"name": "a", "combo": ["jab"], "cancel_delay_s": [0.5, 0.1]}]}, "the lower delay first"),
+    ({"conditions": [{"name": "a", "combo": ["jab"], "cancel_delay_s": [0.0, 3.0]}]}, "at most 2"),
+    ({"conditions": [{"name": "a", "reset_target": True}]}, "true only with a combo"),
+    ({"conditions": [{"name": "a", "guard_first": "no"}]}, "guard_first is true or false"),
 ])
 def test_a_scenario_that_cannot_be_played_is_refused_with_its_reason(data, message):
     with pytest.raises(ScenarioError, match=message):
@@ -105,7 +122,7 @@ def test_a_scenario_that_cannot_be_played_is_refused_with_its_reason(data, messa
 
 
 def test_unknown_scenarios_and_conditions_are_refused_naming_what_there_is(tmp_path):
-    with pytest.raises(ScenarioError, match="no scenario named 'nope'; the shipped ones are body, combos, frame_data, hands, held_out, moving, sizes, stance, stance_moving"):
+    with pytest.raises(ScenarioError, match="no scenario named 'nope'; the shipped ones are body, combos, frame_data, from_recovery, hands, held_out, moving, sizes, stance, stance_moving"):
         scenario_of(EvalArgs(policy=POLICY, scenario="nope"))
     with pytest.raises(ScenarioError, match="unknown condition\\(s\\) 'moonwalk'; the scenario's are: standing"):
         scenario_of(EvalArgs(policy=POLICY, scenario="moving", conditions=["moonwalk"]))

@@ -62,6 +62,7 @@ def test_results_measure_a_recipes_policy_and_rewrite_the_docs(tmp_path, monkeyp
     monkeypatch.setattr(results, "MOVESET_MEASUREMENTS", (
         Measurement("combos", {"placements": 2, "sigmas": [0.0], "conditions": ["1-2-3, southpaw"]}),
         Measurement("frame_data", {"placements": 2, "sigmas": [0.0], "conditions": ["1 jab"]}),
+        Measurement("from_recovery", {"placements": 2, "sigmas": [0.0], "conditions": ["jab, then jab"]}),
     ))
     arguments = ["results", str(PROJECT_ROOT / "recipes" / "straight.toml"), "--out", str(tmp_path / "runs")]
     for _ in range(2):
@@ -82,6 +83,7 @@ def test_results_measure_a_recipes_policy_and_rewrite_the_docs(tmp_path, monkeyp
     # The moveset's combos and frame data, with when each punch landed.
     assert text.count(f"## {results.COMBOS_SECTION}") == 1 and "| 1-2-3, southpaw | 0.00 | 2 |" in text
     assert "| 1 jab | 0.00 | 2 |" in text and "contact to back in guard (s, median)" in text
+    assert "| jab, then jab | 0.00 | 2 |" in text
     assert (tmp_path / "runs" / "straight" / "held_out" / "report.md").is_file()
     capsys.readouterr()
 

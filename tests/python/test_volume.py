@@ -20,6 +20,7 @@ from punch_trainer.pipelines.train import TrainArgs, run_train
 from punch_trainer.policy_file import read_policy_metadata
 from punch_trainer.reward.rewards import load_reward
 from punch_trainer.sim.env import PunchVectorEnv
+from punch_trainer.sim.godot import PROJECT_ROOT
 from punch_trainer.sim.server import TrainingServer
 
 BUDGET = dict(reward="straight", seed=3, search_iterations=15, search_rollouts=32, pretrain_epochs=600,
@@ -129,6 +130,42 @@ def test_a_share_of_episodes_starts_in_a_stances_guard():
     assert np.array_equal(draw(64, 3).lead_in, draw(64, 3).lead_in), "a resumed run draws the same"
     without = ConditionSampler(reach, punches, VolumeArgs(), seed=5, default_bag=placement(0.7, 1.35, 0.0))
     assert without(64, 1).lead_in is None
+
+
+def test_lead_ins_start_where_an_earlier_punch_is_mid_way_at_its_end_or_on_the_way_back():
+    """`lead_in_every`: every k-th update's characters play a lead-in: a punch played up to a random decision of its
+    second half, a whole punch and 1 to 4 decisions of the guard, or the guard alone; all end together."""
+    reach = ReachVolume((0.6, 0.85), (1.15, 1.55), (-0.25, 0.25), 1.0, True)
+    decisions = 10
+    punches = np.arange(1, decisions + 1, dtype=np.float32)[None, :, None].repeat(10, axis=2)  # decision d plays d + 1
+    draw = ConditionSampler(reach, punches, VolumeArgs(lead_in_every=2), seed=5, default_bag=placement(0.7, 1.35, 0.0))
+    assert draw(8, 1).lead_in is None, "not this update"
+    lead_ins = np.concatenate([draw(64, update).lead_in for update in range(2, 42, 2)])
+    assert lead_ins.shape == (1280, decisions + 4, 10)
+    played = lead_ins[:, :, 0]
+    last = [int(row[row > 0][-1]) if (row > 0).any() else 0 for row in played]
+    back = [int(np.argmax(row[::-1] > 0)) if (row > 0).any() else -1 for row in played]
+    cut_short = [n for n, b in zip(last, back, strict=True) if b == 0 and n < decisions]
+    assert cut_short and min(cut_short) >= decisions // 2, "cut in its second half"
+    assert {b for b in back if b > 0} == {1, 2, 3, 4}, "on the way back to guard"
+    assert 0.35 < last.count(0) / len(last) < 0.55, "the others from the guard"
+
+
+@pytest.mark.godot
+def test_other_moves_punches_are_the_policies_punches_with_either_arm(tmp_path):
+    """`--lead-in-policies`: each policy file punches through PunchController and its actions come back with their
+    mirror image (the other arm's), held at the guard (zeros) after a shorter punch."""
+    from punch_trainer.pipelines.train import other_moves_punches
+
+    with TrainingServer(1) as server:
+        reach, mirror = ReachVolume.from_json(server.info.reach_volume), server.info.mirror.actions
+    policy = PROJECT_ROOT / "addons" / "punch_controller" / "policies" / "straight.onnx"
+    punches = other_moves_punches([policy], reach, 12, mirror, seed=1, placements=2)
+    assert punches.shape == (4, 12, 10)
+    assert np.allclose(punches[2:], mirror(punches[:2])) and not np.allclose(punches[:2], punches[2:])
+    assert np.abs(punches[:2, :5]).max() > 0.1, "a punch, not the guard"
+    with pytest.raises(FileNotFoundError, match="no policy file"):
+        other_moves_punches([tmp_path / "none.onnx"], reach, 12, mirror, seed=1, placements=2)
 
 
 @pytest.mark.godot

@@ -159,7 +159,8 @@ def run_identity(run_dir: Path) -> dict[str, Any]:
 def write_config(run_dir: Path, args: Any, **extra: Any) -> None:
     """Writes the run's arguments (a dataclass) and `extra` facts to config.json, atomically, keeping the
     run_id (and reward_fingerprint, unless given) of the config already there, or drawing a new run_id."""
-    config = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(args).items()}
+    config = {k: (str(v) if isinstance(v, Path) else [str(p) if isinstance(p, Path) else p for p in v] if isinstance(v, list) else v)
+              for k, v in asdict(args).items()}
     config.update(extra)
     path = run_dir / CONFIG_FILE
     previous = _read_config_dict(path) if path.is_file() else {}

@@ -68,12 +68,14 @@ class VolumeArgs:
     """share of A2C episodes with the bag hanging still at the default placement (where
     `PunchSpec.default_target_offset()` and the demo put it)"""
     after_punch_share: float = 0.35
-    """share of lead-in episodes that start at the end of an earlier punch"""
+    """share of lead-in episodes that start where an earlier punch is: played up to a random decision of its second
+    half (at its contact, drawing back, at its end), as a combo's next punch starts at the cancel window"""
     recovering_share: float = 0.2
-    """share of lead-in episodes that start mid-recovery (a punch, then some decisions back toward guard)"""
+    """share of lead-in episodes that start mid-recovery (a whole punch, then 1 to 4 decisions back toward guard)"""
     lead_in_every: int = 0
     """every k-th A2C update starts its episodes after lead-ins (0: never, the default since guard_first; they
-    cost frames and, at 2, left the policies missing a swinging bag more often)"""
+    cost frames and, at 2, left the policies missing a swinging bag more often): a policy for punches started
+    wherever the arms are (`PunchController.guard_first` off, combos)"""
     stance_share: float = 0.0
     """share of A2C episodes (and validation placements) that start in a boxing stance's guard, the orthodox and
     the southpaw alike (the right hand as the rear hand and as the lead), after a lead-in that holds it; the others
@@ -228,15 +230,17 @@ class ConditionSampler:
         return out
 
     def lead_ins(self, rng: np.random.Generator, count: int) -> np.ndarray:
-        """[count, decisions + 4, A]: zeros (a start from the guard at rest), a whole punch (its end), or a
-        punch cut short and 1 to 4 decisions of the guard target (mid-recovery); aligned to end together."""
+        """[count, decisions + 4, A]: zeros (a start from the guard at rest), a punch played up to a random decision
+        of its second half (`after_punch_share`), or a whole punch and 1 to 4 decisions of the guard target
+        (mid-recovery); aligned to end together."""
         decisions, action_size = self.punches.shape[1:]
         out = np.zeros((count, decisions + 4, action_size), dtype=np.float32)
         kinds = rng.uniform(size=count)
         for slot in range(count):
             punch = self.punches[rng.integers(len(self.punches))]
             if kinds[slot] < self.args.after_punch_share:
-                out[slot, 4:] = punch
+                played = int(rng.integers(decisions // 2, decisions + 1))
+                out[slot, decisions + 4 - played:] = punch[:played]
             elif kinds[slot] < self.args.after_punch_share + self.args.recovering_share:
                 back = int(rng.integers(1, 5))
                 out[slot, 4 - back:decisions + 4 - back] = punch  # then `back` decisions toward guard

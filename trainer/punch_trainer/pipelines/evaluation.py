@@ -233,9 +233,13 @@ def episodes_of(scenario: Scenario, still: list[EpisodeConditions], swinging: li
                     "seed": condition.noise_seed * SEED_STRIDE[0] + index * SEED_STRIDE[1] + e,
                     "start": condition.start, "arms": list(condition.arms), "lead_s": condition.lead_s,
                     "move": condition.move, "stance": condition.stance, "stance_pose": condition.stance_pose,
-                    "until_recovered": condition.until_recovered}
+                    "until_recovered": condition.until_recovered, "guard_first": condition.guard_first,
+                    "reset_target": condition.reset_target}
                 if condition.combo:
                     episode["combo"] = list(condition.combo)
+                if condition.cancel_delay_s != (0.0, 0.0):
+                    low, high = condition.cancel_delay_s
+                    episode["cancel_delay_s"] = round(float(np.random.default_rng(episode["seed"]).uniform(low, high)), 4)
                 if condition.body is not None:
                     episode["body"] = condition.body.to_wire()
                 if condition.target is not None:
@@ -374,7 +378,7 @@ def timing_figures(group: Group, rows: list[list[Any]], won: np.ndarray, physics
     punches = max(1, len(group.condition.combo))
     timings = [row[8] for row in rows]
     contacts = [[t[i][1] for t in timings if len(t) > i and isinstance(t[i], list) and t[i][1] >= 0] for i in range(punches)]
-    last = [t[punches - 1][1] for t, ok in zip(timings, won, strict=True) if ok and len(t) >= punches]
+    last = [t[punches - 1][1] for t, ok in zip(timings, won, strict=True) if ok and len(t) >= punches and isinstance(t[punches - 1], list)]
     figures: dict[str, Any] = {
         "contact_s": [round(float(np.median(c)) / physics_hz, 4) if c else None for c in contacts],
         "last_contact_max_s": round(max(last) / physics_hz, 4) if last else None}

@@ -81,9 +81,11 @@ MEASUREMENTS = (
 )
 
 MOVESET_MEASUREMENTS = (
-    # Combinations thrown with combo() and every move alone (startup and recovery), with the default moveset.
+    # Combinations thrown with combo(), every move alone (startup and recovery), and a punch started at a random
+    # moment of another's recovery, with the default moveset.
     Measurement("combos"),
     Measurement("frame_data"),
+    Measurement("from_recovery"),
 )
 MOVESET_KEY = "moveset"
 """`measure`'s key (and output folder) of the default moveset's measurements"""
@@ -343,7 +345,8 @@ def write_results(recipes: list[Recipe], reports: dict[str, list[dict[str, Any]]
     if MOVESET_KEY in reports:
         body = ["The default moveset (`boxing.tres`) thrown as a game throws it: combinations with `combo()`, each punch "
                 "starting at the one before's cancel window (its contact; the moveset's delays are 0) after a return near the "
-                "guard (`guard_first`), and each move alone for its frame data (docs/combos.md). The `--policy` only gives the "
+                "guard (`guard_first`), each move alone for its frame data, and a second punch started at a random moment of the "
+                "first's recovery from wherever the arms are (`from_recovery`; docs/combos.md). The `--policy` only gives the "
                 "placements' volume; every move plays its own policy.", ""]
         for run in reports[MOVESET_KEY]:
             body += [f"### `{run['command']}`", "", *benchmarks_body(_repository_paths(run["markdown"]), depth=1), ""]

@@ -77,6 +77,15 @@ class Condition:
     until_recovered: bool = False
     """the character returns to guard after its (last) punch and the episode waits for it (the frame data's
     recovery)"""
+    guard_first: bool = True
+    """`PunchController.guard_first`: a punch asked for away from the guard returns there first; false: it starts
+    from wherever the arms are"""
+    reset_target: bool = False
+    """each later punch of a combo starts with the bag hanging as placed again, not where the punches before swung
+    it (what a punch from another's recovery can reach, whatever the target did)"""
+    cancel_delay_s: tuple[float, float] = (0.0, 0.0)
+    """a combo's cancel windows: each episode draws one delay (s, uniform in this band, from its seed) for every
+    move of the moveset, so the next punch starts at a random moment after the one before landed"""
 
     def moves(self) -> bool:
         return self.body is not None or self.target is not None
@@ -106,7 +115,8 @@ class Scenario:
 
 
 CONDITION_KEYS = ("name", "sigmas", "noise_decisions", "noise_seed", "start", "arms", "lead_s", "body", "target", "move",
-                  "stance", "stance_pose", "combo", "until_recovered")
+                  "stance", "stance_pose", "combo", "until_recovered", "guard_first", "reset_target",
+                  "cancel_delay_s")
 COMBO_MOVES = ("jab", "cross", "lead_hook", "rear_hook", "lead_uppercut", "rear_uppercut")
 SCENARIO_KEYS = ("name", "description", "success", "placements", "noisy_punches", "search_iterations", "naturalness",
                  "conditions")
@@ -266,6 +276,15 @@ def _condition(index: int, table: Any, defaults: Mapping[str, Any], scenario_sig
         raise ScenarioError(f"{where}: a move or a combo, not both")
     if combo and start != "guard":
         raise ScenarioError(f"{where}: a combo starts from guard")
+    guard_first = merged.get("guard_first", True)
+    if not isinstance(guard_first, bool):
+        raise ScenarioError(f"{where}: guard_first is true or false, not {guard_first!r}")
+    cancel_delay_s = _delay_band(f"{where}: cancel_delay_s", merged.get("cancel_delay_s", [0.0, 0.0]))
+    if cancel_delay_s != (0.0, 0.0) and not combo:
+        raise ScenarioError(f"{where}: cancel_delay_s delays a combo's next punch; it needs a combo")
+    reset_target = merged.get("reset_target", False)
+    if not isinstance(reset_target, bool) or (reset_target and not combo):
+        raise ScenarioError(f"{where}: reset_target is true or false, and true only with a combo, not {reset_target!r}")
     return Condition(
         name=name, sigmas=_sigmas(f"{where}: sigmas", merged.get("sigmas", "all"), scenario_sigmas),
         noise_seed=int(_number(f"{where}: noise_seed", noise_seed, 0, 2**32 - 1, whole=True)),
@@ -273,7 +292,18 @@ def _condition(index: int, table: Any, defaults: Mapping[str, Any], scenario_sig
         start=start, arms=_arms(f"{where}: arms", merged.get("arms", 1.0)),
         lead_s=float(_number(f"{where}: lead_s", merged.get("lead_s", 0.0), 0.0, 10.0)),
         body=body, target=target, swinging=swinging, move=move, stance=stance, stance_pose=stance_pose,
-        combo=tuple(combo), until_recovered=until_recovered)
+        combo=tuple(combo), until_recovered=until_recovered, guard_first=guard_first,
+        reset_target=reset_target, cancel_delay_s=cancel_delay_s)
+
+
+def _delay_band(where: str, value: Any) -> tuple[float, float]:
+    """A [low, high] band of delays in seconds (0-2 s), low first."""
+    if not isinstance(value, list) or len(value) != 2:
+        raise ScenarioError(f"{where}: a [low, high] band in seconds, not {value!r}")
+    low, high = (float(_number(where, v, 0.0, 2.0)) for v in value)
+    if low > high:
+        raise ScenarioError(f"{where}: the lower delay first, not {value!r}")
+    return low, high
 
 
 def _band(source: str, placements: Mapping[str, Any], key: str, lowest: float, highest: float) -> tuple[float, float] | None:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import functools
 import json
+import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -49,6 +50,7 @@ from punch_trainer.reward.style import MAX_WEIGHT as MAX_STYLE_WEIGHT
 from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.conditions import ARM_SCALE_RANGE, EpisodeConditions, EpisodeStart
 from punch_trainer.sim.env import PunchVectorEnv
+from punch_trainer.sim.mirror import VectorMirror
 from punch_trainer.sim.rollouts import RolloutPool
 from punch_trainer.sim.server_group import SimulatorRestarts
 
@@ -135,6 +137,14 @@ class TrainArgs:
     stance_share: float = VolumeArgs.stance_share
     """volume: share of A2C episodes (and validation placements) that start in a boxing stance's guard, orthodox or
     southpaw (`PunchController.stance_pose`); the others start in the square guard"""
+    lead_in_every: int = VolumeArgs.lead_in_every
+    """volume: every k-th A2C update's episodes start where an earlier punch of this run's search left the arms (at its
+    contact, drawing back, or on the way back to guard) instead of in a guard: a policy for punches started wherever
+    the arms are (`PunchController.guard_first` off, a combo's next punch); 0: never"""
+    lead_in_policies: list[Path] = field(default_factory=list, metadata=bounds(max_items=8))
+    """volume, with --lead-in-every: policy files (the other moves) whose punches the lead-ins replay too, each with
+    either hand (the arm this policy punches with, and the other, mirrored): so a move learns to start where a
+    combo's earlier move leaves the arms, not only where its own does"""
     motions: Literal["move", "stand"] = "move"
     """volume: 'move': A2C's characters walk, turn, lunge and bob while they punch and targets are carried past
     them (docs/moving.md), and so do half the validation placements; 'stand': every character stands still"""
@@ -174,6 +184,29 @@ def run_exported_policy(path: Path, env: PunchVectorEnv, reward: Reward, sigma: 
         frames.append(info["features"][0])
         if terminated[0] or truncated[0]:
             return total_return, np.concatenate(frames)
+
+
+def other_moves_punches(policies: list[Path], reach: ReachVolume, decisions: int, mirror: VectorMirror, seed: int,
+                        placements: int = 64, sigma: float = 0.2) -> np.ndarray:
+    """Raw actions [2 * placements * len(policies), decisions, A]: each policy file punching at `placements` of the
+    reach volume with a designer's noise `sigma`, through PunchController in headless Godot, and the mirror image of
+    each (the same punch by the other arm). Cut to `decisions`, or held in guard (zeros) after a shorter punch."""
+    from punch_trainer.pipelines.evaluation import recorded, run_episodes
+
+    bags = reach.sample(np.random.default_rng([seed, 7]), placements)
+    episodes = [{"placement": {"distance_m": bag.distance_m, "height_m": bag.height_m, "side_m": bag.side_m},
+                 "sigma": sigma, "seed": seed * 1000 + index} for index, bag in enumerate(bags)]
+    punches = []
+    for policy in policies:
+        if not Path(policy).is_file():
+            raise FileNotFoundError(f"--lead-in-policies: no policy file {policy}")
+        with tempfile.TemporaryDirectory(prefix="punch_lead_ins_") as name:
+            meta = run_episodes(Path(policy), episodes, Path(name), record=True)
+            actions = np.array(recorded(Path(name), meta, "actions"), dtype=np.float32)
+        fitted = np.zeros((len(actions), decisions, actions.shape[2]), dtype=np.float32)
+        fitted[:, :min(decisions, actions.shape[1])] = actions[:, :decisions]
+        punches += [fitted, mirror(fitted).astype(np.float32)]
+    return np.concatenate(punches)
 
 
 def parse_grid(text: str) -> tuple[int, int, int]:
@@ -252,7 +285,7 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
     dataset_paths = [out / "search" / "dataset.npz"]
     volume = VolumeArgs(grid=parse_grid(args.grid), search_iterations=args.volume_search_iterations,
                         search_rollouts=args.volume_search_rollouts, default_share=args.default_share,
-                        stance_share=args.stance_share,
+                        stance_share=args.stance_share, lead_in_every=args.lead_in_every,
                         motions=MotionRange() if args.motions == "move" else None,
                         arms=ArmRange(arm_scale=arm_range(args.arm_range)) if args.arms == "sized" else None)
     reach, punches, grid_bests = None, search.best_actions[None], [search.best_return]
@@ -269,6 +302,9 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
     restarts = SimulatorRestarts(env.restart)
     try:
         stance_guards = np.array([env.info.stance_guard_actions[name] for name in ("orthodox", "southpaw")], dtype=np.float32)
+        if args.lead_in_policies and reach is not None:
+            punches = np.concatenate([punches, other_moves_punches(args.lead_in_policies, reach, punches.shape[1],
+                                                                   env.info.mirror.actions, args.seed)])
         conditions = (ConditionSampler(reach, punches, volume, seed=args.seed + 1, default_bag=env.info.default_bag,
                                        stance_guards=stance_guards)
                       if reach is not None else None)
