@@ -26,7 +26,8 @@ func _ready() -> void:
 		var controller := add_controller(_fighters[index], opponent.get_node("Torso"), 0.1, index + 1)
 		controller.hit.connect(func(_impulse, _speed, _position, body, _push, _hand):
 			_landed = _landed or (body != null and opponent.is_ancestor_of(body)))
-		controller.recovered.connect(_next)
+		# Its own punch's recovery, not the one from being struck (`react_to_hits`), hands the turn over.
+		controller.recovered.connect(func(): if _turn % 2 == index: _next())
 		controller.punch_finished.connect(func(_metrics): count_punch(_landed, "duel"))
 		_controllers.append(controller)
 	_start_punch.call_deferred()

@@ -30,6 +30,10 @@
 ##   ends at the first `recovered` after its `combo_finished`;
 ## - `guard_first` (default true): `PunchController.guard_first`; false: a punch asked for away from the guard
 ##   starts from wherever the arms are;
+## - `struck`: {`part`, `impulse_ns`, `direction` [x, y, z] in the character's frame}: no punch; the standing character
+##   is struck by the game (`PunchCharacter.take_hit`: the torso 15 cm above its centre, the head at its mesh, an arm
+##   at its upper arm) after `lead_s` (at least 2 frames), and the episode ends at `recovered` (after `knocked_down`,
+##   `recover()` is called 1 s on);
 ## - `reset_target`: each later punch of a combo starts with the bag hanging as placed again (its start, not where
 ##   the punches before swung it);
 ## - `cancel_delay_s`: a combo's moveset with this cancel delay for every move (the next punch starts that long
@@ -48,7 +52,11 @@
 ## signals, how far outside the reach volume the target was at the last of them (m), how the (last) punch ended,
 ## how far the moved node went (m, straight line), upper arm, forearm, shoulder width (m, as `arm_lengths()`
 ## reports them), timings: per punch [its `punch_started`, its first hit on the target (-1: none)] in physics
-## frames from the command, and with `until_recovered` the frame of `recovered` as a last entry]; `arm_scale_range`; the
+## frames from the command, and with `until_recovered` the frame of `recovered` as a last entry], and a struck
+## character's figures ({} for a punch): `peak_deg`, the largest turn of any body from its guard (degrees, in the
+## character's frame), `head_moved_m`, the head's largest move (m), `back_s` and `recovered_s`, when every body was back
+## within 10 degrees of its guard and when `recovered` came (s after the hit; -1: never; `back_s` 0 if none left),
+## `staggered` and `knocked_down`; `arm_scale_range`; the
 ## feature names, frames and decisions of a punch; the controllers' inference counts and their work per
 ## physics frame per batch (and, with `--idle-frames=N`, per idle frame: each batch's characters stand N frames
 ## after their punches, for `punch bench inference`). With `--record=1` also features.f32 [episodes, frames, F],
@@ -60,6 +68,9 @@ const PunchPair := preload("res://tools/punch_pair.gd")
 ## The moveset a combo plays.
 const ADDON_MOVESET := "res://addons/punch_controller/policies/boxing.tres"
 const MOVES: Array[StringName] = [&"jab", &"cross", &"lead_hook", &"rear_hook", &"lead_uppercut", &"rear_uppercut"]
+## A struck character's bodies, and how near its guard each must be to be back (degrees).
+const STRUCK_BODIES := ["Torso", "UpperArmR", "ForearmR", "UpperArmL", "ForearmL"]
+const BACK_IN_GUARD_DEG := 10.0
 
 
 ## The node a game moves: the character's holder (`body`) or the target's hook (`target`) run the same motion.
@@ -137,6 +148,12 @@ class Slot:
 	var combo: Array = []
 	## The physics frame (`_frame`) of its command.
 	var commanded_at := 0
+	## A hit instead of a punch (`struck`), its bodies' guard rotations and head's place when it came, and the figures.
+	var struck := {}
+	var character: Node3D
+	var guard_rotations := {}
+	var head_at := Vector3.ZERO
+	var back_at := -1
 
 
 const KINDS := ["features", "observations", "mean_actions", "actions"]
@@ -200,6 +217,9 @@ func _physics_process(_delta: float) -> bool:
 		return true
 	_frame += 1
 	var waiting := false
+	for slot in _slots:
+		if not slot.struck.is_empty() and slot.lead_frames < 0 and slot.row[9].recovered_s < 0.0:
+			_measure_struck(slot)
 	for slot in _slots:
 		if slot.lead_frames > 0:
 			slot.lead_frames -= 1
@@ -319,7 +339,7 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 	var sized: Vector3 = character.call("arm_lengths")
 	var bag: RigidBody3D = controller.get("target")
 	slot.controller = controller
-	slot.row = [0, 0, 0.0, "", 0.0, sized.x, sized.y, sized.z, [], index]
+	slot.row = [0, 0, 0.0, "", 0.0, sized.x, sized.y, sized.z, [], {}, index]
 	if holder != null:
 		var hook: PinJoint3D = bag.get_parent().get_node("Hook")
 		# The body the hook is pinned to, placed before it enters the tree (a kinematic body moved into place
@@ -349,6 +369,11 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 	var lead_s := maxf(float(episode.get("lead_s", 0.0)), 0.0)
 	slot.motion_with_punch = target_motion != null or lead_s == 0.0
 	slot.lead_frames = roundi(lead_s * Engine.physics_ticks_per_second)
+	if episode.has("struck"):
+		slot.struck = episode.struck
+		slot.lead_frames = maxi(slot.lead_frames, 2)  # standing in the tree a frame before the hit
+		_listen_struck(slot, controller, character)
+		return slot
 	var row := slot.row
 	var timings: Array = row[8]
 	var bag_start := [bag.global_transform, bag.linear_velocity, bag.angular_velocity]
@@ -417,10 +442,12 @@ func _start_motion(slot: Slot) -> void:
 	slot.bag.linear_velocity = slot.motion.start_velocity(slot.moved)
 
 
-## Starts a slot's punch (and the motion that starts with it); false when the controller refused.
+## Starts a slot's punch (and the motion that starts with it), or strikes it; false when the controller refused.
 func _punch(slot: Slot) -> bool:
 	slot.lead_frames = -1
 	slot.commanded_at = _frame
+	if not slot.struck.is_empty():
+		return _strike(slot)
 	var thrown: bool = slot.controller.call("combo", slot.combo) if not slot.combo.is_empty() \
 		else slot.controller.call("punch", slot.move)
 	if not thrown:
@@ -429,6 +456,66 @@ func _punch(slot: Slot) -> bool:
 	if slot.motion != null and slot.motion_with_punch:
 		_start_motion(slot)
 	return true
+
+
+## A struck character's episode: its figures as its controller reacts, ending at `recovered`.
+func _listen_struck(slot: Slot, controller: Node, character: Node3D) -> void:
+	var figures: Dictionary = slot.row[9]
+	figures.merge({"peak_deg": 0.0, "head_moved_m": 0.0, "back_s": -1.0, "recovered_s": -1.0, "staggered": false,
+		"knocked_down": false})
+	controller.connect("staggered", func(_impulse_ns): figures.staggered = true)
+	controller.connect("knocked_down", func(_impulse_ns):
+		figures.knocked_down = true
+		create_timer(1.0, true, true).timeout.connect(func(): controller.call("recover")))
+	controller.connect("recovered", func():
+		figures.recovered_s = float(_frame - slot.commanded_at) / Engine.physics_ticks_per_second
+		if slot.back_at >= 0:
+			figures.back_s = float(slot.back_at - slot.commanded_at) / Engine.physics_ticks_per_second
+		elif figures.peak_deg <= BACK_IN_GUARD_DEG:
+			figures.back_s = 0.0
+		_pending -= 1)
+	slot.character = character
+
+
+## The game's hit on a standing character: its guard noted, then `take_hit` on the part.
+func _strike(slot: Slot) -> bool:
+	var character: Node3D = slot.character
+	for body in STRUCK_BODIES:
+		slot.guard_rotations[body] = _rotation_in(character, body)
+	slot.head_at = character.global_transform.affine_inverse() * character.get_node("Torso/HeadMesh").global_position
+	var part := StringName(slot.struck.part)
+	var at := {&"head": "Torso/HeadMesh", &"left_arm": "UpperArmL", &"right_arm": "UpperArmR"}
+	var point: Vector3 = character.get_node(at.get(part, "Torso")).global_position
+	if part == &"torso":
+		point += character.global_basis.y * 0.15
+	var direction: Array = slot.struck.direction
+	var impulse := character.global_basis * Vector3(direction[0], direction[1], direction[2]) * float(slot.struck.impulse_ns)
+	if not character.call("take_hit", part, impulse, point):
+		_fail("PunchCharacter refused the episode's hit (see the error above)")
+		return false
+	return true
+
+
+## How far a struck character's bodies and head are from where they were when the hit came.
+func _measure_struck(slot: Slot) -> void:
+	var character: Node3D = slot.character
+	var figures: Dictionary = slot.row[9]
+	var worst := 0.0
+	for body in STRUCK_BODIES:
+		worst = maxf(worst, rad_to_deg(_rotation_in(character, body).angle_to(slot.guard_rotations[body])))
+	figures.peak_deg = maxf(figures.peak_deg, worst)
+	var head: Vector3 = character.global_transform.affine_inverse() * character.get_node("Torso/HeadMesh").global_position
+	figures.head_moved_m = maxf(figures.head_moved_m, head.distance_to(slot.head_at))
+	if worst > BACK_IN_GUARD_DEG:
+		slot.back_at = -1
+	elif slot.back_at < 0 and figures.peak_deg > BACK_IN_GUARD_DEG:
+		slot.back_at = _frame
+
+
+## A body's rotation in its character's frame.
+func _rotation_in(character: Node3D, body: String) -> Quaternion:
+	var node: Node3D = character.get_node(body)
+	return (character.global_basis.inverse() * node.global_basis).get_rotation_quaternion()
 
 
 func _collect_batch() -> void:

@@ -109,12 +109,17 @@ def test_scales_and_proportions_make_the_sizes_conditions_in_order():
     ({"placements": {"side_m": [0.1, -0.1]}, "conditions": [{"name": "a"}]}, "placements.side_m \\[0.1, -0.1\\] runs downward"),
     ({"conditions": [{"name": "a", "combo": ["jab", "haymaker"]}]}, "combo is a list of moves"),
     ({"conditions": [{"name": "a", "combo": ["jab"], "move": "cross"}]}, "a move or a combo, not both"),
-    ({"success": "return", "conditions": [{"name": "a", "combo": ["jab"]}]}, "a combo's success is \"hit\""),
+    ({"success": "return", "conditions": [{"name": "a", "combo": ["jab"]}]}, "a combo's or a struck character's success is \"hit\""),
     ({"conditions": [{"name": "a", "cancel_delay_s": [0.0, 0.5]}]}, "cancel_delay_s delays a combo's next punch; it needs a combo"),
     ({"conditions": [{"name": "a", "combo": ["jab"], "cancel_delay_s": [0.5, 0.1]}]}, "the lower delay first"),
     ({"conditions": [{"name": "a", "combo": ["jab"], "cancel_delay_s": [0.0, 3.0]}]}, "at most 2"),
     ({"conditions": [{"name": "a", "reset_target": True}]}, "true only with a combo"),
     ({"conditions": [{"name": "a", "guard_first": "no"}]}, "guard_first is true or false"),
+    ({"conditions": [{"name": "a", "struck": {"part": "tail", "impulse_ns": 30}}]}, "part is one of head, torso"),
+    ({"conditions": [{"name": "a", "struck": {"impulse_ns": 3000}}]}, "at most 1000"),
+    ({"conditions": [{"name": "a", "struck": {"impulse_ns": 30, "from": "above"}}]}, "from is one of front, back"),
+    ({"conditions": [{"name": "a", "struck": {"part": "head"}}]}, "needs impulse_ns"),
+    ({"conditions": [{"name": "a", "move": "jab", "struck": {"impulse_ns": 30}}]}, "a struck character stands in guard"),
 ])
 def test_a_scenario_that_cannot_be_played_is_refused_with_its_reason(data, message):
     with pytest.raises(ScenarioError, match=message):
@@ -122,7 +127,7 @@ def test_a_scenario_that_cannot_be_played_is_refused_with_its_reason(data, messa
 
 
 def test_unknown_scenarios_and_conditions_are_refused_naming_what_there_is(tmp_path):
-    with pytest.raises(ScenarioError, match="no scenario named 'nope'; the shipped ones are body, combos, frame_data, from_recovery, hands, held_out, moving, sizes, stance, stance_moving"):
+    with pytest.raises(ScenarioError, match="no scenario named 'nope'; the shipped ones are body, combos, frame_data, from_recovery, hands, held_out, hits, moving, sizes, stance, stance_moving"):
         scenario_of(EvalArgs(policy=POLICY, scenario="nope"))
     with pytest.raises(ScenarioError, match="unknown condition\\(s\\) 'moonwalk'; the scenario's are: standing"):
         scenario_of(EvalArgs(policy=POLICY, scenario="moving", conditions=["moonwalk"]))

@@ -28,6 +28,7 @@ def test_every_shipped_policy_has_its_generated_row_and_section():
     assert "<!-- The shipped policies:start -->" in benchmarks
     assert f"<!-- {results.MOVES_SECTION}:start -->" in benchmarks, "run punch results: the six moves have no table"
     assert f"<!-- {results.COMBOS_SECTION}:start -->" in benchmarks, "run punch results: no combos and frame data"
+    assert f"<!-- {results.HITS_SECTION}:start -->" in benchmarks, "run punch results: no taking hits"
 
 
 def test_a_readme_without_its_markers_is_refused(tmp_path, monkeypatch):
@@ -63,6 +64,7 @@ def test_results_measure_a_recipes_policy_and_rewrite_the_docs(tmp_path, monkeyp
         Measurement("combos", {"placements": 2, "sigmas": [0.0], "conditions": ["1-2-3, southpaw"]}),
         Measurement("frame_data", {"placements": 2, "sigmas": [0.0], "conditions": ["1 jab"]}),
         Measurement("from_recovery", {"placements": 2, "sigmas": [0.0], "conditions": ["jab, then jab"]}),
+        Measurement("hits", {"placements": 2, "conditions": ["torso, front, 60 N s"]}),
     ))
     arguments = ["results", str(PROJECT_ROOT / "recipes" / "straight.toml"), "--out", str(tmp_path / "runs")]
     for _ in range(2):
@@ -84,6 +86,10 @@ def test_results_measure_a_recipes_policy_and_rewrite_the_docs(tmp_path, monkeyp
     assert text.count(f"## {results.COMBOS_SECTION}") == 1 and "| 1-2-3, southpaw | 0.00 | 2 |" in text
     assert "| 1 jab | 0.00 | 2 |" in text and "contact to back in guard (s, median)" in text
     assert "| jab, then jab | 0.00 | 2 |" in text
+    # The struck character, in its own section: both episodes back in guard, both staggered at 60 N s.
+    hits = text.split(f"<!-- {results.HITS_SECTION}:start -->")[1].split(f"<!-- {results.HITS_SECTION}:end -->")[0]
+    assert "| torso, front, 60 N s | 0.00 | 2 | 2 (100.0%) |" in hits and hits.rstrip().endswith("| 2 / 0 |"), hits
+    assert "torso, front, 60 N s" not in text.split(f"<!-- {results.COMBOS_SECTION}:start -->")[1].split(":end -->")[0]
     assert (tmp_path / "runs" / "straight" / "held_out" / "report.md").is_file()
     capsys.readouterr()
 

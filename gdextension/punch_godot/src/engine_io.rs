@@ -46,6 +46,17 @@ pub fn joint_axis_settings(joint_index: usize, axis: Axis) -> AxisSettings {
     }
 }
 
+/// Turns the motors of every actuated axis off (`enabled` false: the body hangs in its joints' limits, a knock-down)
+/// or back on.
+pub fn enable_motors(joint_rids: &[Rid; 5], enabled: bool) {
+    let mut server = PhysicsServer3D::singleton();
+    for (joint_index, rid) in joint_rids.iter().enumerate() {
+        for (_, dof) in joint_dofs(joint_index) {
+            server.generic_6dof_joint_set_flag(*rid, godot_axis(dof.axis), G6dofJointAxisFlag::ENABLE_MOTOR, enabled);
+        }
+    }
+}
+
 /// Sets each joint's motor target velocities (Godot's 6DOF convention, `JOINTS` order) on its actuated axes.
 pub fn drive_joints(joint_rids: &[Rid; 5], motor_velocities: &[Vec3; 5]) {
     let mut server = PhysicsServer3D::singleton();

@@ -19,25 +19,26 @@
 //! never moves it at once: a teleport switches it to static for the move (placed at once), then back.
 
 use glam::Vec3;
-use godot::builtin::{Rid, Transform3D, Vector2, Vector3};
+use godot::builtin::{Rid, StringName, Transform3D, Vector2, Vector3};
 use godot::classes::generic6_dof_joint_3d::{Flag, Param};
 use godot::classes::physics_server_3d::{BodyMode, BodyState as ServerBodyState};
 use godot::classes::{
-    AnimatableBody3D, Generic6DofJoint3D, INode3D, Node3D, PhysicsBody3D, PhysicsDirectBodyState3D, PhysicsServer3D,
-    RigidBody3D,
+    AnimatableBody3D, Generic6DofJoint3D, INode3D, Node, Node3D, PhysicsBody3D, PhysicsDirectBodyState3D,
+    PhysicsServer3D, RigidBody3D,
 };
 use godot::global::{godot_error, godot_warn};
 use godot::meta::ToGodot;
-use godot::obj::{Base, EngineEnum, Gd, Singleton, WithBaseField};
+use godot::obj::{Base, EngineEnum, Gd, InstanceId, Singleton, WithBaseField};
 use godot::prelude::{GodotClass, godot_api};
 use punch_core::contract::arm_size::{ARM_SCALE_RANGE, ArmLengths, ArmScale};
-use punch_core::contract::character::{Axis, Body, JOINTS};
+use punch_core::contract::character::{Axis, Body, BodyPart, JOINTS};
 use punch_core::contract::sensing::{BodyState, CharacterGeometry, MAX_BAG_CONTACTS};
 use punch_core::rig::transform::{SaidOnce, TransformError};
 
 use crate::arm_sizing::{SceneArms, rebuild_joints};
 use crate::convert::{rigid, rotation, vec3, vector3};
-use crate::engine_io::{character_geometry, drive_joints, joint_axis_settings};
+use crate::engine_io::{character_geometry, drive_joints, enable_motors, joint_axis_settings};
+use crate::punch_controller::PunchController;
 
 /// A move of the character's root larger than this in one physics frame (m) is a teleport (see `PunchCharacter`):
 /// 0.5 m is 60 m/s at 120 Hz, far above any walk or lunge.
@@ -46,6 +47,9 @@ pub const TELEPORT_DISTANCE_M: f32 = 0.5;
 pub const TELEPORT_TURN_RAD: f32 = std::f32::consts::FRAC_PI_4;
 /// `PunchCharacter`'s physics priority: it moves its pelvis after the nodes of default priority (0) have moved it.
 const FOLLOW_PRIORITY: i32 = 1000;
+/// The largest push `take_hit` accepts (N s): a knock-down of the whole body at about 4 times its mass in N s is
+/// far below it; more is a mistake in the game's units.
+const MAX_TAKEN_IMPULSE_NS: f32 = 1000.0;
 
 /// A physics-based upper-body character: a kinematic pelvis that follows the node's own transform, a welded
 /// head-neck-chest torso, and two arms with 10 actuated degrees of freedom (waist 2, shoulders 3 each, elbows
@@ -168,6 +172,11 @@ impl Rig {
     pub fn drive(&self, motor_velocities: &[Vec3; 5]) {
         drive_joints(&self.joint_rids, motor_velocities);
     }
+
+    /// Turns the joint motors off (`limp`: the body hangs in its joints' limits) or back on.
+    pub fn set_limp(&self, limp: bool) {
+        enable_motors(&self.joint_rids, !limp);
+    }
 }
 
 #[godot_api]
@@ -199,6 +208,45 @@ impl INode3D for PunchCharacter {
 
 #[godot_api]
 impl PunchCharacter {
+    /// Emitted when the character is struck: by another `PunchController`'s fist (`from` is that controller; the
+    /// physics pushed the body already) or by the game's `take_hit` (`from` is null). `part` is `&"head"`, `&"torso"`,
+    /// `&"left_arm"` or `&"right_arm"` (a fist strikes the torso and the arms: the head is welded to the chest and
+    /// has no collider yet), `impulse` the push (N s, global axes) and `point` where it struck (global). The
+    /// controller that drives the character has reacted already (`PunchController.react_to_hits`), so a handler
+    /// may punch back at once.
+    #[signal]
+    fn hit_taken(part: StringName, impulse: Vector3, point: Vector3, from: Option<Gd<Node>>);
+
+    /// Strikes the character as the game's own hit (a kick, a thrown chair, a bullet): `impulse` (N s, global axes;
+    /// at most 1,000) pushes `part` (`&"head"`, `&"torso"`, `&"left_arm"` or `&"right_arm"`; the head's push turns
+    /// the chest it is welded to) at `point` (global; the arm's body nearest it takes an arm's push), then
+    /// `hit_taken` is emitted and the controller that drives it reacts (`PunchController.react_to_hits`). For scale:
+    /// the addon's punches strike a sandbag with 5-10 N s. Returns false, with an error and nothing pushed, for an
+    /// unknown part, a vector that is not finite, a larger impulse, or a character that is not ready.
+    #[func(gd_self)]
+    fn take_hit(mut this: Gd<Self>, part: StringName, impulse: Vector3, point: Vector3) -> bool {
+        let pushed = this.bind_mut().push(&part.to_string(), impulse, point);
+        match pushed {
+            Ok(part) => {
+                Self::tell_struck(this, part, impulse, point, None);
+                true
+            }
+            Err(error) => {
+                godot_error!("PunchCharacter '{}': take_hit(): {error}; nothing was pushed", this.get_name());
+                false
+            }
+        }
+    }
+
+    /// The part (`&"torso"`, `&"left_arm"`, `&"right_arm"`) `body` is of this character; empty when it is not one of
+    /// its bodies.
+    #[func]
+    fn part_of(&self, body: Option<Gd<Node>>) -> StringName {
+        let index =
+            body.and_then(|body| self.rig.as_ref()?.bodies.iter().position(|b| b.instance_id() == body.instance_id()));
+        index.map_or(StringName::default(), |i| StringName::from(Body::ALL[i].part().name()))
+    }
+
     /// True when the character found all its bodies and joints and configured them.
     #[func]
     fn is_ready_to_punch(&self) -> bool {
@@ -310,6 +358,63 @@ impl PunchCharacter {
 
     pub fn rig(&self) -> Option<&Rig> {
         self.rig.as_ref()
+    }
+
+    /// The character `body` is a body of, and which.
+    fn owner_of(body: &Gd<Node3D>) -> Option<(Gd<Self>, Body)> {
+        if !body.is_instance_valid() {
+            return None; // freed by a `hit` handler
+        }
+        let character = body.get_parent()?.try_cast::<Self>().ok()?;
+        let index = character.bind().rig.as_ref()?.bodies.iter().position(|b| b.instance_id() == body.instance_id())?;
+        Some((character, Body::ALL[index]))
+    }
+
+    /// The part of a character `body` is, when it is a body of one.
+    pub fn part_of_body(body: &Gd<Node3D>) -> Option<BodyPart> {
+        Self::owner_of(body).map(|(_, body)| body.part())
+    }
+
+    /// Another controller's fist struck `body` with `impulse` at `point` (both global): when it is a body of a
+    /// character, the character is told (`hit_taken`) and its controller reacts.
+    pub fn struck_by_fist(body: Gd<Node3D>, impulse: Vector3, point: Vector3, from: InstanceId) {
+        if let Some((character, struck)) = Self::owner_of(&body) {
+            Self::tell_struck(character, struck.part(), impulse, point, Some(from));
+        }
+    }
+
+    /// The reaction first (so that a `hit_taken` handler may punch back), then the signal.
+    fn tell_struck(this: Gd<Self>, part: BodyPart, impulse: Vector3, point: Vector3, from: Option<InstanceId>) {
+        if !this.is_instance_valid() {
+            return;
+        }
+        PunchController::react_to_hit(&this, from, impulse.length());
+        if !this.is_instance_valid() {
+            return;
+        }
+        let from = from.and_then(|id| Gd::<Node>::try_from_instance_id(id).ok());
+        this.signals().hit_taken().emit(&StringName::from(part.name()), impulse, point, from.as_ref());
+    }
+
+    /// `take_hit`'s push: the part's body nearest `point` takes `impulse` there.
+    fn push(&mut self, part: &str, impulse: Vector3, point: Vector3) -> Result<BodyPart, String> {
+        let part = BodyPart::named(part).ok_or_else(|| {
+            let names: Vec<&str> = BodyPart::ALL.iter().map(|p| p.name()).collect();
+            format!("'{part}' is no part (the parts: {})", names.join(", "))
+        })?;
+        if !(vec3(impulse).is_finite() && vec3(point).is_finite()) {
+            return Err(format!("the impulse {impulse} and the point {point} must be finite"));
+        }
+        if impulse.length() > MAX_TAKEN_IMPULSE_NS {
+            return Err(format!("an impulse of {} N s is more than {MAX_TAKEN_IMPULSE_NS} N s", impulse.length()));
+        }
+        let rig = self.rig.as_ref().ok_or("the character is not ready")?;
+        let distance = |body: &Body| rig.bodies[body.index()].get_global_position().distance_to(point);
+        let nearest = part.bodies().iter().min_by(|a, b| distance(a).total_cmp(&distance(b))).ok_or("no body")?;
+        let mut rigid_body = rig.rigid[nearest.index()].clone().ok_or("the part's body is not a RigidBody3D")?;
+        let offset = point - rigid_body.get_global_position();
+        rigid_body.apply_impulse_ex(impulse).position(offset).done();
+        Ok(part)
     }
 
     /// Where the character last stood with a usable transform (its root without the scale; none before it was set

@@ -82,6 +82,17 @@ struct Prepared {
     character: Gd<PunchCharacter>,
 }
 
+/// How a controller reacted to its character being struck.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Reaction {
+    /// Back to guard (and a punch ended, unless hyper-armour kept it).
+    Flinched,
+    /// As `Flinched`, from a hit of at least `stagger_impulse_ns`.
+    Staggered,
+    /// Limp, the punch ended: at least `knockdown_impulse_ns`.
+    KnockedDown,
+}
+
 /// The signals of this class, as the frame pass and the class's own functions emit them.
 type Signals<'c> = <PunchController as WithSignals>::SignalCollection<'c, PunchController>;
 
@@ -191,6 +202,30 @@ pub struct PunchController {
     /// Punch as soon as the scene starts.
     #[export]
     autostart: bool,
+    /// When its character is struck (another controller's fist, or the game's `PunchCharacter.take_hit`), the
+    /// punch that runs gives way (`punch_finished` says `"struck"`; what was queued is dropped) and the body,
+    /// pushed by the hit, is driven back to its guard (`recovered` when there). Off: the hit only pushes the
+    /// bodies, and the joints hold where it left them until `recover()` or the next punch.
+    #[export_group(name = "Taking hits")]
+    #[export]
+    #[init(val = true)]
+    react_to_hits: bool,
+    /// A punch that runs is not ended by a hit (the body is still pushed; the punch plays on, from wherever the
+    /// hit left the arms). Fighting games call it hyper-armour. A hit between punches still sends the body back
+    /// to guard, and a knock-down ends the punch all the same.
+    #[export]
+    hyper_armour: bool,
+    /// A hit at least this hard (N s) emits `staggered` as the body is driven back to guard. The addon's punches
+    /// strike a sandbag with 5-10 N s; a real Olympic straight carries about 27.
+    #[export(range = (0.0, 1000.0, 1.0, or_greater))]
+    #[init(val = 60.0)]
+    stagger_impulse_ns: f32,
+    /// A hit at least this hard (N s) knocks the character down: the punch ends, the joint motors go off (the body
+    /// hangs in its joints' limits over the game's pelvis) and `knocked_down` is emitted; it stays down until
+    /// `recover()` or the next punch. 320 N s is 4 times an 80 kg body's mass, as godot-active-ragdoll knocks down.
+    #[export(range = (0.0, 1000.0, 1.0, or_greater))]
+    #[init(val = 320.0)]
+    knockdown_impulse_ns: f32,
 
     /// Keep each punch's per-frame features, observations and actions for `last_punch_record` (set by analysis
     /// tools and tests through `PunchProbe`, debug builds only).
@@ -208,6 +243,8 @@ pub struct PunchController {
     leaving_tree: bool,
     /// The controller is being freed (its events cannot wait for a frame).
     being_freed: bool,
+    /// Its character was knocked down and hangs limp (motors off) until the next recovery or punch.
+    down: bool,
     base: Base<Node>,
 }
 
@@ -221,12 +258,16 @@ impl INode for PunchController {
 
     fn on_notification(&mut self, what: NodeNotification) {
         match what {
-            NodeNotification::ENTER_TREE => self.leaving_tree = false,
+            NodeNotification::ENTER_TREE => {
+                self.leaving_tree = false;
+                PunchControllerRegistry::set_in_tree(self.base().instance_id(), true);
+            }
             // Leaving the tree: no frame will drive it, so the punch ends now. Its events wait for the next
             // frame pass, which emits them with no borrow held (a handler may free this controller), unless
             // the controller is being freed: then they go out now, as no frame will come.
             NodeNotification::EXIT_TREE => {
                 self.leaving_tree = true;
+                PunchControllerRegistry::set_in_tree(self.base().instance_id(), false);
                 self.lifecycle.cancel();
                 self.act_now();
                 if self.being_freed {
@@ -284,8 +325,10 @@ impl PunchController {
     /// m/s), `hits`,
     /// `strongest_hit_ns` (the largest fist impulse of one frame), `ended` ("completed"; "interrupted":
     /// cancelled, ended by `recover()`, taken over by another controller, or the controller left the scene tree before
-    /// its last frame; "chained": ended at its cancel window for the next punch of a combo; "error": it stopped on
-    /// an error, given in `error` and logged), and `interrupted` (true unless completed). Every `punch_started` is
+    /// its last frame; "chained": ended at its cancel window for the next punch of a combo; "struck": its character
+    /// was hit meanwhile (`react_to_hits`); "error": it stopped on an error, given in `error` and logged),
+    /// `interrupted` (true unless completed), and `outcome`: "landed" (the punching fist struck something first
+    /// that is not an arm), "blocked" (it struck a character's arm first) or "whiffed" (it struck nothing). Every `punch_started` is
     /// followed by exactly one `punch_finished`, so code waiting for it never waits forever.
     #[signal]
     fn punch_finished(metrics: VarDictionary);
@@ -294,6 +337,16 @@ impl PunchController {
     /// `auto_recover`), or when the recovery's time is up.
     #[signal]
     fn recovered();
+
+    /// Emitted when its character is struck at least `stagger_impulse_ns` hard (and less than
+    /// `knockdown_impulse_ns`), after the reaction began: the hit's `impulse_ns` (N s).
+    #[signal]
+    fn staggered(impulse_ns: f32);
+
+    /// Emitted when its character is struck at least `knockdown_impulse_ns` hard: the punch has ended and the body
+    /// hangs limp; `recover()` (or the next punch) brings it back to guard. `impulse_ns`: the hit's (N s).
+    #[signal]
+    fn knocked_down(impulse_ns: f32);
 
     /// Emitted after the last `punch_finished` of a string of punches (a punch and those that followed it from
     /// the queue; a punch on its own is a string of one): how many of them `landed` (the punching fist struck
@@ -411,6 +464,12 @@ impl PunchController {
     #[func]
     fn queued_moves(&self) -> PackedStringArray {
         self.lifecycle.queued().map(GString::from).collect()
+    }
+
+    /// True from `knocked_down` until `recover()` or the next punch: the body hangs limp.
+    #[func]
+    fn is_knocked_down(&self) -> bool {
+        self.down
     }
 
     /// True while the character returns to its guard pose.
@@ -613,6 +672,11 @@ impl PunchController {
 
     /// Puts this controller on the frame pass's list, driving `character`.
     fn drive_from_now(&mut self, character: Gd<PunchCharacter>) {
+        // Motors on: a knock-down (by this controller or another) may have left them off.
+        self.down = false;
+        if let Some(rig) = character.bind().rig() {
+            rig.set_limp(false);
+        }
         self.driven = Some(character);
         self.sensed = false;
         let tree = self.base().get_tree();
@@ -645,6 +709,66 @@ impl PunchController {
             other.act_now();
         }
         Self::emit_events(&mut other);
+    }
+
+    /// `character` was struck `impulse_ns` hard (`PunchCharacter`'s `hit_taken`, which `from` caused: another
+    /// controller, or nothing for the game's `take_hit`): the controller in the tree that drives it (or has it as its
+    /// `character`) reacts, as `react_to_hits`, `hyper_armour` and the thresholds say, and says what that ended.
+    pub fn react_to_hit(character: &Gd<PunchCharacter>, from: Option<InstanceId>, impulse_ns: f32) {
+        let mine = |controller: &Gd<Self>| {
+            let controller = controller.bind();
+            let driven = controller.lifecycle.is_active() && controller.driven.as_ref() == Some(character);
+            (driven, controller.character.as_ref() == Some(character))
+        };
+        let controllers: Vec<Gd<Self>> = PunchControllerRegistry::in_tree()
+            .into_iter()
+            .filter(|id| Some(*id) != from)
+            .filter_map(|id| Gd::<Self>::try_from_instance_id(id).ok())
+            .collect();
+        let chosen = controllers.iter().find(|c| mine(c).0).or_else(|| controllers.iter().find(|c| mine(c).1));
+        let Some(mut controller) = chosen.cloned() else { return };
+        let reaction = controller.bind_mut().react(character, impulse_ns);
+        Self::emit_events(&mut controller);
+        if !controller.is_instance_valid() {
+            return;
+        }
+        match reaction {
+            // Unless a handler of the punch's end already brought it back (a punch, `recover()`).
+            Some(Reaction::KnockedDown) if controller.bind().down => {
+                controller.signals().knocked_down().emit(impulse_ns)
+            }
+            Some(Reaction::Staggered) => controller.signals().staggered().emit(impulse_ns),
+            _ => {}
+        }
+    }
+
+    /// Ends or keeps the punch and starts the way back to guard, or lets the body go limp; None when it does not react.
+    fn react(&mut self, character: &Gd<PunchCharacter>, impulse_ns: f32) -> Option<Reaction> {
+        if !self.react_to_hits || !self.base().is_inside_tree() || self.leaving_tree {
+            return None;
+        }
+        if self.down {
+            return None; // down stays down, however it is struck, until the game brings it back
+        }
+        let geometry = geometry_of(character).ok()?;
+        let guard = self.guard_targets();
+        self.lifecycle.set_guard(guard);
+        // A hit given as 60 N s arrives as 59.9999 after the engine's float math: it still reaches a 60 N s threshold.
+        let reaches = |threshold: f32| impulse_ns >= threshold * (1.0 - 1e-4);
+        if reaches(self.knockdown_impulse_ns) {
+            self.lifecycle.struck(geometry, false);
+            self.lifecycle.cancel(); // no way back to guard: it hangs until the game says
+            if let Some(rig) = character.bind().rig() {
+                rig.set_limp(true);
+            }
+            self.down = true;
+            return Some(Reaction::KnockedDown);
+        }
+        self.lifecycle.struck(geometry, self.hyper_armour);
+        if !self.lifecycle.is_punching() {
+            self.drive_from_now(character.clone()); // the way back to guard
+        }
+        Some(if reaches(self.stagger_impulse_ns) { Reaction::Staggered } else { Reaction::Flinched })
     }
 
     /// The policy resource as a checked punching policy (an empty error: refused and reported before).
@@ -809,7 +933,8 @@ impl PunchController {
             return;
         }
         while let Some(event) = self.lifecycle.next_event() {
-            emit(self.signals(), event);
+            let from = self.base().instance_id();
+            emit(self.signals(), event, from);
         }
     }
 
@@ -842,13 +967,14 @@ impl PunchController {
                 return;
             }
             let Some(event) = this.bind_mut().lifecycle.next_event() else { return };
-            emit(this.signals(), event);
+            let from = this.instance_id();
+            emit(this.signals(), event, from);
         }
     }
 }
 
-/// Emits one event as its signal.
-fn emit(mut signals: Signals<'_>, event: Event) {
+/// Emits one event as its signal; `from` is the controller whose event it is.
+fn emit(mut signals: Signals<'_>, event: Event, from: InstanceId) {
     match event {
         Event::Started { hand, punch_move, combo_index } => {
             signals.punch_started().emit(&move_name_of(punch_move), &StringName::from(hand.name()), combo_index as i64)
@@ -864,6 +990,10 @@ fn emit(mut signals: Signals<'_>, event: Event) {
                 vector3(hit.impulse),
                 &StringName::from(hit.hand.name()),
             );
+            // A body of another character: it is told, and its controller reacts.
+            if let Some(body) = body {
+                PunchCharacter::struck_by_fist(body, vector3(hit.impulse), vector3(hit.position), from);
+            }
         }
         Event::Finished(summary, ending) => signals.punch_finished().emit(&finish_metrics(&summary, &ending)),
         Event::Recovered => signals.recovered().emit(),
@@ -932,6 +1062,17 @@ fn move_name_of(punch_move: Option<Move>) -> StringName {
     StringName::from(punch_move.map_or("", Move::name))
 }
 
+/// What became of a punch whose fist first struck `first_struck`: `"whiffed"` (nothing), `"blocked"` (an arm of a
+/// character) or `"landed"` (anything else).
+fn outcome(first_struck: Option<u64>) -> &'static str {
+    let Some(collider) = first_struck else { return "whiffed" };
+    let body = Gd::<Node3D>::try_from_instance_id(InstanceId::from_i64(collider as i64)).ok();
+    match body.and_then(|body| PunchCharacter::part_of_body(&body)) {
+        Some(part) if part.is_arm() => "blocked",
+        _ => "landed",
+    }
+}
+
 fn finish_metrics(summary: &PunchSummary, ending: &Ending) -> VarDictionary {
     let mut metrics = VarDictionary::new();
     metrics.set("move", &move_name_of(summary.punch_move));
@@ -939,10 +1080,12 @@ fn finish_metrics(summary: &PunchSummary, ending: &Ending) -> VarDictionary {
     let (ended, error) = match ending {
         Ending::Completed => ("completed", ""),
         Ending::Interrupted => ("interrupted", ""),
+        Ending::Struck => ("struck", ""),
         Ending::Chained => ("chained", ""),
         Ending::Error(error) => ("error", error.as_str()),
     };
     metrics.set("ended", ended);
+    metrics.set("outcome", outcome(summary.first_struck));
     if !error.is_empty() {
         metrics.set("error", error);
     }

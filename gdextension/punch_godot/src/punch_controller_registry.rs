@@ -22,6 +22,8 @@ pub struct PunchControllerRegistry {
     active: Vec<InstanceId>,
     /// Which controller drives each character now: (character, controller).
     drivers: Vec<(InstanceId, InstanceId)>,
+    /// The controllers in a scene tree, busy or not: whose character a hit may strike.
+    in_tree: Vec<InstanceId>,
     /// The scene tree whose `physics_frame` signal runs the frame pass.
     connected_tree: Option<InstanceId>,
     /// Controller work since the last `take_frame_cost_usec`: (microseconds, frames).
@@ -70,6 +72,21 @@ impl PunchControllerRegistry {
             tree.connect(&StringName::from("physics_frame"), &tick);
             hub.connected_tree = Some(tree.instance_id());
         }
+    }
+
+    /// A controller entered (`inside` true) or left a scene tree.
+    pub fn set_in_tree(controller: InstanceId, inside: bool) {
+        let mut hub = Self::singleton();
+        let mut hub = hub.bind_mut();
+        hub.in_tree.retain(|id| *id != controller);
+        if inside {
+            hub.in_tree.push(controller);
+        }
+    }
+
+    /// The controllers in a scene tree now.
+    pub fn in_tree() -> Vec<InstanceId> {
+        Self::singleton().bind().in_tree.clone()
     }
 
     /// Keeps the active controllers for which `keep` is true (the frame pass drops those that are done).

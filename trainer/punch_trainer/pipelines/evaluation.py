@@ -237,6 +237,10 @@ def episodes_of(scenario: Scenario, still: list[EpisodeConditions], swinging: li
                     "reset_target": condition.reset_target}
                 if condition.combo:
                     episode["combo"] = list(condition.combo)
+                if condition.struck is not None:
+                    struck = condition.struck
+                    episode["struck"] = {"part": struck.part, "impulse_ns": struck.impulse_ns,
+                                         "direction": struck.direction(np.random.default_rng(episode["seed"]))}
                 if condition.cancel_delay_s != (0.0, 0.0):
                     low, high = condition.cancel_delay_s
                     episode["cancel_delay_s"] = round(float(np.random.default_rng(episode["seed"]).uniform(low, high)), 4)
@@ -275,6 +279,9 @@ def play_policy(policy: Path, episodes: list[dict[str, Any]], groups: list[Group
                 if index == 0:
                     result["features"] = features
                     result["actions"] = np.array(recorded(directory, meta, "actions", group.start, group.count))
+            elif group.condition.struck is not None:
+                # Struck: every body back within BACK_IN_GUARD_DEG of its guard, and `recovered` said so.
+                result["success"] = np.array([row[9]["back_s"] >= 0 and row[9]["recovered_s"] >= 0 for row in rows], dtype=bool)
             else:
                 # Every punch struck the target (a combo's each once; one punch's at least once).
                 needed = max(1, len(group.condition.combo))
@@ -344,6 +351,8 @@ class Row:
     """the longest time from the command to the last punch's contact, over the successes (s)"""
     recovery_s: float | None = None
     """`until_recovered`: the median time from the last punch's contact to `recovered` (s)"""
+    struck: dict[str, Any] | None = None
+    """a struck character's (`struck_figures`): how far its bodies turned and its head moved, when it was back"""
 
     def to_json(self) -> dict[str, Any]:
         return {**asdict(self), "success_interval": list(self.success_interval)}
@@ -369,7 +378,23 @@ def make_row(group: Group, result: dict[str, Any], placements: int, best: np.nda
                arm_lengths_m=[round(float(v), 4) for v in lengths],
                missed_placements=sorted({int(p) for p, ok in zip(placement, won, strict=True) if not ok}),
                return_fraction_of_search_best=fraction, impact_spread_m=result.get("impact_spread_m"),
-               **timing_figures(group, rows, won, float(result["physics_hz"])))
+               **timing_figures(group, rows, won, float(result["physics_hz"])),
+               struck=struck_figures(rows) if group.condition.struck is not None else None)
+
+
+def struck_figures(rows: list[list[Any]]) -> dict[str, Any]:
+    """A struck character's figures over its episodes (evaluate.gd's per-episode `struck` entry): the largest turn of
+    any body from its guard (degrees) and the head's largest move (m), medians; the time from the hit until every body
+    was back within BACK_IN_GUARD_DEG of its guard, median and longest, and until `recovered`, median (s; a body that
+    never left counts 0); how many episodes staggered and were knocked down."""
+    struck = [row[9] for row in rows]
+    back = [max(0.0, s["back_s"]) for s in struck if s["back_s"] >= 0]
+    recovered = [s["recovered_s"] for s in struck if s["recovered_s"] >= 0]
+    return {"peak_turn_deg": round(float(np.median([s["peak_deg"] for s in struck])), 1),
+            "head_moved_m": round(float(np.median([s["head_moved_m"] for s in struck])), 3),
+            "back_in_guard_s": [round(float(np.median(back)), 3), round(max(back), 3)] if back else None,
+            "recovered_s": round(float(np.median(recovered)), 3) if recovered else None,
+            "staggered": sum(1 for s in struck if s["staggered"]), "knocked_down": sum(1 for s in struck if s["knocked_down"])}
 
 
 def timing_figures(group: Group, rows: list[list[Any]], won: np.ndarray, physics_hz: float) -> dict[str, Any]:
@@ -485,6 +510,9 @@ def markdown_rows(scenario: Scenario, rows: list[dict[str, Any]]) -> list[str]:
     header += ["out of reach at the start (successes in reach)"] if reach else []
     header += ["contact after the command, each punch (s, median)", "last contact, longest (s)"] if timed else []
     header += ["contact to back in guard (s, median)"] if recovering else []
+    struck = any(c.struck for c in scenario.conditions)
+    header += ["largest turn of a body (°, median)", "head moved (cm, median)", "back within 10° of guard (s, median / longest)",
+               "recovered (s, median)", "staggered / knocked down"] if struck else []
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for row in rows:
         low, high = row["success_interval"]
@@ -504,6 +532,12 @@ def markdown_rows(scenario: Scenario, rows: list[dict[str, Any]]) -> list[str]:
             cells += [" / ".join(_seconds(v) for v in row.get("contact_s") or []) or "-", _seconds(row.get("last_contact_max_s"))]
         if recovering:
             cells.append(f"{row['recovery_s']:.2f}" if row.get("recovery_s") is not None else "-")
+        if struck:
+            figures = row.get("struck") or {}
+            back = figures.get("back_in_guard_s")
+            cells += [f"{figures['peak_turn_deg']:.1f}", f"{100 * figures['head_moved_m']:.1f}",
+                      f"{back[0]:.2f} / {back[1]:.2f}" if back else "-", _seconds(figures.get("recovered_s")),
+                      f"{figures['staggered']} / {figures['knocked_down']}"] if figures else ["-"] * 5
         lines.append("| " + " | ".join(cells) + " |")
     return lines
 
@@ -525,6 +559,9 @@ def write_report(out: Path, args: EvalArgs, scenario: Scenario, report: dict[str
 
     measured = ("a positive return (the policy's reward) and the right fist touched the target"
                 if scenario.success == "return" else "the controller's `hit` signal on the target during the punch")
+    if any(c.struck for c in scenario.conditions):
+        measured += (" (a struck character's, which throws no punch: every body back within 10° of its guard, and "
+                     "`recovered`)")
     lines = [f"# punch eval: {args.policy}", "",
              f"Scenario `{scenario.name}` ({scenario.source}): {scenario.description}.", "",
              f"{scenario.placements} held-out placements drawn from the {scenario.volume}'s reach volume"

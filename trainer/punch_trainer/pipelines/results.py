@@ -86,10 +86,13 @@ MOVESET_MEASUREMENTS = (
     Measurement("combos"),
     Measurement("frame_data"),
     Measurement("from_recovery"),
+    # The standing character struck by the game: its reaction and its way back to guard (HITS_SECTION).
+    Measurement(HITS_SCENARIO := "hits"),
 )
 MOVESET_KEY = "moveset"
 """`measure`'s key (and output folder) of the default moveset's measurements"""
 COMBOS_SECTION = "Combos and frame data"
+HITS_SECTION = "Taking hits"
 
 SIX_MOVES = ("jab", "cross", "lead_hook", "rear_hook", "lead_uppercut", "rear_uppercut")
 LEAD_MOVES = ("jab", "lead_hook", "lead_uppercut")
@@ -348,9 +351,15 @@ def write_results(recipes: list[Recipe], reports: dict[str, list[dict[str, Any]]
                 "guard (`guard_first`), each move alone for its frame data, and a second punch started at a random moment of the "
                 "first's recovery from wherever the arms are (`from_recovery`; docs/combos.md). The `--policy` only gives the "
                 "placements' volume; every move plays its own policy.", ""]
+        hits = ["The addon's character (`punch_character.tscn`) standing in guard, struck by the game "
+                "(`PunchCharacter.take_hit`) and reacting with its controller's defaults (`react_to_hits`, "
+                "`stagger_impulse_ns` 60, `knockdown_impulse_ns` 320; docs/hits.md). No punch is thrown; the `--policy` "
+                "only places a sandbag nobody punches.", ""]
         for run in reports[MOVESET_KEY]:
-            body += [f"### `{run['command']}`", "", *benchmarks_body(_repository_paths(run["markdown"]), depth=1), ""]
+            part = hits if run["measurement"].scenario == HITS_SCENARIO else body
+            part += [f"### `{run['command']}`", "", *benchmarks_body(_repository_paths(run["markdown"]), depth=1), ""]
         write_section(COMBOS_SECTION, command, "\n".join(body).strip(), oldest([MOVESET_KEY]))
+        write_section(HITS_SECTION, command, "\n".join(hits).strip(), oldest([MOVESET_KEY]))
     for recipe in recipes:
         body = []
         for run in reports[recipe.name]:

@@ -16,6 +16,8 @@ from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Any, Literal
 
+import numpy as np
+
 from punch_trainer.errors import PunchError
 from punch_trainer.sim.conditions import ARM_SCALE_RANGE, SCENE_ARM_LENGTHS_M, SEGMENT_SCALE_RANGE, arm_scale
 
@@ -47,6 +49,30 @@ class Motion:
 
     def to_wire(self) -> dict[str, Any]:
         return {**asdict(self), "velocity_mps": list(self.velocity_mps)}
+
+
+STRUCK_PARTS = ("head", "torso", "left_arm", "right_arm")
+STRUCK_FROM = {"front": (0.0, 0.0, -1.0), "back": (0.0, 0.0, 1.0), "left": (-1.0, 0.0, 0.0), "right": (1.0, 0.0, 0.0)}
+"""where a hit comes from, and the way it pushes the character (its own frame: +Z ahead, +X its left)"""
+
+
+@dataclass(frozen=True)
+class Struck:
+    """A hit the game lands on the standing character (`PunchCharacter.take_hit`) instead of a punch: the episode
+    measures the body's reaction and its way back to guard (`recovered`; after a knock-down, `recover()` 1 s on)."""
+
+    impulse_ns: float
+    part: str = "torso"
+    """one of STRUCK_PARTS"""
+    from_side: str = "front"
+    """one of STRUCK_FROM: the push's direction, turned about the vertical by up to `spread_deg` either way per episode"""
+    spread_deg: float = 15.0
+
+    def direction(self, rng: np.random.Generator) -> list[float]:
+        """The push's unit direction in the character's frame, turned by a random yaw within the spread."""
+        x, y, z = STRUCK_FROM[self.from_side]
+        yaw = np.radians(rng.uniform(-self.spread_deg, self.spread_deg))
+        return [round(float(x * np.cos(yaw) + z * np.sin(yaw)), 6), y, round(float(-x * np.sin(yaw) + z * np.cos(yaw)), 6)]
 
 
 @dataclass(frozen=True)
@@ -83,6 +109,8 @@ class Condition:
     reset_target: bool = False
     """each later punch of a combo starts with the bag hanging as placed again, not where the punches before swung
     it (what a punch from another's recovery can reach, whatever the target did)"""
+    struck: Struck | None = None
+    """a hit on the standing character instead of a punch (its rows: how far the body turned, when it was back)"""
     cancel_delay_s: tuple[float, float] = (0.0, 0.0)
     """a combo's cancel windows: each episode draws one delay (s, uniform in this band, from its seed) for every
     move of the moveset, so the next punch starts at a random moment after the one before landed"""
@@ -116,7 +144,7 @@ class Scenario:
 
 CONDITION_KEYS = ("name", "sigmas", "noise_decisions", "noise_seed", "start", "arms", "lead_s", "body", "target", "move",
                   "stance", "stance_pose", "combo", "until_recovered", "guard_first", "reset_target",
-                  "cancel_delay_s")
+                  "cancel_delay_s", "struck")
 COMBO_MOVES = ("jab", "cross", "lead_hook", "rear_hook", "lead_uppercut", "rear_uppercut")
 SCENARIO_KEYS = ("name", "description", "success", "placements", "noisy_punches", "search_iterations", "naturalness",
                  "conditions")
@@ -285,6 +313,9 @@ def _condition(index: int, table: Any, defaults: Mapping[str, Any], scenario_sig
     reset_target = merged.get("reset_target", False)
     if not isinstance(reset_target, bool) or (reset_target and not combo):
         raise ScenarioError(f"{where}: reset_target is true or false, and true only with a combo, not {reset_target!r}")
+    struck = _struck(f"{where}: struck", merged["struck"]) if "struck" in merged else None
+    if struck is not None and (combo or move or start != "guard" or body is not None or target is not None):
+        raise ScenarioError(f"{where}: a struck character stands in guard: no move, combo, start, body or target")
     return Condition(
         name=name, sigmas=_sigmas(f"{where}: sigmas", merged.get("sigmas", "all"), scenario_sigmas),
         noise_seed=int(_number(f"{where}: noise_seed", noise_seed, 0, 2**32 - 1, whole=True)),
@@ -293,7 +324,23 @@ def _condition(index: int, table: Any, defaults: Mapping[str, Any], scenario_sig
         lead_s=float(_number(f"{where}: lead_s", merged.get("lead_s", 0.0), 0.0, 10.0)),
         body=body, target=target, swinging=swinging, move=move, stance=stance, stance_pose=stance_pose,
         combo=tuple(combo), until_recovered=until_recovered, guard_first=guard_first,
-        reset_target=reset_target, cancel_delay_s=cancel_delay_s)
+        reset_target=reset_target, cancel_delay_s=cancel_delay_s, struck=struck)
+
+
+def _struck(where: str, table: Any) -> Struck:
+    """A `struck = { impulse_ns = 30, part = "head", from = "right", spread_deg = 15 }` table, checked."""
+    if not isinstance(table, Mapping):
+        raise ScenarioError(f"{where}: a table {{ impulse_ns = ..., part = ..., from = ... }}")
+    _unknown(where, table, ("impulse_ns", "part", "from", "spread_deg"))
+    if "impulse_ns" not in table:
+        raise ScenarioError(f"{where}: needs impulse_ns")
+    part, side = table.get("part", "torso"), table.get("from", "front")
+    if part not in STRUCK_PARTS:
+        raise ScenarioError(f"{where}: part is one of {', '.join(STRUCK_PARTS)}, not {part!r}")
+    if side not in STRUCK_FROM:
+        raise ScenarioError(f"{where}: from is one of {', '.join(STRUCK_FROM)}, not {side!r}")
+    return Struck(impulse_ns=float(_number(f"{where}: impulse_ns", table["impulse_ns"], 0.0, 1000.0)), part=part, from_side=side,
+                  spread_deg=float(_number(f"{where}: spread_deg", table.get("spread_deg", 15.0), 0.0, 90.0)))
 
 
 def _delay_band(where: str, value: Any) -> tuple[float, float]:
@@ -346,8 +393,8 @@ def build_scenario(data: Mapping[str, Any], source: str) -> Scenario:
     if not isinstance(tables, list) or not tables:
         raise ScenarioError(f"{source}: no [[conditions]]")
     conditions = [_condition(i, table, defaults, scenario_sigmas, seed) for i, table in enumerate(tables)]
-    if success == "return" and any(c.combo for c in conditions):
-        raise ScenarioError(f"{source}: a combo's success is \"hit\" (a reward scores one punch)")
+    if success == "return" and any(c.combo or c.struck for c in conditions):
+        raise ScenarioError(f"{source}: a combo's or a struck character's success is \"hit\" (a reward scores one punch)")
     rows = [(c.name, sigma) for c in conditions for sigma in c.sigmas]
     doubled = sorted({row for row in rows if rows.count(row) > 1})
     if doubled:

@@ -57,6 +57,59 @@ impl Body {
     pub const fn index(self) -> usize {
         self as usize
     }
+
+    /// The part of the body a hit on this body strikes, as `PunchCharacter.hit_taken` names it: the pelvis and
+    /// the chest are the torso (the head is welded to the chest and has no collider of its own).
+    pub const fn part(self) -> BodyPart {
+        match self {
+            Body::Pelvis | Body::Torso => BodyPart::Torso,
+            Body::UpperArmR | Body::ForearmR => BodyPart::RightArm,
+            Body::UpperArmL | Body::ForearmL => BodyPart::LeftArm,
+        }
+    }
+}
+
+/// A part of the body a hit strikes (`PunchCharacter.take_hit`, `hit_taken`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BodyPart {
+    Head,
+    Torso,
+    LeftArm,
+    RightArm,
+}
+
+impl BodyPart {
+    pub const ALL: [BodyPart; 4] = [BodyPart::Head, BodyPart::Torso, BodyPart::LeftArm, BodyPart::RightArm];
+
+    /// Its name in signals and calls.
+    pub const fn name(self) -> &'static str {
+        match self {
+            BodyPart::Head => "head",
+            BodyPart::Torso => "torso",
+            BodyPart::LeftArm => "left_arm",
+            BodyPart::RightArm => "right_arm",
+        }
+    }
+
+    /// The part named `name`, if it is one.
+    pub fn named(name: &str) -> Option<BodyPart> {
+        BodyPart::ALL.into_iter().find(|part| part.name() == name)
+    }
+
+    /// The bodies a hit on this part may push (the one nearest the hit takes it): the head's is the chest it is
+    /// welded to.
+    pub const fn bodies(self) -> &'static [Body] {
+        match self {
+            BodyPart::Head | BodyPart::Torso => &[Body::Torso],
+            BodyPart::LeftArm => &[Body::UpperArmL, Body::ForearmL],
+            BodyPart::RightArm => &[Body::UpperArmR, Body::ForearmR],
+        }
+    }
+
+    /// An arm: a punch whose fist struck one first was blocked.
+    pub const fn is_arm(self) -> bool {
+        matches!(self, BodyPart::LeftArm | BodyPart::RightArm)
+    }
 }
 
 /// A joint axis in the joint frame.
@@ -317,6 +370,23 @@ pub fn dof_angles(joint_rotations: &[Quat; 5]) -> [f32; DOF_COUNT] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_body_is_a_part_whose_bodies_hold_it_and_every_part_is_named_once() {
+        for body in Body::ALL.into_iter().filter(|b| *b != Body::Pelvis) {
+            assert!(body.part().bodies().contains(&body), "{body:?}");
+        }
+        for part in BodyPart::ALL {
+            assert_eq!(BodyPart::named(part.name()), Some(part));
+            assert_eq!(
+                part.is_arm(),
+                part.bodies().iter().all(|b| b.node_name().to_lowercase().contains("arm")),
+                "{part:?}"
+            );
+        }
+        assert_eq!(BodyPart::named("tail"), None);
+        assert_eq!(Body::Pelvis.part(), BodyPart::Torso);
+    }
 
     #[test]
     fn zero_action_holds_the_guard_pose() {

@@ -58,6 +58,8 @@ pub enum Ending {
     Interrupted,
     /// It was ended at its cancel window, for the punch queued after it.
     Chained,
+    /// The character was struck while it punched (`struck`): the punch gave way to the hit.
+    Struck,
     /// It stopped on an error (the message says which).
     Error(String),
 }
@@ -310,10 +312,28 @@ impl<P: Clone> Lifecycle<P> {
     /// Drives the character back to its guard pose (ending a punch that is running); `Recovered` comes
     /// when it is there.
     pub fn recover(&mut self, geometry: CharacterGeometry) {
+        self.back_to_guard(Recovery::new(geometry, self.guard), Ending::Interrupted);
+    }
+
+    /// The character was struck: a running punch ends (`Ending::Struck`; what was queued is dropped) unless it has
+    /// `armoured` (a designer's hyper-armour: it plays on, and nothing else changes), and the body, given way to the
+    /// hit, is driven back to its guard (`Recovered` when there), from wherever the hit left it. Returns whether a
+    /// punch was ended.
+    pub fn struck(&mut self, geometry: CharacterGeometry, armoured: bool) -> bool {
+        if self.is_punching() && armoured {
+            return false;
+        }
+        let was_punching = self.is_punching();
+        self.back_to_guard(Recovery::new(geometry, self.guard).after_hit(), Ending::Struck);
+        was_punching
+    }
+
+    /// Ends what runs (a punch with `ending`) and drives the character back to its guard with `recovery`.
+    fn back_to_guard(&mut self, recovery: Recovery, ending: Ending) {
         self.queued.clear();
-        self.interrupt();
+        self.end_punch(ending);
         self.end_string();
-        self.phase = Phase::Recovering(Box::new(Recovery::new(geometry, self.guard)), [Vec3::ZERO; 5]);
+        self.phase = Phase::Recovering(Box::new(recovery), [Vec3::ZERO; 5]);
         self.hold_next = false;
     }
 
@@ -631,6 +651,33 @@ mod tests {
     }
 
     #[test]
+    fn a_struck_punch_gives_way_and_returns_to_guard_unless_it_has_armour() {
+        let (mut lifecycle, mut world) = (Lifecycle::default(), FakeWorld::new(1));
+        lifecycle.start(start(1, false), 1, CALM);
+        lifecycle.enqueue(["2".to_string()]);
+        frame(&mut lifecycle, &mut world, CALM, forward);
+        assert!(!lifecycle.struck(rest_geometry(), true), "hyper-armour: the punch plays on");
+        assert!(lifecycle.is_punching() && lifecycle.queued().count() == 1);
+        assert!(lifecycle.struck(rest_geometry(), false));
+        assert!(!lifecycle.is_punching() && lifecycle.is_recovering() && lifecycle.queued().count() == 0);
+        let heard = events(&mut lifecycle);
+        assert!(
+            matches!(
+                heard[..],
+                [Event::Started { .. }, Event::Finished(_, Ending::Struck), Event::ComboFinished { thrown: 1, .. }]
+            ),
+            "{heard:?}"
+        );
+        // Struck standing: no punch to end, back to guard all the same.
+        lifecycle.cancel();
+        assert!(!lifecycle.struck(rest_geometry(), false) && lifecycle.is_recovering());
+        for _ in 0..200 {
+            frame(&mut lifecycle, &mut world, CALM, forward);
+        }
+        assert_eq!(events(&mut lifecycle), vec![Event::Recovered]);
+    }
+
+    #[test]
     fn a_punch_away_from_guard_returns_to_guard_first() {
         let mut lifecycle = Lifecycle::<Policy>::default();
         let mut away = FakeWorld::new(1).read_slot(0);
@@ -735,6 +782,8 @@ mod tests {
         Cancel,
         Recover,
         Fail,
+        /// Another's fist (or the game's `take_hit`) struck the character, with or without hyper-armour.
+        Struck(bool),
         Frames(usize),
         FailedInference,
     }
@@ -747,6 +796,7 @@ mod tests {
             Just(Call::Cancel),
             Just(Call::Recover),
             Just(Call::Fail),
+            any::<bool>().prop_map(Call::Struck),
             (1..70usize).prop_map(Call::Frames),
             Just(Call::FailedInference),
         ]
@@ -790,7 +840,7 @@ mod tests {
                     prop_assert!(self.punch_open, "a finish with no punch");
                     self.punch_open = false;
                     self.chained = *ending == Ending::Chained;
-                    if matches!(ending, Ending::Interrupted | Ending::Error(_)) {
+                    if matches!(ending, Ending::Interrupted | Ending::Error(_) | Ending::Struck) {
                         self.waiting.clear();
                     }
                 }
@@ -837,6 +887,15 @@ mod tests {
                             Call::Cancel => lifecycle.cancel(),
                             Call::Recover => lifecycle.recover(rest_geometry()),
                             _ => lifecycle.fail("the character was freed"),
+                        }
+                    }
+                    Call::Struck(armoured) => {
+                        let punching = lifecycle.is_punching();
+                        let ended = lifecycle.struck(rest_geometry(), armoured);
+                        prop_assert_eq!(ended, punching && !armoured);
+                        if !(punching && armoured) {
+                            listener.waiting.clear();
+                            prop_assert!(lifecycle.is_recovering(), "struck, and not driven back to guard");
                         }
                     }
                     Call::Frames(count) => {

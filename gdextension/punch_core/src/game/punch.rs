@@ -112,6 +112,9 @@ pub struct PunchSummary {
     pub hand: Hand,
     /// The move it was (None: a policy played as it is, not one of the six).
     pub punch_move: Option<Move>,
+    /// The engine's id of the first thing the punching fist struck (None: it struck nothing, a whiff); the game
+    /// layer tells a landed punch from a blocked one by what that was.
+    pub first_struck: Option<u64>,
 }
 
 /// A punch frame by frame (kept when asked for): features [frames x F] (the frame before the first decision
@@ -331,6 +334,9 @@ impl Punch {
             if !continuing && !self.struck.contains(&collider) {
                 self.struck.push(collider);
                 self.summary.hits += 1;
+                if side == 0 && self.summary.first_struck.is_none() {
+                    self.summary.first_struck = Some(collider);
+                }
                 hits.push(Hit {
                     collider,
                     impulse,
@@ -355,11 +361,15 @@ pub struct Recovery {
     frame: u32,
     /// Within this angle of the guard (rad) and slower than this (rad/s), every joint, it is there.
     settled: (f32, f32),
+    /// It is not there before this frame, and ends at the other even if still moving.
+    frames: (u32, u32),
 }
 
 impl Recovery {
     /// Longest recovery, frames (0.5 s at 120 Hz): it ends then even if the character is still moving.
     pub const MAX_FRAMES: u32 = 60;
+    /// A recovery after a hit (`after_hit`): at least 4 frames (33 ms), at most 240 (2 s at 120 Hz).
+    pub const AFTER_HIT_FRAMES: (u32, u32) = (4, 240);
     /// Back in guard: every joint within this angle of its rest angle (rad) ...
     pub const SETTLED_ANGLE_RAD: f32 = 0.02;
     /// ... and slower than this (rad/s).
@@ -373,7 +383,20 @@ impl Recovery {
     pub fn new(geometry: CharacterGeometry, guard: [f32; DOF_COUNT]) -> Self {
         let mut controller = CharacterController::new(geometry, 1);
         controller.set_targets(guard);
-        Self { controller, guard, frame: 0, settled: (Self::SETTLED_ANGLE_RAD, Self::SETTLED_SPEED_RAD_S) }
+        Self {
+            controller,
+            guard,
+            frame: 0,
+            settled: (Self::SETTLED_ANGLE_RAD, Self::SETTLED_SPEED_RAD_S),
+            frames: (0, Self::MAX_FRAMES),
+        }
+    }
+
+    /// The way back after a hit: the push shows in the bodies only after the physics step that follows it, so the
+    /// body is not back in guard before `AFTER_HIT_FRAMES.0`, and a hard hit may take until `AFTER_HIT_FRAMES.1`.
+    pub fn after_hit(mut self) -> Self {
+        self.frames = Self::AFTER_HIT_FRAMES;
+        self
     }
 
     /// Ends near the guard rather than settled in it (`READY_ANGLE_RAD`, `READY_SPEED_RAD_S`): a return to guard
@@ -392,7 +415,7 @@ impl Recovery {
             (features[columns::ANGLES + i] - self.guard[i]).abs() < angle_rad
                 && features[columns::SPEEDS + i].abs() < speed_rad_s
         });
-        if settled || self.frame >= Self::MAX_FRAMES {
+        if (settled && self.frame >= self.frames.0) || self.frame >= self.frames.1 {
             return None;
         }
         self.frame += 1;
@@ -540,6 +563,21 @@ mod tests {
         assert_eq!(summary.hits, 2);
         assert!((summary.strongest_hit_ns - 6.0).abs() < 1e-5, "a later contact still counts as an impact");
         assert!(summary.interrupted && summary.frames == frames.len());
+        assert_eq!(summary.first_struck, Some(1), "the first thing the punching fist struck");
+    }
+
+    #[test]
+    fn a_punch_whose_guard_fist_alone_strikes_something_struck_nothing() {
+        let guard_fist = |collider: u64| {
+            let world = FakeWorld::new(1);
+            let fist = world.read_slot(0).bodies[Body::ForearmL.index()].position + rest_geometry().fist_offsets[1];
+            Touch { body: Body::ForearmL.index(), collider, point: fist, impulse: Vec3::Z * 3.0, overlap: false }
+        };
+        let (hits, summary) = hits_of(&[vec![guard_fist(7)], vec![]]);
+        assert_eq!((hits.len(), hits[0].hand), (1, Hand::Left), "the guard hand's hit is still a hit: {hits:?}");
+        assert_eq!(summary.first_struck, None, "but the punch whiffed");
+        let (_, summary) = hits_of(&vec![vec![]; 3]);
+        assert_eq!(summary.first_struck, None);
     }
 
     #[test]

@@ -1,0 +1,103 @@
+"""Taking hits, measured from the struck bodies in Godot (tests/godot/taking_hits.gd): the game's `take_hit` and
+another controller's fist both reach `hit_taken` with the part struck, the character is driven back to guard after
+it (`recovered`), a punch struck while it runs gives way (unless `hyper_armour`), a harder hit turns the body further,
+hard ones stagger and the hardest knock the body down (limp until `recover()`), bad hits are refused, and every punch says whether it landed, was blocked or whiffed."""
+
+import json
+
+import pytest
+
+from punch_trainer.sim.godot import GODOT_PROJECT, PROJECT_ROOT, run_godot
+
+pytestmark = pytest.mark.godot
+
+
+@pytest.fixture(scope="module")
+def report():
+    script = PROJECT_ROOT / "tests" / "godot" / "taking_hits.gd"
+    run = run_godot(["--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), "--script", str(script)],
+                    check=False, timeout_s=300)
+    line = next((line for line in run.log.splitlines() if line.startswith("TAKING_HITS ")), None)
+    assert line is not None and run.fatal_lines() == [], run.log[-3000:]
+    # The only errors are the four refused hits'.
+    assert run.log.count("ERROR:") == 4 and run.log.count("nothing was pushed") == 4, run.log[-3000:]
+    return json.loads(line[len("TAKING_HITS "):])
+
+
+def test_a_hit_from_the_game_is_told_and_the_body_returns_to_guard(report):
+    for row in (r for r in report["struck"] if r["impulse_ns"] < 320):
+        [taken] = row["hits_taken"]
+        assert taken["part"] == "torso" and taken["impulse_ns"] == pytest.approx(row["impulse_ns"]) and not taken["from"]
+        assert 0.0 < row["recovered_s"] < 2.0, row  # `recovered` after the push showed, not at once
+    front = {row["impulse_ns"]: row for row in report["struck"] if row["from"] == "front"}
+    assert front[10.0]["peak_deg"] < front[30.0]["peak_deg"] < front[60.0]["peak_deg"], front
+    assert front[60.0]["peak_deg"] > 15.0 and 0.0 < front[60.0]["back_in_guard_s"] < front[60.0]["recovered_s"], front[60.0]
+
+
+def test_hard_hits_stagger_and_the_hardest_knock_down_until_the_game_says(report):
+    for row in report["struck"]:
+        expected = [] if row["impulse_ns"] < 60 or row["impulse_ns"] >= 320 else [row["impulse_ns"]]
+        assert row["staggered"] == expected, row
+        assert row["knocked_down"] == ([320.0] if row["impulse_ns"] >= 320 else []), row
+    [down] = [row for row in report["struck"] if row["impulse_ns"] >= 320]
+    # Limp: it did not come back by itself; after `recover()` (1 s after the hit) it did.
+    assert down["down_after_1s"] and down["peak_deg"] > 45.0, down
+    assert 1.0 < down["back_in_guard_s"] < down["recovered_s"] < 3.0, down
+
+
+def test_a_punch_struck_while_it_runs_gives_way_unless_it_has_armour(report):
+    struck, armoured = report["punch_struck"]["no_armour"], report["punch_struck"]["armour"]
+    assert [f["ended"] for f in struck["finished"]] == ["struck"], struck
+    assert [f["ended"] for f in armoured["finished"]] == ["completed"], armoured
+    assert struck["recovered_s"] > 0.0 and len(struck["hits_taken"]) == len(armoured["hits_taken"]) == 2
+    # Their second hit (60 N s), long after their punches: the controllers that drove them react to it.
+    assert struck["staggered"] == armoured["staggered"] == [60.0], (struck, armoured)
+
+
+def test_bad_hits_are_refused_and_parts_are_named(report):
+    assert report["refused"] == [False, False, False, False]
+    assert report["parts"] == ["left_arm", "right_arm", "torso", "", ""], "another character's body is none of its parts"
+
+
+def test_a_punch_on_another_character_reaches_it_and_says_what_became_of_it(report):
+    duel = report["duel"]
+    taken = duel["struck"]["hits_taken"]
+    assert taken and all(t["from"] and t["part"] in ("torso", "left_arm", "right_arm") for t in taken), taken
+    [attack] = duel["attacker"]["finished"]
+    # The first thing the fist met decides: the struck one's guard arm (blocked) or its torso (landed).
+    assert attack["outcome"] == ("blocked" if taken[0]["part"].endswith("arm") else "landed"), (attack, taken)
+    assert duel["whiffer"]["finished"] == [{"ended": "completed", "outcome": "whiffed"}]
+    assert duel["attacker"]["hits_taken"] == [] and duel["whiffer"]["hits_taken"] == []
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_a_chaotic_bout_keeps_every_promise(seed):
+    """Ten pairs trading random punches and combinations at each other (random stances, noise, hyper-armour), with
+    random cancels and recoveries, some inside the handlers, and the game's own hits up to knock-downs (brought back
+    by `recover()` later): every start one finish, every finish an ending and an outcome, every hit a part, a
+    knocked-down body down until the game says, and every body finite, in place and above the floor
+    (tests/godot/bout_chaos.gd checks each signal as it comes)."""
+    script = PROJECT_ROOT / "tests" / "godot" / "bout_chaos.gd"
+    run = run_godot(["--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), "--script", str(script), "--",
+                     f"--seed={seed}", "--seconds=20"], check=False, timeout_s=300)
+    line = next((line for line in run.log.splitlines() if line.startswith("BOUT_CHAOS ")), None)
+    assert line is not None and run.fatal_lines() == [] and "ERROR" not in run.log, run.log[-3000:]
+    report = json.loads(line[len("BOUT_CHAOS "):])
+    assert report["problem_count"] == 0, report["problems"]
+    fighters = report["fighters"]
+    # It was a bout: punches thrown and struck by the opponents, guards in the way, struck punches, knock-downs.
+    assert sum(f["started"] for f in fighters) > 500 and report["game_hits"] > 50, report
+    assert all(f["hits_taken"] > 0 for f in fighters) and sum(f["endings"].get("struck", 0) for f in fighters) > 50, fighters
+    assert sum(f["knocked_down"] for f in fighters) > 0
+    assert all(sum(f["outcomes"].get(o, 0) for f in fighters) > 0 for o in ("landed", "blocked", "whiffed"))
+
+
+def test_the_hits_demo_shows_a_flinch_a_stagger_and_a_knock_down():
+    run = run_godot(["--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), "res://demo/hits.tscn", "--",
+                     "--rounds=2"], check=False, timeout_s=120)
+    line = next((line for line in run.log.splitlines() if line.startswith("HITS_DEMO ")), None)
+    assert line is not None and "ERROR" not in run.log, run.log[-3000:]
+    counts = json.loads(line[len("HITS_DEMO "):])
+    assert counts["30 N s"] == {"hit_taken": 2, "staggered": 0, "knocked_down": 0, "recovered": 2}, counts
+    assert counts["60 N s"] == {"hit_taken": 2, "staggered": 2, "knocked_down": 0, "recovered": 2}, counts
+    assert counts["320 N s"] == {"hit_taken": 2, "staggered": 0, "knocked_down": 2, "recovered": 2}, counts
