@@ -38,7 +38,7 @@ use punch_core::rig::transform::{SaidOnce, TransformError};
 use crate::arm_sizing::{SceneArms, rebuild_joints};
 use crate::convert::{rigid, rotation, vec3, vector3};
 use crate::engine_io::{character_geometry, drive_joints, enable_motors, joint_axis_settings};
-use crate::punch_controller::PunchController;
+use crate::punch_controller_registry::PunchControllerRegistry;
 
 /// A move of the character's root larger than this in one physics frame (m) is a teleport (see `PunchCharacter`):
 /// 0.5 m is 60 m/s at 120 Hz, far above any walk or lunge.
@@ -388,7 +388,7 @@ impl PunchCharacter {
         if !this.is_instance_valid() {
             return;
         }
-        PunchController::react_to_hit(&this, from, impulse.length());
+        PunchControllerRegistry::react_to_hit(this.instance_id(), from, impulse.length());
         if !this.is_instance_valid() {
             return;
         }

@@ -260,14 +260,14 @@ impl INode for PunchController {
         match what {
             NodeNotification::ENTER_TREE => {
                 self.leaving_tree = false;
-                PunchControllerRegistry::set_in_tree(self.base().instance_id(), true);
+                PunchControllerRegistry::set_in_tree(self.base().instance_id(), true, Self::react_to_hit);
             }
             // Leaving the tree: no frame will drive it, so the punch ends now. Its events wait for the next
             // frame pass, which emits them with no borrow held (a handler may free this controller), unless
             // the controller is being freed: then they go out now, as no frame will come.
             NodeNotification::EXIT_TREE => {
                 self.leaving_tree = true;
-                PunchControllerRegistry::set_in_tree(self.base().instance_id(), false);
+                PunchControllerRegistry::set_in_tree(self.base().instance_id(), false, Self::react_to_hit);
                 self.lifecycle.cancel();
                 self.act_now();
                 if self.being_freed {
@@ -714,7 +714,9 @@ impl PunchController {
     /// `character` was struck `impulse_ns` hard (`PunchCharacter`'s `hit_taken`, which `from` caused: another
     /// controller, or nothing for the game's `take_hit`): the controller in the tree that drives it (or has it as its
     /// `character`) reacts, as `react_to_hits`, `hyper_armour` and the thresholds say, and says what that ended.
-    pub fn react_to_hit(character: &Gd<PunchCharacter>, from: Option<InstanceId>, impulse_ns: f32) {
+    fn react_to_hit(character: InstanceId, from: Option<InstanceId>, impulse_ns: f32) {
+        let Ok(character) = Gd::<PunchCharacter>::try_from_instance_id(character) else { return };
+        let character = &character;
         let mine = |controller: &Gd<Self>| {
             let controller = controller.bind();
             let driven = controller.lifecycle.is_active() && controller.driven.as_ref() == Some(character);

@@ -24,6 +24,10 @@ pub struct PunchControllerRegistry {
     drivers: Vec<(InstanceId, InstanceId)>,
     /// The controllers in a scene tree, busy or not: whose character a hit may strike.
     in_tree: Vec<InstanceId>,
+    /// What reacts when a character is struck (`PunchController`'s, given as controllers enter a tree, so that
+    /// `PunchCharacter` need not know the controller): the character, the controller whose fist struck it (None:
+    /// the game's `take_hit`) and the impulse (N s).
+    hit_reaction: Option<fn(InstanceId, Option<InstanceId>, f32)>,
     /// The scene tree whose `physics_frame` signal runs the frame pass.
     connected_tree: Option<InstanceId>,
     /// Controller work since the last `take_frame_cost_usec`: (microseconds, frames).
@@ -74,13 +78,23 @@ impl PunchControllerRegistry {
         }
     }
 
-    /// A controller entered (`inside` true) or left a scene tree.
-    pub fn set_in_tree(controller: InstanceId, inside: bool) {
+    /// A controller entered (`inside` true) or left a scene tree; `reaction` is what reacts to hits.
+    pub fn set_in_tree(controller: InstanceId, inside: bool, reaction: fn(InstanceId, Option<InstanceId>, f32)) {
         let mut hub = Self::singleton();
         let mut hub = hub.bind_mut();
         hub.in_tree.retain(|id| *id != controller);
         if inside {
             hub.in_tree.push(controller);
+        }
+        hub.hit_reaction = Some(reaction);
+    }
+
+    /// `character` was struck `impulse_ns` hard by `from`'s fist (None: by the game): its controller reacts.
+    pub fn react_to_hit(character: InstanceId, from: Option<InstanceId>, impulse_ns: f32) {
+        // Copied out first: the reaction enlists its controller, which borrows the registry again.
+        let reaction = Self::singleton().bind().hit_reaction;
+        if let Some(reaction) = reaction {
+            reaction(character, from, impulse_ns);
         }
     }
 

@@ -141,7 +141,7 @@ class TrainArgs:
     """volume: every k-th A2C update's episodes start where an earlier punch of this run's search left the arms (at its
     contact, drawing back, or on the way back to guard) instead of in a guard: a policy for punches started wherever
     the arms are (`PunchController.guard_first` off, a combo's next punch); 0: never"""
-    lead_in_policies: list[Path] = field(default_factory=list, metadata=bounds(max_items=8))
+    lead_in_policies: list[Path] | None = field(default=None, metadata=bounds(max_items=8))
     """volume, with --lead-in-every: policy files (the other moves) whose punches the lead-ins replay too, each with
     either hand (the arm this policy punches with, and the other, mirrored): so a move learns to start where a
     combo's earlier move leaves the arms, not only where its own does"""
