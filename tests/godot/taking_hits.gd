@@ -2,8 +2,8 @@
 ## punch) struck by the game's `take_hit` on the torso, from the side and from the front, at several impulses; a punch
 ## struck while it runs, with and without `hyper_armour`; refused hits; and a character punched by another's
 ## controller (its `hit_taken`, the attacker's `punch_finished` outcome) and a punch that strikes nothing.
-## For each struck character: the largest turn of any body away from its guard (degrees, in the character's frame),
-## when every body was back within 10 degrees of it and when `recovered` came (s after the hit), and the
+## The 60 N s hit again on a turned, a walking and a short-armed character. For each struck character: the largest
+## turn of any body away from its guard (degrees, in the character's frame), when every body was back within 10 degrees of it and when `recovered` came (s after the hit), and the
 ## `hit_taken`, `staggered` and `knocked_down` signals; a knocked-down character gets `recover()` a second after its
 ## hit. Prints `TAKING_HITS <json>` and quits.
 extends SceneTree
@@ -52,6 +52,15 @@ func _initialize() -> void:
 	_watched.append(_standing(Vector3(x, 0, 0), {"impulse_ns": 320.0, "from": "front", "push": Vector3.FORWARD * 320.0,
 		"recover_after_s": 1.0}))
 	x += 3.0
+	# The same 60 N s from the front on a character turned away from the world's axes, one walking forward at
+	# 0.7 m/s and one with arms 0.8 times the scene's: the hit is in the character's own frame.
+	for variant in ["turned", "walking", "short arms"]:
+		var watched := _standing(Vector3(x, 0, 0), {"impulse_ns": 60.0, "from": "front", "push": Vector3.FORWARD * 60.0,
+			"variant": variant})
+		if variant == "turned":
+			watched.character.rotate_y(deg_to_rad(130.0))
+		_watched.append(watched)
+		x += 3.0
 	for armour in [false, true]:
 		_watched.append(_punching(Vector3(x, 0, 0), armour))
 		x += 3.0
@@ -115,6 +124,14 @@ func _add_duel(origin: Vector3) -> void:
 
 func _physics_process(_delta: float) -> bool:
 	_frame += 1
+	for watched in _watched:
+		if watched.has_meta("hit") and watched.get_meta("hit").get("variant") == "walking":
+			watched.character.position += watched.character.global_basis.z * 0.7 / Engine.physics_ticks_per_second
+	if _frame == 1:  # the characters are set up by now
+		for watched in _watched:
+			if watched.has_meta("hit") and watched.get_meta("hit").get("variant") == "short arms":
+				var lengths: Vector3 = watched.character.arm_lengths()
+				watched.character.size_arms(lengths.x * 0.8, lengths.y * 0.8, lengths.z)
 	if _frame == 2:
 		for watched in _watched:
 			for body in BODIES:
@@ -203,7 +220,9 @@ func _finish() -> void:
 			"knocked_down": watched.knocked_down, "down_after_1s": watched.down_after_1s}
 		if watched.has_meta("hit"):
 			var hit: Dictionary = watched.get_meta("hit")
-			row.merge({"impulse_ns": hit.impulse_ns, "from": hit.from})
+			var arms: Vector3 = watched.character.arm_lengths()
+			row.merge({"impulse_ns": hit.impulse_ns, "from": hit.from, "variant": hit.get("variant", ""),
+				"arm_m": snappedf(arms.x + arms.y, 0.001)})
 			_report.struck.append(row)
 		else:
 			_report.punch_struck["armour" if watched.get_meta("armour") else "no_armour"] = row

@@ -34,6 +34,19 @@ def test_a_hit_from_the_game_is_told_and_the_body_returns_to_guard(report):
     assert front[60.0]["peak_deg"] > 15.0 and 0.0 < front[60.0]["back_in_guard_s"] < front[60.0]["recovered_s"], front[60.0]
 
 
+def test_the_same_hit_does_the_same_on_a_turned_a_walking_and_a_short_armed_character(report):
+    """The hit is in the character's own frame: turned 130 degrees, walking 0.7 m/s or with arms 0.8 times the
+    scene's, 60 N s from the front turns it as far (within 15%), staggers it and it comes back."""
+    plain = next(r for r in report["struck"] if r["impulse_ns"] == 60 and r["from"] == "front" and not r["variant"])
+    variants = {r["variant"]: r for r in report["struck"] if r["variant"]}
+    assert set(variants) == {"turned", "walking", "short arms"}
+    assert variants["short arms"]["arm_m"] == pytest.approx(0.8 * plain["arm_m"], rel=0.01), "sized"
+    for name, row in variants.items():
+        assert row["staggered"] == [60.0] and 0.0 < row["recovered_s"] < 2.0, (name, row)
+        assert row["peak_deg"] == pytest.approx(plain["peak_deg"], rel=0.15), (name, row, plain)
+        assert 0.0 < row["back_in_guard_s"] < row["recovered_s"], (name, row)
+
+
 def test_hard_hits_stagger_and_the_hardest_knock_down_until_the_game_says(report):
     for row in report["struck"]:
         expected = [] if row["impulse_ns"] < 60 or row["impulse_ns"] >= 320 else [row["impulse_ns"]]

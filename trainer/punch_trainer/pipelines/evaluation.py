@@ -280,7 +280,7 @@ def play_policy(policy: Path, episodes: list[dict[str, Any]], groups: list[Group
                     result["features"] = features
                     result["actions"] = np.array(recorded(directory, meta, "actions", group.start, group.count))
             elif group.condition.struck is not None:
-                # Struck: every body back within BACK_IN_GUARD_DEG of its guard, and `recovered` said so.
+                # Struck: every body back within 10° of its guard (evaluate.gd's BACK_IN_GUARD_DEG), and `recovered` said so.
                 result["success"] = np.array([row[9]["back_s"] >= 0 and row[9]["recovered_s"] >= 0 for row in rows], dtype=bool)
             else:
                 # Every punch struck the target (a combo's each once; one punch's at least once).
@@ -385,10 +385,10 @@ def make_row(group: Group, result: dict[str, Any], placements: int, best: np.nda
 def struck_figures(rows: list[list[Any]]) -> dict[str, Any]:
     """A struck character's figures over its episodes (evaluate.gd's per-episode `struck` entry): the largest turn of
     any body from its guard (degrees) and the head's largest move (m), medians; the time from the hit until every body
-    was back within BACK_IN_GUARD_DEG of its guard, median and longest, and until `recovered`, median (s; a body that
+    was back within 10° of its guard (evaluate.gd's BACK_IN_GUARD_DEG), median and longest, and until `recovered`, median (s; a body that
     never left counts 0); how many episodes staggered and were knocked down."""
     struck = [row[9] for row in rows]
-    back = [max(0.0, s["back_s"]) for s in struck if s["back_s"] >= 0]
+    back = [s["back_s"] for s in struck if s["back_s"] >= 0]
     recovered = [s["recovered_s"] for s in struck if s["recovered_s"] >= 0]
     return {"peak_turn_deg": round(float(np.median([s["peak_deg"] for s in struck])), 1),
             "head_moved_m": round(float(np.median([s["head_moved_m"] for s in struck])), 3),
