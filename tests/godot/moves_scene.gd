@@ -1,11 +1,13 @@
 ## The moves a game throws by name, in both stances: for each stance and each move the addon's moveset has, a
 ## character punches a sandbag placed for that move's hand, off the centre line on its side (the left hand's bag is
-## the mirror image of the right's). Then what a game gets wrong: a move that is none of the six, a move the
+## the mirror image of the right's); the same again from the stance's guard (`stance_pose`) with the stance's
+## moveset (`boxing_stance.tres`). Then what a game gets wrong: a move that is none of the six, a move the
 ## moveset has no policy for, and a moveset of its own holding one move. Prints `MOVES_SCENE <json>` and quits.
 extends SceneTree
 
 const MOVES := [&"jab", &"cross", &"lead_hook", &"rear_hook", &"lead_uppercut", &"rear_uppercut"]
 const SIDE_M := 0.12  # the bag's centre this far toward the punching hand's side
+const STANCE_MOVESET := "res://addons/punch_controller/policies/boxing_stance.tres"
 var _throws: Array[Dictionary] = []
 var _report := {"throws": [], "refused": {}}
 var _frames := 0
@@ -13,14 +15,16 @@ var _frames := 0
 
 func _initialize() -> void:
 	var index := 0
-	for stance in [PunchController.ORTHODOX, PunchController.SOUTHPAW]:
-		for move in MOVES:
-			_throws.append(_add_pair(index, stance, move))
-			index += 1
+	for stance_pose in [false, true]:
+		for stance in [PunchController.ORTHODOX, PunchController.SOUTHPAW]:
+			for move in MOVES:
+				_throws.append(_add_pair(index, stance, move, stance_pose))
+				index += 1
 
 
-## A character and its bag 3 m from the others; the bag toward the side of the hand `move` is thrown with.
-func _add_pair(index: int, stance: int, move: StringName) -> Dictionary:
+## A character and its bag 3 m from the others; the bag toward the side of the hand `move` is thrown with. With
+## `stance_pose`, the character stands in the stance's guard and throws from the stance's moveset.
+func _add_pair(index: int, stance: int, move: StringName, stance_pose: bool) -> Dictionary:
 	var origin := Vector3(3.0 * index, 0, 0)
 	var character: Node3D = load("res://addons/punch_controller/scenes/punch_character.tscn").instantiate()
 	character.position = origin
@@ -36,8 +40,12 @@ func _add_pair(index: int, stance: int, move: StringName) -> Dictionary:
 	controller.set("character", character)
 	controller.set("target", sandbag.get_node("Bag"))
 	controller.set("stance", stance)
+	if stance_pose:
+		controller.set("stance_pose", true)
+		controller.set("moveset", load(STANCE_MOVESET))
 	root.add_child(controller)
-	var entry := {"stance": stance, "move": String(move), "bag_side_m": offset.x, "started": [], "hits": [], "finished": []}
+	var entry := {"stance": stance, "move": String(move), "stance_pose": stance_pose, "bag_side_m": offset.x,
+		"started": [], "hits": [], "finished": []}
 	controller.connect("punch_started", func(move_name, hand, _combo_index): entry.started.append([String(move_name), String(hand)]))
 	controller.connect("hit", func(_impulse, speed, position, body, _push, hand):
 		entry.hits.append({"hand": String(hand), "speed": speed, "x": position.x - origin.x, "bag": body == sandbag.get_node("Bag")}))
@@ -47,11 +55,11 @@ func _add_pair(index: int, stance: int, move: StringName) -> Dictionary:
 
 func _physics_process(_delta: float) -> bool:
 	_frames += 1
-	if _frames == 2:
+	if _frames == 2:  # with stance_pose, each punch returns to the stance's guard first (`guard_first`)
 		for throw in _throws:
 			throw.controller.call("punch", throw.move)
 		_refusals()
-	if _throws.all(func(throw): return throw.entry.finished.size() == 1) or _frames > 600:
+	if _throws.all(func(throw): return throw.entry.finished.size() == 1) or _frames > 900:
 		_report.throws = _throws.map(func(throw): return throw.entry)
 		print("MOVES_SCENE ", JSON.stringify(_report))
 		quit(0)

@@ -2,12 +2,14 @@
 
 import re
 import shutil
+from pathlib import Path
 
 import pytest
 
 from conftest import PROJECT_ROOT
 from punch_trainer.cli import main as cli_main
 from punch_trainer.pipelines import bench, results
+from punch_trainer.pipelines.recipe import load_recipe
 from punch_trainer.pipelines.results import Measurement, ResultsError, shipped_recipes, write_results
 
 
@@ -118,11 +120,27 @@ def test_the_moves_table_names_the_shape_each_move_misses():
     reports = {"straight": runs(medians(time_to_contact_s=0.2), medians(time_to_contact_s=0.15)),
                "hook": runs(medians(side_angle_at_contact_deg=17.0, fist_peak_speed_mps=6.0), medians(), rate=0.5),
                "uppercut": runs(medians(), medians(rise_share_at_contact=0.48))}
-    table = results.moves_table(reports, {"straight.onnx": "straight", "hook.onnx": "hook", "uppercut.onnx": "uppercut"})
+    table = results.moves_table(reports, {"straight.onnx": "straight", "hook.onnx": "hook", "uppercut.onnx": "uppercut"},
+                                results.MOVESET)
     rows = {line.split("|")[1].strip(): line for line in table.splitlines()[2:]}
     assert list(rows) == [f"`{move}`" for move in results.SIX_MOVES]
     assert rows["`jab`"].endswith("| the quickest to land |") and "| 97.0% | 97.0% |" in rows["`jab`"]
     assert "side_angle_at_contact_deg >= 35, fist_peak_speed_mps >= the cross's" in rows["`lead_hook`"]
     assert "| 50.0% |" in rows["`rear_hook`"] and rows["`rear_hook`"].endswith("| none |")
     assert rows["`rear_uppercut`"].endswith("| rise_share_at_contact >= 0.5 |") and rows["`lead_uppercut`"].endswith("| none |")
-    assert results.moves_table({"straight": reports["straight"]}, {"straight.onnx": "straight"}) is None
+    assert results.moves_table({"straight": reports["straight"]}, {"straight.onnx": "straight"}, results.MOVESET) is None
+
+
+def test_a_policy_of_one_stances_guard_is_measured_from_there_with_its_hand(tmp_path):
+    """A recipe trained with `guard = "southpaw"` (a lead hand's move) is measured by the stance scenarios alone and
+    only as the lead hand; a recipe of every start by every measurement."""
+    recipe = tmp_path / "lead_move.toml"
+    recipe.write_text('name = "lead_move"\npolicy = "addons/punch_controller/policies/lead_move.onnx"\n'
+                      '[train]\nreward = "uppercut"\nguard = "southpaw"\n[[stage]]\nname = "volume"\na2c_updates = 10\n')
+    chosen = results.measurements_for(load_recipe(recipe))
+    assert [m.scenario for m in chosen] == list(results.STANCE_SCENARIOS)
+    for measurement in chosen:
+        names = measurement.options["conditions"]
+        assert names and all(name.startswith("lead hand") for name in names), names
+        assert "--conditions" in measurement.command(Path("p.onnx"))
+    assert results.measurements_for(shipped_recipes()[0]) == results.MEASUREMENTS

@@ -132,6 +132,21 @@ def test_a_share_of_episodes_starts_in_a_stances_guard():
     assert without(64, 1).lead_in is None
 
 
+def test_a_policy_for_one_guard_starts_every_episode_there(tmp_path):
+    """`punch train --guard orthodox`: the sampler holds that guard alone, in every episode (share 1); the option
+    refuses what would mix in other starts, before a simulator starts."""
+    reach = ReachVolume((0.6, 0.85), (1.15, 1.55), (-0.25, 0.25), 1.0, True)
+    orthodox = np.array([[0.0, -0.667] + [0.1] * 8], dtype=np.float32)
+    draw = ConditionSampler(reach, np.zeros((1, 10, 10), dtype=np.float32), VolumeArgs(stance_share=1.0), seed=5,
+                            default_bag=placement(0.7, 1.35, 0.0), stance_guards=orthodox)
+    lead_ins = np.concatenate([draw(64, update).lead_in for update in range(1, 6)])
+    assert np.all(lead_ins == orthodox[0]), "every episode holds the orthodox guard first"
+    for wrong in (dict(reach="spot"), dict(search_stances=True), dict(stance_share=0.5)):
+        with pytest.raises(ValueError, match="--guard orthodox"):
+            run_train(TrainArgs(out=tmp_path / "refused", guard="orthodox", **{**BUDGET, **wrong}), progress=False)
+    assert not (tmp_path / "refused").exists()
+
+
 def test_lead_ins_start_where_an_earlier_punch_is_mid_way_at_its_end_or_on_the_way_back():
     """`lead_in_every`: every k-th update's characters play a lead-in: a punch played up to a random decision of its
     second half, a whole punch and 1 to 4 decisions of the guard, or the guard alone; all end together."""

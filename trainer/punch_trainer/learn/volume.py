@@ -193,7 +193,7 @@ class ConditionSampler:
     def __init__(self, reach: ReachVolume, punches: np.ndarray, args: VolumeArgs, seed: int,
                  default_bag: EpisodeConditions, stance_guards: np.ndarray | None = None):
         """`punches`: raw action sequences [K, decisions, A] (the search's bests) that lead-ins replay;
-        `default_bag`: the default placement, for `args.default_share`; `stance_guards`: [2, A], the actions that
+        `default_bag`: the default placement, for `args.default_share`; `stance_guards`: [G, A], the actions that
         hold the orthodox and the southpaw guard (the server's `stance_guard_actions`), for `args.stance_share`."""
         if args.stance_share > 0 and stance_guards is None:
             raise ValueError("a stance share needs the stances' guard actions")

@@ -96,6 +96,13 @@ class Recipe:
     """the file the recipe makes, relative to the repository root (where `punch recipe` runs)"""
     stages: tuple[Stage, ...]
 
+    @property
+    def guard(self) -> str:
+        """The guard its policy punches from (the last training stage's `guard`): "square" for a policy of every
+        start, "orthodox" for a rear hand's move, "southpaw" for a lead hand's (`punch train --guard`)."""
+        last = [stage for stage in self.stages if isinstance(stage, TrainStage)][-1]
+        return str(last.args.get("guard", TrainArgs.guard))
+
     def stage(self, name: str) -> Stage:
         for stage in self.stages:
             if stage.name == name:

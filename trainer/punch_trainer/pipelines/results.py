@@ -3,7 +3,7 @@
 The figures the docs give of the shipped policies are made here, never copied: each recipe's policy is played through
 the evaluator's scenarios below, the reports go into BENCHMARKS.md (one section per policy) and a summary table of
 them into BENCHMARKS.md's "The shipped policies" and into the policies' README (between its `punch results`
-markers). When every policy of the default moveset was measured, BENCHMARKS.md's "The six moves" gives each move's
+markers). When every policy of the stance's moveset (`boxing_stance.tres`) was measured, BENCHMARKS.md's "The six moves" gives each move's
 success from the stance's guard (head and body) and its shape against a boxer's (`MOVE_TARGETS`). Run it again after
 a policy changes (`punch recipe ... --install`).
 """
@@ -22,13 +22,16 @@ from typing import Any
 from punch_trainer.errors import PunchError
 from punch_trainer.pipelines.evaluation import EvalArgs, benchmarks_body, run_eval
 from punch_trainer.pipelines.recipe import Recipe, load_recipe
-from punch_trainer.pipelines.scenario import scenario_path
+from punch_trainer.pipelines.scenario import load_scenario, scenario_path
 from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.godot import PROJECT_ROOT
 
 RECIPES_DIR = PROJECT_ROOT / "recipes"
 POLICIES_README = PROJECT_ROOT / "addons" / "punch_controller" / "policies" / "README.md"
 MOVESET = PROJECT_ROOT / "addons" / "punch_controller" / "policies" / "boxing.tres"
+STANCE_MOVESET = MOVESET.with_name("boxing_stance.tres")
+"""the moveset for a character in the stance's guard (`stance_pose`): the moves a policy of the square guard does not
+throw well from there played by policies trained from that guard (`punch train --guard`)"""
 EXTENSION_LIBRARY = PROJECT_ROOT / "addons" / "punch_controller" / "bin" / "libpunch_controller.linux.debug.x86_64.so"
 """the extension headless Godot plays the measurements with (its debug build)"""
 SUMMARY_SECTION = "The shipped policies"
@@ -79,6 +82,24 @@ MEASUREMENTS = (
     # From the stance's guard walking, turning and with sized arms, as the rear and the lead hand's move.
     Measurement("stance_moving"),
 )
+
+GUARD_HANDS = {"orthodox": "rear", "southpaw": "lead"}
+"""the hand a policy trained from one stance's guard punches with (`punch train --guard`): the right hand from the
+orthodox guard is the rear hand; from the southpaw guard, the lead"""
+STANCE_SCENARIOS = ("stance", "body", "stance_moving")
+
+
+def measurements_for(recipe: Recipe) -> tuple[Measurement, ...]:
+    """What a recipe's policy is measured by: every measurement for a policy of every start (the square guard's); for
+    a policy of one stance's guard, the stance scenarios alone, with only its hand's conditions (the square guard's
+    scenarios ask what it was not made for)."""
+    if recipe.guard not in GUARD_HANDS:
+        return MEASUREMENTS
+    hand = GUARD_HANDS[recipe.guard]
+    return tuple(Measurement(m.scenario, {**m.options, "conditions": [c.name for c in load_scenario(m.scenario).conditions
+                                                                       if c.name.startswith(f"{hand} hand")]})
+                 for m in MEASUREMENTS if m.scenario in STANCE_SCENARIOS)
+
 
 MOVESET_MEASUREMENTS = (
     # Combinations thrown with combo(), every move alone (startup and recovery), and a punch started at a random
@@ -173,7 +194,7 @@ def measure(recipes: list[Recipe], out: Path, *, progress: bool = True, backend:
             raise ResultsError(f"{recipe.path}: its policy {recipe.policy} is missing (make it: punch recipe {recipe.path} --install)")
         stamp = {"policy_sha256": sha256_of(policy), **extension}
         reports[recipe.name] = [_measured(measurement, recipe.policy, out / recipe.name / measurement.scenario, stamp,
-                                          progress, backend) for measurement in MEASUREMENTS]
+                                          progress, backend) for measurement in measurements_for(recipe)]
     # The moveset's combos play every move's policy: its measurements are stamped with all of them.
     policies = moveset_policies()
     stamp = {"moveset_sha256": sha256_of(MOVESET), **extension,
@@ -215,9 +236,9 @@ def _rows(report: dict[str, Any]) -> list[dict[str, Any]]:
 def summary_row(recipe: Recipe, runs: list[dict[str, Any]]) -> list[str]:
     """The figures that matter of one policy, from its reports: held-out success at sigma 0 and 0.3, the share in
     proximal-to-distal order and the fist's peak speed at sigma 0, the weakest arm size, the hits on the move and the
-    left hand's success at sigma 0.3 and the weakest move from the stance's guard at sigma 0.3."""
+    left hand's success at sigma 0.3 and the weakest move from the stance's guard at sigma 0.3; "-" where a policy of
+    one stance's guard was not measured (`measurements_for`)."""
     by_scenario = {run["measurement"].scenario: run["report"] for run in runs}
-    held_out, moving, sizes, hands, stance = (by_scenario[name] for name in ("held_out", "moving", "sizes", "hands", "stance"))
 
     def success(rows: list[dict[str, Any]], sigma: float) -> tuple[int, int]:
         chosen = [row for row in rows if abs(row["sigma"] - sigma) < 1e-9]
@@ -226,13 +247,17 @@ def summary_row(recipe: Recipe, runs: list[dict[str, Any]]) -> list[str]:
     def percent(counts: tuple[int, int]) -> str:
         return f"{100 * counts[0] / counts[1]:.1f}% of {counts[1]:,}"
 
+    stance = by_scenario["stance"]
+    from_stance = min((row for row in _rows(stance) if row["sigma"] == 0.3), key=lambda row: row["success_rate"])
+    cells = [f"`{recipe.policy.name}`", f"[{recipe.path.relative_to(PROJECT_ROOT).as_posix()}]"]
+    if "held_out" not in by_scenario:
+        return [*cells, *["-"] * 7, f"{100 * from_stance['success_rate']:.1f}% ({from_stance['condition']})"]
+    held_out, moving, sizes, hands = (by_scenario[name] for name in ("held_out", "moving", "sizes", "hands"))
     natural = next(n for n in held_out["evaluations"][0]["naturalness"] if n["sigma"] == 0.0)
     weakest = min((row for row in _rows(sizes) if row["sigma"] == 0.0), key=lambda row: row["success_rate"])
     moved = success(_rows(moving), 0.0)
     left_hand = success([row for row in _rows(hands) if row["condition"].startswith("left")], 0.3)
-    from_stance = min((row for row in _rows(stance) if row["sigma"] == 0.3), key=lambda row: row["success_rate"])
-    return [f"`{recipe.policy.name}`", f"[{recipe.path.relative_to(PROJECT_ROOT).as_posix()}]",
-            percent(success(_rows(held_out), 0.0)), percent(success(_rows(held_out), 0.3)),
+    return [*cells, percent(success(_rows(held_out), 0.0)), percent(success(_rows(held_out), 0.3)),
             f"{100 * natural['proximal_to_distal_share']:.0f}%", f"{natural['medians']['fist_peak_speed_mps']:.2f} m/s",
             f"{100 * weakest['success_rate']:.1f}% (arms {weakest['condition']})", f"{moved[0]:,} of {moved[1]:,}",
             percent(left_hand), f"{100 * from_stance['success_rate']:.1f}% ({from_stance['condition']})"]
@@ -260,11 +285,12 @@ def hand_row(move: str, stance: str) -> str:
     return f"{'lead' if move in LEAD_MOVES else 'rear'} hand, {stance}"
 
 
-def moves_table(reports: dict[str, list[dict[str, Any]]], policy_recipes: dict[str, str]) -> str | None:
-    """Each move of the default moveset from the stance's guard: its success at the head and the body (the lower of the
+def moves_table(reports: dict[str, list[dict[str, Any]]], policy_recipes: dict[str, str],
+                moveset_file: Path = STANCE_MOVESET) -> str | None:
+    """Each move of the stance's moveset from the stance's guard: its success at the head and the body (the lower of the
     two stances), its naturalness medians (orthodox, sigma 0) and the targets it misses; None unless every policy of the
     moveset was measured. `policy_recipes`: policy file name -> recipe name."""
-    moveset = moveset_policies()
+    moveset = moveset_policies(moveset_file)
     recipe_of = {move: policy_recipes.get(file) for move, file in moveset.items()}
     if any(name is None or name not in reports for name in recipe_of.values()):
         return None
@@ -339,7 +365,8 @@ def write_results(recipes: list[Recipe], reports: dict[str, list[dict[str, Any]]
     moves = moves_table(reports, {recipe.policy.name: recipe.name for recipe in recipes})
     if moves is not None:
         write_section(MOVES_SECTION, command, (
-            "Each move of the default moveset (`boxing.tres`) from the stance's guard (`stance_pose`), both stances: the "
+            "Each move of the stance's moveset (`boxing_stance.tres`, for a character with `stance_pose` on) from the "
+            "stance's guard, both stances: the "
             "lower of the two stances' success at the head (the `stance` scenario) and the body (`body`, targets 1.00-1.20 "
             "m high); the lowest walking 0.7 or 1.4 m/s or turning 90°/s either way, and with arms 0.75 or 1.25 times the "
             "body's (`stance_moving`, orthodox: the southpaw's is its mirror image), then its naturalness medians (orthodox, sigma 0; docs/naturalness.md) and the figures of a boxer's "

@@ -85,7 +85,7 @@ def reach_default_notes() -> dict[str, str]:
 @dataclass
 class TrainArgs:
     reward: str = SearchArgs.reward
-    """a preset (straight, straight100, hook, swing, uppercut) or FILE.py:FUNCTION"""
+    """a preset (straight, straight100, hook, swing, uppercut, hook_landing) or FILE.py:FUNCTION"""
     style: str = DEFAULT_STYLE
     """the motion style added to the reward in every stage (docs/style.md): boxing, a human's punch; none, the reward
     alone (the paper's); or FILE.toml:NAME, a style of a file (recipes/styles.toml: the shipped policies')"""
@@ -137,6 +137,12 @@ class TrainArgs:
     stance_share: float = VolumeArgs.stance_share
     """volume: share of A2C episodes (and validation placements) that start in a boxing stance's guard, orthodox or
     southpaw (`PunchController.stance_pose`); the others start in the square guard"""
+    guard: Literal["square", "orthodox", "southpaw"] = "square"
+    """volume: the guard every punch of the policy starts from. 'orthodox' trains a rear hand's move (the right hand
+    from the orthodox guard), 'southpaw' a lead hand's (the right hand leading); the game mirrors either for the other
+    stance (docs/moves.md). The volume search, its datasets, A2C's episodes and its validation all start there, after
+    a lead-in holding it: one start, so that pretraining keeps what the search found there (experiments/notebook.md,
+    "Moves from the stance's guard")"""
     lead_in_every: int = VolumeArgs.lead_in_every
     """volume: every k-th A2C update's episodes start where an earlier punch of this run's search left the arms (at its
     contact, drawing back, or on the way back to guard) instead of in a guard: a policy for punches started wherever
@@ -226,8 +232,8 @@ def search_volume(args: TrainArgs, volume: VolumeArgs, reward: Reward, centre: S
     and one dataset per placement in volume_search/datasets/; with `args.search_stances`, the same from each stance's
     guard too (volume_search_orthodox/, volume_search_southpaw/: every rollout after a lead-in holding it). Returns
     the dataset paths (every start's), the reach, each placement's best return and best actions [P, decisions, A]
-    (the square guard's)."""
-    starts = ["square", *(["orthodox", "southpaw"] if args.search_stances else [])]
+    (the first start's: the square guard's, or `args.guard`'s alone)."""
+    starts = [args.guard] if args.guard != "square" else ["square", *(["orthodox", "southpaw"] if args.search_stances else [])]
     paths: list[Path] = []
     square: list[SearchResult] = []
     with RolloutPool(args.processes, 64, backend=backend) as pool:
@@ -268,6 +274,9 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
     if args.reach not in REACH_DEFAULTS:
         raise ValueError(f"--reach is 'volume' or 'spot', not '{args.reach}'")
     over_volume = args.reach == "volume"
+    if args.guard != "square" and (not over_volume or args.search_stances or args.stance_share > 0):
+        raise ValueError(f"--guard {args.guard} trains from that guard alone, over the reach volume: it goes without "
+                         "--reach spot, --search-stances and --stance-share")
     defaults = REACH_DEFAULTS[args.reach]
     reward = load_reward(args.reward, args.frames, style_named(args.style, args.style_weight))
     out = args.run_dir()
@@ -285,7 +294,7 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
     dataset_paths = [out / "search" / "dataset.npz"]
     volume = VolumeArgs(grid=parse_grid(args.grid), search_iterations=args.volume_search_iterations,
                         search_rollouts=args.volume_search_rollouts, default_share=args.default_share,
-                        stance_share=args.stance_share, lead_in_every=args.lead_in_every,
+                        stance_share=1.0 if args.guard != "square" else args.stance_share, lead_in_every=args.lead_in_every,
                         motions=MotionRange() if args.motions == "move" else None,
                         arms=ArmRange(arm_scale=arm_range(args.arm_range)) if args.arms == "sized" else None)
     reach, punches, grid_bests = None, search.best_actions[None], [search.best_return]
@@ -301,7 +310,8 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
     # left idle by a long pretraining before their idle timeout ends them (PunchVectorEnv.reset).
     restarts = SimulatorRestarts(env.restart)
     try:
-        stance_guards = np.array([env.info.stance_guard_actions[name] for name in ("orthodox", "southpaw")], dtype=np.float32)
+        guards = (args.guard,) if args.guard != "square" else ("orthodox", "southpaw")
+        stance_guards = np.array([env.info.stance_guard_actions[name] for name in guards], dtype=np.float32)
         if args.lead_in_policies and reach is not None:
             punches = np.concatenate([punches, other_moves_punches(args.lead_in_policies, reach, punches.shape[1],
                                                                    env.info.mirror.actions, args.seed)])

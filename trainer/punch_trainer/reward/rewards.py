@@ -64,6 +64,15 @@ def swing(f: Frames) -> Terms:
     return {"forward": near * 500.0 * f["fist_r_vel_z"], "sideways": near * 500.0 * 0.5 * f["fist_r_vel_x"]}
 
 
+def hook_landing(f: Frames) -> Terms:
+    """The hook that lands (not the paper's): the `hook` reward's terms plus 5 times the impulse the fist gives the bag
+    along the hook's direction (forward and 0.75 sideways, N s), as the uppercut's lift: sweeping past the bag earns
+    less than landing on it. The lead hook's: from the lead side's guard the fist starts near the line to the bag, and
+    the `hook` reward alone taught no punch there (experiments/notebook.md)."""
+    terms = hook(f)
+    return {**terms, "landing": 5.0 * (f["fist_r_impulse_z"] + 0.75 * f["fist_r_impulse_x"])}
+
+
 def uppercut(f: Frames) -> Terms:
     """The uppercut (not the paper's): max(0, 0.3 - d)^2 * 10 * (v_z + v_y), the fist coming in and up, plus 5 times
     the upward impulse the fist gives the bag (N s): rising near the bag without touching it earns less than lifting
@@ -94,6 +103,7 @@ PRESETS = {
     "hook": Reward("hook", hook, 50),
     "swing": Reward("swing", swing, 50, search_clip_epsilon=0.1),
     "uppercut": Reward("uppercut", uppercut, 50),
+    "hook_landing": Reward("hook_landing", hook_landing, 50),
 }
 
 
