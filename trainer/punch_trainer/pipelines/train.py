@@ -142,7 +142,7 @@ class TrainArgs:
     from the orthodox guard), 'southpaw' a lead hand's (the right hand leading); the game mirrors either for the other
     stance (docs/moves.md). The volume search, its datasets, A2C's episodes and its validation all start there, after
     a lead-in holding it: one start, so that pretraining keeps what the search found there (experiments/notebook.md,
-    "Moves from the stance's guard")"""
+    "A policy for each hand's guard")"""
     lead_in_every: int = VolumeArgs.lead_in_every
     """volume: every k-th A2C update's episodes start where an earlier punch of this run's search left the arms (at its
     contact, drawing back, or on the way back to guard) instead of in a guard: a policy for punches started wherever
