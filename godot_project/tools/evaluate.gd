@@ -25,7 +25,8 @@
 ## - `move`: the move thrown (`punch(move)`, the policy as the moveset's for it, in the episode's `stance`; a
 ##   left-hand move at the mirror image of the placement), `stance`, `stance_pose`;
 ## - `combo`: a list of moves thrown as one `combo()` with the addon's moveset (every move's shipped policy; the
-##   placement as given, for both hands), the episode ending at `combo_finished`;
+##   placement as given, for both hands; with `stance_pose`, the stance's moveset, as docs/moves.md tells a game),
+##   the episode ending at `combo_finished`;
 ## - `until_recovered`: the character returns to guard after its (last) punch (`auto_recover`), and the episode
 ##   ends at the first `recovered` after its `combo_finished`;
 ## - `guard_first` (default true): `PunchController.guard_first`; false: a punch asked for away from the guard
@@ -65,8 +66,9 @@
 extends SceneTree
 
 const PunchPair := preload("res://tools/punch_pair.gd")
-## The moveset a combo plays.
+## The moveset a combo plays: the addon's, or from the stance's guard (`stance_pose`) the stance's.
 const ADDON_MOVESET := "res://addons/punch_controller/policies/boxing.tres"
+const STANCE_MOVESET := "res://addons/punch_controller/policies/boxing_stance.tres"
 const MOVES: Array[StringName] = [&"jab", &"cross", &"lead_hook", &"rear_hook", &"lead_uppercut", &"rear_uppercut"]
 ## A struck character's bodies, and how near its guard each must be to be back (degrees).
 const STRUCK_BODIES := ["Torso", "UpperArmR", "ForearmR", "UpperArmL", "ForearmL"]
@@ -315,7 +317,7 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 		if move != &"":
 			_fail("episode %d has both a move and a combo" % index)
 			return null
-		var moveset: Resource = load(ADDON_MOVESET)
+		var moveset: Resource = load(STANCE_MOVESET if bool(episode.get("stance_pose", false)) else ADDON_MOVESET)
 		if episode.has("cancel_delay_s"):
 			moveset = moveset.duplicate()
 			for each in MOVES:

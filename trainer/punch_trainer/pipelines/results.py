@@ -197,8 +197,9 @@ def measure(recipes: list[Recipe], out: Path, *, progress: bool = True, backend:
                                           progress, backend) for measurement in measurements_for(recipe)]
     # The moveset's combos play every move's policy: its measurements are stamped with all of them.
     policies = moveset_policies()
-    stamp = {"moveset_sha256": sha256_of(MOVESET), **extension,
-             **{f"{name}_sha256": sha256_of(MOVESET.parent / name) for name in sorted(set(policies.values()))}}
+    files = sorted(set(policies.values()) | set(moveset_policies(STANCE_MOVESET).values()))
+    stamp = {"moveset_sha256": sha256_of(MOVESET), "stance_moveset_sha256": sha256_of(STANCE_MOVESET), **extension,
+             **{f"{name}_sha256": sha256_of(MOVESET.parent / name) for name in files}}
     placements_policy = (MOVESET.parent / policies["jab"]).relative_to(PROJECT_ROOT)
     reports[MOVESET_KEY] = [_measured(measurement, placements_policy, out / MOVESET_KEY / measurement.scenario, stamp,
                                       progress, backend) for measurement in MOVESET_MEASUREMENTS]
@@ -373,7 +374,7 @@ def write_results(recipes: list[Recipe], reports: dict[str, list[dict[str, Any]]
             "move it misses (docs/moves.md). Moves that share a policy differ by hand: the lead hand's from its side.\n\n"
             + moves), oldest([r.name for r in recipes]))
     if MOVESET_KEY in reports:
-        body = ["The default moveset (`boxing.tres`) thrown as a game throws it: combinations with `combo()`, each punch "
+        body = ["The default moveset (`boxing.tres`; from the stance's guard, `boxing_stance.tres`) thrown as a game throws it: combinations with `combo()`, each punch "
                 "starting at the one before's cancel window (its contact; the moveset's delays are 0) after a return near the "
                 "guard (`guard_first`), each move alone for its frame data, and a second punch started at a random moment of the "
                 "first's recovery from wherever the arms are (`from_recovery`; docs/combos.md). The `--policy` only gives the "
