@@ -155,9 +155,9 @@ pub struct PunchController {
     stance: PunchStance,
     /// Stand in the stance's guard: the trunk turned 30° to bring the lead shoulder forward, the lead hand a little
     /// ahead (docs/moves.md). Recoveries drive there, and a punch asked for away from it returns there first
-    /// (`guard_first`). Off (the default): the square guard the shipped policies were trained from; from the
-    /// stance's they land less often (BENCHMARKS.md, "The shipped policies", the `stance` scenario). Takes effect
-    /// at the next punch or recovery.
+    /// (`guard_first`). Off (the default): the square guard `boxing.tres`'s policies were trained from. On, set
+    /// `moveset` to `res://addons/punch_controller/policies/boxing_stance.tres`, whose lead hook and uppercuts were
+    /// trained from the stance's guard (BENCHMARKS.md, "The six moves"). Takes effect at the next punch or recovery.
     #[export]
     stance_pose: bool,
     /// The move `punch()` throws when it is given none ("jab", "cross", "lead_hook", "rear_hook",
