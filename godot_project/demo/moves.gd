@@ -6,7 +6,6 @@ extends "res://demo/arena.gd"
 
 const MOVES: Array[StringName] = [&"jab", &"cross", &"lead_hook", &"rear_hook", &"lead_uppercut", &"rear_uppercut"]
 const SANDBAG_SCENE := preload("res://addons/punch_controller/scenes/punch_sandbag.tscn")
-const STANCE_MOVESET := preload("res://addons/punch_controller/policies/boxing_stance.tres")
 ## The bag's centre this far toward the punching hand (m; +X is a character's left).
 const SIDE_M := 0.1
 
@@ -18,8 +17,7 @@ func _ready() -> void:
 		var where := Transform3D(Basis.IDENTITY, Vector3(1.7 * index - 4.25, 0, 0))
 		var character := add_character(self, where)
 		var controller := add_controller(character, null, 0.1, index + 1)
-		controller.stance_pose = true
-		controller.moveset = STANCE_MOVESET
+		controller.stance_pose = true  # and no moveset: the addon's for the stance, boxing_stance.tres
 		var label := add_label_above(where.origin)
 		var row := {"move": MOVES[index], "controller": controller, "sandbag": null, "bag": null, "label": label,
 			"origin": where.origin, "landed": false}

@@ -1,7 +1,8 @@
 ## Your own character: two rigged, skinned humanoids made from CC0 MakeHuman data (a 1.90 m one with Mixamo bone
 ## names and a 1.60 m one with Unreal-style names) punch through a PunchSkeletonModifier under each Skeleton3D.
 ## The tall one (orthodox) punches the sandbag, turns to the short one (southpaw), and the two take turns punching each
-## other, each throwing the six moves in turn (jab, cross, hooks, uppercuts) with its stance's hands. Between
+## other, each throwing the six moves in turn (jab, cross, hooks, uppercuts) with its stance's hands from its stance's
+## guard (`stance_pose`: the addon's stance moveset, sized to the rig like every policy). Between
 ## punches each skeleton plays its own idle (a guard with breathing, bouncing knees and a nodding head, built in
 ## code below as an ordinary Animation in an AnimationPlayer); a punch blends the controller's simulated upper body
 ## in over the animation and back out. The simulated bodies are hidden: only the skinned characters show.
@@ -110,6 +111,7 @@ func _add_fighter(file: String, rig: Node3D, place: Transform3D, index: int) -> 
 	var character := add_character(self, place)  # anywhere: the modifier puts it on the rig
 	var controller := add_controller(character, null, 0.0, index + 1)
 	controller.stance = PunchController.ORTHODOX if index == 0 else PunchController.SOUTHPAW
+	controller.stance_pose = true  # and no moveset: the addon's for the stance, boxing_stance.tres
 	var modifier := PunchSkeletonModifier.new()
 	modifier.controller = controller
 	modifier.blend_in_s = 0.05  # the punches land 0.06 s in: the skinned fist must be there by then

@@ -1,13 +1,12 @@
 ## The moves a game throws by name, in both stances: for each stance and each move the addon's moveset has, a
 ## character punches a sandbag placed for that move's hand, off the centre line on its side (the left hand's bag is
-## the mirror image of the right's); the same again from the stance's guard (`stance_pose`) with the stance's
-## moveset (`boxing_stance.tres`). Then what a game gets wrong: a move that is none of the six, a move the
+## the mirror image of the right's); the same again from the stance's guard (`stance_pose`), no moveset set: the
+## addon's for the stance (`boxing_stance.tres`). Then what a game gets wrong: a move that is none of the six, a move the
 ## moveset has no policy for, and a moveset of its own holding one move. Prints `MOVES_SCENE <json>` and quits.
 extends SceneTree
 
 const MOVES := [&"jab", &"cross", &"lead_hook", &"rear_hook", &"lead_uppercut", &"rear_uppercut"]
 const SIDE_M := 0.12  # the bag's centre this far toward the punching hand's side
-const STANCE_MOVESET := "res://addons/punch_controller/policies/boxing_stance.tres"
 var _throws: Array[Dictionary] = []
 var _report := {"throws": [], "refused": {}}
 var _frames := 0
@@ -22,8 +21,9 @@ func _initialize() -> void:
 				index += 1
 
 
-## A character and its bag 3 m from the others; the bag toward the side of the hand `move` is thrown with. With
-## `stance_pose`, the character stands in the stance's guard and throws from the stance's moveset.
+## A character and its bag 3 m from the others; the bag toward the side of the hand `move` is thrown with, at the
+## middle of the move's reach (`reach_volume(move)`). With
+## `stance_pose`, the character stands in the stance's guard and throws from the stance's moveset (the default then).
 func _add_pair(index: int, stance: int, move: StringName, stance_pose: bool) -> Dictionary:
 	var origin := Vector3(3.0 * index, 0, 0)
 	var character: Node3D = load("res://addons/punch_controller/scenes/punch_character.tscn").instantiate()
@@ -40,10 +40,12 @@ func _add_pair(index: int, stance: int, move: StringName, stance_pose: bool) -> 
 	controller.set("character", character)
 	controller.set("target", sandbag.get_node("Bag"))
 	controller.set("stance", stance)
-	if stance_pose:
-		controller.set("stance_pose", true)
-		controller.set("moveset", load(STANCE_MOVESET))
+	controller.set("stance_pose", stance_pose)
 	root.add_child(controller)
+	# The bag at the middle of the move's reach (a lead hand's in the stance lies further ahead: docs/moves.md).
+	var distance: Vector2 = controller.call("reach_volume", move).distance_m
+	offset.z = (distance.x + distance.y) / 2.0
+	sandbag.position = origin + offset
 	var entry := {"stance": stance, "move": String(move), "stance_pose": stance_pose, "bag_side_m": offset.x,
 		"started": [], "hits": [], "finished": []}
 	controller.connect("punch_started", func(move_name, hand, _combo_index): entry.started.append([String(move_name), String(hand)]))
@@ -75,6 +77,13 @@ func _refusals() -> void:
 	root.add_child(other)
 	_report.reach_of_jab = other.call("reach_volume", &"jab")
 	_report.reach_of_haymaker = other.call("reach_volume", &"haymaker")
+	# No moveset set: the addon's, the stance's with `stance_pose` (its lead hook's volume lies further ahead).
+	var distance: Vector2 = other.call("reach_volume", &"lead_hook").distance_m
+	_report.lead_hook_distance_m = [distance.x, distance.y]
+	other.set("stance_pose", true)
+	distance = other.call("reach_volume", &"lead_hook").distance_m
+	_report.lead_hook_in_stance_distance_m = [distance.x, distance.y]
+	other.set("stance_pose", false)
 	_report.refused["haymaker"] = other.call("punch", &"haymaker")
 	var moveset: Resource = ClassDB.instantiate("PunchMoveset")
 	moveset.set("jab", load("res://addons/punch_controller/policies/straight.onnx"))

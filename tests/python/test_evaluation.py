@@ -8,6 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from conftest import PROJECT_ROOT
@@ -73,6 +74,33 @@ def test_an_episode_plays_its_condition_with_the_seed_rule():
     episodes, groups = episodes_of(moving, *draw_placements(moving, REACH))
     assert [e["seed"] for e in episodes[groups[1].start:groups[1].start + 2]] == [moving.seed * 1000003 + 100003 + p for p in (0, 1)]
     assert episodes[groups[2].start]["body"]["velocity_mps"] == [0.0, 0.0, 0.7]
+
+
+def test_a_lead_hands_move_from_the_stance_punches_at_the_placements_moved_forward():
+    """The stance's lead-hand conditions (a jab, in either stance) play each placement `lead_forward_m` further ahead,
+    the lead hand's volume, and a combination from there with a lead hand's move where both hands reach; the rear
+    hand's, and every condition away from the stance's guard, play it as drawn."""
+    scenario = scenario_of(EvalArgs(policy=POLICY, scenario="stance", placements=4, sigmas=[0.0]))
+    still, swinging = draw_placements(scenario, REACH)
+    episodes, groups = episodes_of(scenario, still, swinging, 0.1)
+    for group in groups:
+        distances = [e["placement"]["distance_m"] for e in episodes[group.start:group.start + group.count]]
+        moved = 0.1 if group.condition.move == "jab" else 0.0
+        assert distances == pytest.approx([b.distance_m + moved for b in still]), group.condition.name
+    assert {g.condition.move for g in groups} == {"jab", "cross"}
+    square = build_scenario({"conditions": [{"name": "jab", "move": "jab"}]}, "inline")
+    episodes, _ = episodes_of(square, still, swinging, 0.1)
+    assert [e["placement"]["distance_m"] for e in episodes] == [b.distance_m for b in still]
+    # A combination from the stance with a lead hand's move: at the distances both hands reach, 0.70-0.85 m, in order.
+    combos = build_scenario({"success": "hit", "conditions": [
+        {"name": "1-2", "combo": ["jab", "cross"], "stance_pose": True, "sigmas": [0.0]},
+        {"name": "2-4", "combo": ["cross", "rear_hook"], "stance_pose": True, "sigmas": [0.0]}]}, "inline")
+    many = REACH.sample(np.random.default_rng(0), 64)
+    episodes, groups = episodes_of(combos, many, [], 0.1, REACH.distance_m)
+    both = [e["placement"]["distance_m"] for e in episodes[:64]]
+    assert min(both) >= 0.7 and max(both) <= 0.85 and sorted(range(64), key=both.__getitem__) == sorted(
+        range(64), key=lambda i: many[i].distance_m)
+    assert [e["placement"]["distance_m"] for e in episodes[64:]] == [b.distance_m for b in many]
 
 
 def test_a_punch_from_recovery_draws_its_delay_from_its_own_seed_within_the_band():

@@ -17,6 +17,7 @@ from punch_trainer import policy_file
 from punch_trainer.errors import MissingMetadataError, PolicyFileError
 from punch_trainer.learn.export import export_policy
 from punch_trainer.learn.policy import ActorCritic
+from punch_trainer.learn.reach import ReachVolume
 from punch_trainer.pipelines.recipe import TrainStage
 from punch_trainer.pipelines.results import shipped_recipes
 from punch_trainer.policy_file import (
@@ -31,6 +32,7 @@ from punch_trainer.policy_file import (
 )
 
 SHIPPED = sorted((PROJECT_ROOT / "addons" / "punch_controller" / "policies").glob("*.onnx"))
+SHIPPED_STRAIGHT = PROJECT_ROOT / "addons" / "punch_controller" / "policies" / "straight.onnx"
 TRAINER = PROJECT_ROOT / "trainer" / "punch_trainer"
 
 
@@ -90,6 +92,11 @@ def test_the_shipped_policies_read_with_every_entry(policy: Path):
     recipe = next(recipe for recipe in shipped_recipes() if recipe.policy.name == policy.name)
     rewards = {stage.args["reward"] for stage in recipe.stages if isinstance(stage, TrainStage)}
     assert rewards == {metadata.reward} and metadata.training_summary is not None and metadata.noise_scale is not None
+    # Its reach: the spec's (the straight's, trained from every start), a lead hand's moved forward 0.10 m
+    # (punch_core's LEAD_REACH_FORWARD_M).
+    square = ReachVolume.from_json(read_policy_metadata(SHIPPED_STRAIGHT).reach_volume)
+    forward_m = 0.10 if recipe.guard == "southpaw" else 0.0
+    assert ReachVolume.from_json(metadata.reach_volume) == square.moved_forward(forward_m), recipe.name
     assert set(metadata.entries) == set(CONTRACT_KEYS) | set(TRAINER_KEYS)
     assert metadata.contract() == {key: value for key, value in read_entries(policy).items() if key in CONTRACT_KEYS}
 

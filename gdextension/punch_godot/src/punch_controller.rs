@@ -33,8 +33,11 @@ use crate::punch_moveset::PunchMoveset;
 use crate::punch_policy::PunchPolicy;
 use crate::target::Target;
 
-/// The addon's moveset, which `punch(move)` plays when `moveset` is empty.
+/// The addon's moveset, which `punch(move)` plays when `moveset` is empty (the square guard's).
 const ADDON_MOVESET: &str = "res://addons/punch_controller/policies/boxing.tres";
+/// The addon's moveset for a character in its stance's guard, which `punch(move)` plays when `moveset` is empty and
+/// `stance_pose` is on.
+const ADDON_STANCE_MOVESET: &str = "res://addons/punch_controller/policies/boxing_stance.tres";
 
 /// Which hand leads (`PunchController.stance`).
 #[derive(GodotConvert, Var, Export, Default, Debug, Clone, Copy, PartialEq, Eq)]
@@ -144,7 +147,8 @@ pub struct PunchController {
     decision_period: PhantomVar<i32>,
 
     /// The policies of the six moves `punch(move)` throws by name (`PunchMoveset`); empty: the addon's,
-    /// `res://addons/punch_controller/policies/boxing.tres`. A new moveset plays from the next punch.
+    /// `res://addons/punch_controller/policies/boxing.tres`, or with `stance_pose` on `boxing_stance.tres` (its
+    /// moves trained from the stance's guard). A new moveset plays from the next punch.
     #[export_group(name = "Moves")]
     #[export]
     moveset: Option<Gd<PunchMoveset>>,
@@ -155,9 +159,10 @@ pub struct PunchController {
     stance: PunchStance,
     /// Stand in the stance's guard: the trunk turned 30° to bring the lead shoulder forward, the lead hand a little
     /// ahead (docs/moves.md). Recoveries drive there, and a punch asked for away from it returns there first
-    /// (`guard_first`). Off (the default): the square guard `boxing.tres`'s policies were trained from. On, set
-    /// `moveset` to `res://addons/punch_controller/policies/boxing_stance.tres`, whose lead hook and uppercuts were
-    /// trained from the stance's guard (BENCHMARKS.md, "The six moves"). Takes effect at the next punch or recovery.
+    /// (`guard_first`). Off (the default): the square guard `boxing.tres`'s policies were trained from. On, an empty
+    /// `moveset` plays `res://addons/punch_controller/policies/boxing_stance.tres`, whose lead moves and rear
+    /// uppercut were trained from the stance's guard (BENCHMARKS.md, "The six moves"); a moveset of the game's own
+    /// plays as set. Takes effect at the next punch or recovery.
     #[export]
     stance_pose: bool,
     /// The move `punch()` throws when it is given none ("jab", "cross", "lead_hook", "rear_hook",
@@ -553,8 +558,11 @@ impl PunchController {
         let punch_move = Move::from_name(&name).map_err(|error| error.to_string())?;
         let moveset = match &self.moveset {
             Some(moveset) => moveset.clone(),
-            None => try_load::<PunchMoveset>(ADDON_MOVESET)
-                .map_err(|error| format!("no moveset set, and the addon's ({ADDON_MOVESET}) does not load: {error}"))?,
+            None => {
+                let addon = if self.stance_pose { ADDON_STANCE_MOVESET } else { ADDON_MOVESET };
+                try_load::<PunchMoveset>(addon)
+                    .map_err(|error| format!("no moveset set, and the addon's ({addon}) does not load: {error}"))?
+            }
         };
         let mut policy = moveset.bind().policy_of(punch_move).ok_or_else(|| {
             format!("the moveset '{}' has no policy for '{punch_move}': set one in its inspector", moveset.get_path())

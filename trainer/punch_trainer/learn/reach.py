@@ -9,6 +9,7 @@ a seed no training stage uses.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from dataclasses import asdict, dataclass
@@ -77,6 +78,11 @@ class ReachVolume:
             return round(float(value_m), 4), round(float(value_m), 4)
 
         return cls(at(bag.distance_m), at(bag.height_m), at(bag.side_m), 0.0, False)
+
+    def moved_forward(self, metres: float) -> ReachVolume:
+        """The same box `metres` further ahead (a lead hand's volume in the stance: ServerInfo.stance_lead_forward_m)."""
+        low, high = self.distance_m
+        return dataclasses.replace(self, distance_m=(round(low + metres, 4), round(high + metres, 4)))
 
     def to_json(self) -> str:
         return json.dumps({key: list(value) if isinstance(value, tuple) else value for key, value in asdict(self).items()},

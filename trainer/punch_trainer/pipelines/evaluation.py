@@ -34,6 +34,7 @@ from punch_trainer.learn.reach import ReachVolume
 from punch_trainer.learn.volume import success, success_interval
 from punch_trainer.options import SIGMA, bounds
 from punch_trainer.pipelines.scenario import (
+    LEAD_MOVES,
     SEED_STRIDE,
     Condition,
     Scenario,
@@ -214,13 +215,34 @@ def draw_placements(scenario: Scenario, reach: ReachVolume) -> tuple[list[Episod
     return still, swinging
 
 
-def episodes_of(scenario: Scenario, still: list[EpisodeConditions], swinging: list[EpisodeConditions]) -> tuple[list[dict[str, Any]], list[Group]]:
+def condition_placements(condition: Condition, still: list[EpisodeConditions], swinging: list[EpisodeConditions],
+                         lead_forward_m: float, distance_m: tuple[float, float] = (0.0, 0.0)) -> list[EpisodeConditions]:
+    """The placements a condition plays: the swinging twins or the still ones; for a lead hand's move from the
+    stance's guard the same moved `lead_forward_m` further ahead (the lead hand's volume: its guard holds the fist that
+    much nearer the target; docs/moves.md); for a combination from there with a lead hand's move, drawn into the
+    distances both hands reach (the volume's `distance_m` with its near end moved `lead_forward_m` forward)."""
+    places = swinging if condition.swinging else still
+    if not (condition.stance_pose and lead_forward_m):
+        return places
+    if condition.move in LEAD_MOVES:
+        return [dataclasses.replace(bag, distance_m=round(bag.distance_m + lead_forward_m, 6)) for bag in places]
+    near, far = distance_m
+    if any(move in LEAD_MOVES for move in condition.combo) and far - near > lead_forward_m:
+        narrowed = (far - near - lead_forward_m) / (far - near)
+        return [dataclasses.replace(bag, distance_m=round(near + lead_forward_m + (bag.distance_m - near) * narrowed, 6))
+                for bag in places]
+    return places
+
+
+def episodes_of(scenario: Scenario, still: list[EpisodeConditions], swinging: list[EpisodeConditions],
+                lead_forward_m: float = 0.0, distance_m: tuple[float, float] = (0.0, 0.0)) -> tuple[list[dict[str, Any]], list[Group]]:
     """evaluate.gd's episodes of a scenario, and the report rows they make. Episode e of sigma index s of a
-    condition plays placement e modulo their count with noise seed noise_seed * 1000003 + s * 100003 + e."""
+    condition plays placement e modulo their count with noise seed noise_seed * 1000003 + s * 100003 + e; a lead
+    hand's move from the stance's guard plays it `lead_forward_m` further ahead (`condition_placements`)."""
     episodes: list[dict[str, Any]] = []
     groups = []
     for condition in scenario.conditions:
-        places = swinging if condition.swinging else still
+        places = condition_placements(condition, still, swinging, lead_forward_m, distance_m)
         for index, sigma in enumerate(condition.sigmas):
             count = len(places) * (1 if sigma == 0 else scenario.noisy_punches)
             groups.append(Group(condition, sigma, len(episodes), count))
@@ -426,11 +448,13 @@ def run_eval(args: EvalArgs, progress: bool = True, *, backend: Backend = LOCAL)
         if any(r.name != rewards[0].name for r in rewards):
             raise EvalError("--baseline must be trained for the same reward as --policy")
         reward = rewards[0]
+    lead_forward_m = 0.0  # a policy's own volume is its hand's already
     if scenario.volume == "spec":
         from punch_trainer.sim.rollouts import RolloutPool
 
         with RolloutPool(1, 1, backend=backend) as pool:
             reach = ReachVolume.from_json(pool.info.reach_volume)
+            lead_forward_m = pool.info.stance_lead_forward_m
     else:
         reach = ReachVolume.from_json(metadata[0].reach_volume)
     if scenario.height_m is not None:
@@ -438,7 +462,7 @@ def run_eval(args: EvalArgs, progress: bool = True, *, backend: Backend = LOCAL)
     if scenario.side_m is not None:
         reach = dataclasses.replace(reach, side_m=scenario.side_m)
     still, swinging = draw_placements(scenario, reach)
-    episodes, groups = episodes_of(scenario, still, swinging)
+    episodes, groups = episodes_of(scenario, still, swinging, lead_forward_m, reach.distance_m)
     out = Path(args.out or Path(args.policy).parent / f"eval_{scenario.name}_{int(time.time())}")
     out.mkdir(parents=True, exist_ok=True)
     calls: list[dict[str, Any]] = [{"episodes": episodes, "groups": groups, "reward": reward, "naturalness": scenario.naturalness,
@@ -458,7 +482,8 @@ def run_eval(args: EvalArgs, progress: bool = True, *, backend: Backend = LOCAL)
     if reward is not None and scenario.search_iterations > 0:
         if progress:
             print("searching the best punch at every placement ...", flush=True)
-        best = search_bests(runs[0]["groups"][0]["actions"], still, reward, metadata[0].smoothing_window,
+        searched = condition_placements(groups[0].condition, still, [], lead_forward_m, reach.distance_m)
+        best = search_bests(runs[0]["groups"][0]["actions"], searched, reward, metadata[0].smoothing_window,
                             scenario.search_iterations, scenario.seed, backend)
         best = np.max([best, *[run["groups"][0]["returns"] for run in runs]], axis=0)  # a policy may beat the short search
     evaluations = [evaluation_of(policy, run, groups, scenario, reward, best) for policy, run in zip(policies, runs, strict=True)]
@@ -469,6 +494,7 @@ def run_eval(args: EvalArgs, progress: bool = True, *, backend: Backend = LOCAL)
         capture = capture_figures()
     report = {"scenario": scenario.to_json(), "seed": scenario.seed, "placements": [bag.to_wire() for bag in still],
               "swinging_placements": [bag.to_wire() for bag in swinging], "reach": json.loads(reach.to_json()),
+              "lead_forward_m": lead_forward_m,
               "arm_scale_range": runs[0]["arm_scale_range"], "search_best": best.tolist() if best is not None else None,
               "evaluations": evaluations,
               "captured_naturalness": [punch.to_json() for punch in capture] if capture else None,
@@ -562,10 +588,16 @@ def write_report(out: Path, args: EvalArgs, scenario: Scenario, report: dict[str
     if any(c.struck for c in scenario.conditions):
         measured += (" (a struck character's, which throws no punch: every body back within 10° of its guard, and "
                      "`recovered`)")
+    lead_forward_m = report.get("lead_forward_m", 0.0)
     lines = [f"# punch eval: {args.policy}", "",
              f"Scenario `{scenario.name}` ({scenario.source}): {scenario.description}.", "",
              f"{scenario.placements} held-out placements drawn from the {scenario.volume}'s reach volume"
-             + (f" at heights {scenario.height_m[0]:g}-{scenario.height_m[1]:g} m" if scenario.height_m else "") + " with seed "
+             + (f" at heights {scenario.height_m[0]:g}-{scenario.height_m[1]:g} m" if scenario.height_m else "")
+             + (f" (a lead hand's move from the stance's guard: each {lead_forward_m:g} m further ahead, as its guard holds "
+                "the fist that much nearer; a combination from there with a lead hand's move: at the distances both "
+                "hands reach)" if lead_forward_m and any(c.stance_pose and (c.move in LEAD_MOVES or c.combo)
+                                                         for c in scenario.conditions) else "")
+             + " with seed "
              f"{scenario.seed} (a seed no training stage uses); one punch per placement and condition at "
              f"sigma 0, {scenario.noisy_punches} at each sigma above it; every punch through PunchController in headless "
              f"Godot ({report['wall_s']:.0f} s in all). Success: {measured}; its interval: Wilson's 95% score interval, "

@@ -22,7 +22,7 @@ from typing import Any
 from punch_trainer.errors import PunchError
 from punch_trainer.pipelines.evaluation import EvalArgs, benchmarks_body, run_eval
 from punch_trainer.pipelines.recipe import Recipe, load_recipe
-from punch_trainer.pipelines.scenario import load_scenario, scenario_path
+from punch_trainer.pipelines.scenario import LEAD_MOVES, load_scenario, scenario_path
 from punch_trainer.sim.backend import LOCAL, Backend
 from punch_trainer.sim.godot import PROJECT_ROOT
 
@@ -116,7 +116,6 @@ COMBOS_SECTION = "Combos and frame data"
 HITS_SECTION = "Taking hits"
 
 SIX_MOVES = ("jab", "cross", "lead_hook", "rear_hook", "lead_uppercut", "rear_uppercut")
-LEAD_MOVES = ("jab", "lead_hook", "lead_uppercut")
 
 
 @dataclass(frozen=True)

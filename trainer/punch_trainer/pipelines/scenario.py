@@ -146,6 +146,8 @@ CONDITION_KEYS = ("name", "sigmas", "noise_decisions", "noise_seed", "start", "a
                   "stance", "stance_pose", "combo", "until_recovered", "guard_first", "reset_target",
                   "cancel_delay_s", "struck")
 COMBO_MOVES = ("jab", "cross", "lead_hook", "rear_hook", "lead_uppercut", "rear_uppercut")
+LEAD_MOVES = ("jab", "lead_hook", "lead_uppercut")
+"""the moves of the lead hand (the left in the orthodox stance; punch_core::game::moves)"""
 SCENARIO_KEYS = ("name", "description", "success", "placements", "noisy_punches", "search_iterations", "naturalness",
                  "conditions")
 PLACEMENT_KEYS = ("count", "seed", "volume", "height_m", "side_m")

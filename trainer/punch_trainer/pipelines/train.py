@@ -9,6 +9,7 @@ only, as the paper does: the quickstart, in seconds, and a policy that hits only
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 import tempfile
@@ -52,6 +53,7 @@ from punch_trainer.sim.conditions import ARM_SCALE_RANGE, EpisodeConditions, Epi
 from punch_trainer.sim.env import PunchVectorEnv
 from punch_trainer.sim.mirror import VectorMirror
 from punch_trainer.sim.rollouts import RolloutPool
+from punch_trainer.sim.server import ServerInfo
 from punch_trainer.sim.server_group import SimulatorRestarts
 
 
@@ -85,7 +87,7 @@ def reach_default_notes() -> dict[str, str]:
 @dataclass
 class TrainArgs:
     reward: str = SearchArgs.reward
-    """a preset (straight, straight100, hook, swing, uppercut, hook_landing) or FILE.py:FUNCTION"""
+    """a preset (straight, straight100, hook, swing, uppercut, hook_landing, straight_landing) or FILE.py:FUNCTION"""
     style: str = DEFAULT_STYLE
     """the motion style added to the reward in every stage (docs/style.md): boxing, a human's punch; none, the reward
     alone (the paper's); or FILE.toml:NAME, a style of a file (recipes/styles.toml: the shipped policies')"""
@@ -139,7 +141,8 @@ class TrainArgs:
     southpaw (`PunchController.stance_pose`); the others start in the square guard"""
     guard: Literal["square", "orthodox", "southpaw"] = "square"
     """volume: the guard every punch of the policy starts from. 'orthodox' trains a rear hand's move (the right hand
-    from the orthodox guard), 'southpaw' a lead hand's (the right hand leading); the game mirrors either for the other
+    from the orthodox guard), 'southpaw' a lead hand's (the right hand leading, over the volume moved forward by the
+    server's `stance_lead_forward_m`: its guard holds the fist that much nearer); the game mirrors either for the other
     stance (docs/moves.md). The volume search, its datasets, A2C's episodes and its validation all start there, after
     a lead-in holding it: one start, so that pretraining keeps what the search found there (experiments/notebook.md,
     "A policy for each hand's guard")"""
@@ -175,12 +178,12 @@ class TrainArgs:
 
 
 def run_exported_policy(path: Path, env: PunchVectorEnv, reward: Reward, sigma: float = 0.0,
-                        seed: int = 0) -> tuple[float, np.ndarray]:
-    """Runs an exported policy file with onnxruntime in the simulator (noise `sigma` on its mean); returns
-    character 0's return and its features [frames, F]."""
+                        seed: int = 0, start: EpisodeStart | None = None) -> tuple[float, np.ndarray]:
+    """Runs an exported policy file with onnxruntime in the simulator (noise `sigma` on its mean), from `start`
+    (default: the square guard, the default placement); returns character 0's return and its features [frames, F]."""
     session = onnxruntime.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     rng = np.random.default_rng(seed)
-    obs, _ = env.reset()
+    obs, _ = env.reset(options=start)
     total_return, frames, scorer = 0.0, [], EpisodeScorer(reward, env.feature_names)
     while True:
         mean, _ = session.run(None, {"obs": obs.astype(np.float32)})
@@ -226,6 +229,13 @@ def parse_grid(text: str) -> tuple[int, int, int]:
     return distance, height, side
 
 
+def lead_forward_m(args: TrainArgs, info: ServerInfo) -> float:
+    """How much further forward than the spec's volume the policy's targets lie (m): a lead hand's move (`--guard
+    southpaw`) punches from a guard that holds its fist nearer the target, so it covers the volume moved forward by
+    the server's `stance_lead_forward_m` (docs/moves.md); 0 for every other guard."""
+    return info.stance_lead_forward_m if args.guard == "southpaw" else 0.0
+
+
 def search_volume(args: TrainArgs, volume: VolumeArgs, reward: Reward, centre: SearchResult, progress: bool,
                   resume: bool, backend: Backend) -> tuple[list[Path], ReachVolume, list[float], np.ndarray]:
     """The search over the reach volume's grid, warm-started from the default placement's best (`centre`),
@@ -237,7 +247,7 @@ def search_volume(args: TrainArgs, volume: VolumeArgs, reward: Reward, centre: S
     paths: list[Path] = []
     square: list[SearchResult] = []
     with RolloutPool(args.processes, 64, backend=backend) as pool:
-        reach = ReachVolume.from_json(pool.info.reach_volume)
+        reach = ReachVolume.from_json(pool.info.reach_volume).moved_forward(lead_forward_m(args, pool.info))
         placements = reach.grid(volume.grid)
         for start in starts:
             out = args.run_dir() / ("volume_search" if start == "square" else f"volume_search_{start}")
@@ -315,7 +325,8 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
         if args.lead_in_policies and reach is not None:
             punches = np.concatenate([punches, other_moves_punches(args.lead_in_policies, reach, punches.shape[1],
                                                                    env.info.mirror.actions, args.seed)])
-        conditions = (ConditionSampler(reach, punches, volume, seed=args.seed + 1, default_bag=env.info.default_bag,
+        default_bag = dataclasses.replace(env.info.default_bag, distance_m=env.info.default_bag.distance_m + lead_forward_m(args, env.info))
+        conditions = (ConditionSampler(reach, punches, volume, seed=args.seed + 1, default_bag=default_bag,
                                        stance_guards=stance_guards)
                       if reach is not None else None)
         validation: list[EpisodeConditions] | EpisodeStart | None = None
@@ -377,7 +388,11 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
             summary["validation"] = validated.to_json()
         policy_path = export_policy(model, out / "policy.onnx", contract=data["policy_metadata"], reward=reward.name,
                                     style=reward.style, summary=summary)
-        exported_return, features = restarts.run(functools.partial(run_exported_policy, policy_path, env, reward))
+        # A policy of one guard punches from there, at its volume's default placement.
+        guard_start = None if args.guard == "square" else EpisodeStart(
+            [default_bag] * env.num_envs, np.repeat(holding(env.info.stance_guard_actions[args.guard])[None], env.num_envs, 0))
+        exported_return, features = restarts.run(functools.partial(run_exported_policy, policy_path, env, reward,
+                                                                   start=guard_start))
     finally:
         env.close()
     timings["total_s"] = time.perf_counter() - started
@@ -399,7 +414,10 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
         f"- after A2C ({len(a2c_history) - 1} updates x {processes * args.a2c_characters} episodes, advantage '{args.advantage}', "
         f"sigma at least {a2c_args.sigma_floor}): "
         f"best noise-free return {max(h['eval_return'] for h in a2c_history):.4f}",
-        f"- exported policy (onnxruntime, sigma 0) in the simulator: return {exported_return:.4f} = {100 * ratio:.1f}% of the search's best",
+        f"- exported policy (onnxruntime, sigma 0) in the simulator: return {exported_return:.4f} = {100 * ratio:.1f}% of the search's best"
+        if args.guard == "square" else
+        f"- exported policy (onnxruntime, sigma 0) in the simulator, from the {args.guard} guard at the default placement "
+        f"{default_bag.distance_m:.2f} m ahead: return {exported_return:.4f} (the search above started from the square guard)",
         f"- reach: {args.reach}" + (f" ({len(grid_bests)} search placements; on {env.num_envs} validation placements, "
                                     f"sigma 0: success {100 * validated.success_rate:.1f}%, mean return {validated.mean_return:.4f})"
                                     if validated is not None else " (the default placement only)"),

@@ -73,6 +73,13 @@ def hook_landing(f: Frames) -> Terms:
     return {**terms, "landing": 5.0 * (f["fist_r_impulse_z"] + 0.75 * f["fist_r_impulse_x"])}
 
 
+def straight_landing(f: Frames) -> Terms:
+    """The straight that lands (not the paper's): the `straight` reward's term plus 5 times the forward impulse the
+    fist lands with (N s), as `hook_landing`: the jab's, from the lead side's guard, where the `straight` reward alone
+    taught no punch (experiments/notebook.md)."""
+    return {**straight(f), "landing": 5.0 * f["fist_r_impulse_z"]}
+
+
 def uppercut(f: Frames) -> Terms:
     """The uppercut (not the paper's): max(0, 0.3 - d)^2 * 10 * (v_z + v_y), the fist coming in and up, plus 5 times
     the upward impulse the fist gives the bag (N s): rising near the bag without touching it earns less than lifting
@@ -104,6 +111,7 @@ PRESETS = {
     "swing": Reward("swing", swing, 50, search_clip_epsilon=0.1),
     "uppercut": Reward("uppercut", uppercut, 50),
     "hook_landing": Reward("hook_landing", hook_landing, 50),
+    "straight_landing": Reward("straight_landing", straight_landing, 50),
 }
 
 

@@ -18,7 +18,7 @@ use crate::contract::arm_size::ArmScale;
 use crate::contract::character::action_from_targets;
 use crate::contract::mirror;
 use crate::contract::motion::BodyMotion;
-use crate::contract::stance::Stance;
+use crate::contract::stance::{LEAD_REACH_FORWARD_M, Stance};
 
 pub use crate::contract::character::{DEFAULT_DECISION_PERIOD, DOF_COUNT, DOFS, PHYSICS_HZ};
 pub use crate::contract::observation::{OBS_DIM, OBS_SPEC_VERSION, observation_names, spec_hash};
@@ -513,7 +513,8 @@ impl PolicySpec {
 
 /// The spec part of the training server's handshake for `decision_period`: versions, hash, rates, sizes,
 /// every name, the action bounds, the default bag placement, the reach volume training covers and the mirror's
-/// rules (`mirror::rules_json`) and the action that holds each stance's guard (`stance_guard_actions`).
+/// rules (`mirror::rules_json`), the action that holds each stance's guard (`stance_guard_actions`) and how much
+/// further forward a lead hand's targets lie (`stance_lead_forward_m`, `stance::LEAD_REACH_FORWARD_M`).
 pub fn handshake_fields(decision_period: u32) -> Map<String, Value> {
     let mut fields = Map::new();
     fields.insert("spec_version".into(), json!(OBS_SPEC_VERSION));
@@ -533,6 +534,7 @@ pub fn handshake_fields(decision_period: u32) -> Map<String, Value> {
         "stance_guard_actions".into(),
         json!({"orthodox": guard(Stance::Orthodox), "southpaw": guard(Stance::Southpaw)}),
     );
+    fields.insert("stance_lead_forward_m".into(), json!(LEAD_REACH_FORWARD_M));
     fields
 }
 
@@ -640,6 +642,7 @@ mod tests {
         assert_eq!(fields["default_bag"]["distance_m"], json!(0.72f32));
         assert_eq!(ReachVolume::from_json(&fields["reach_volume"]), Ok(REACH_VOLUME));
         assert_eq!(fields["mirror"], mirror::rules_json());
+        assert_eq!(fields["stance_lead_forward_m"], json!(LEAD_REACH_FORWARD_M));
     }
 
     #[test]

@@ -29,6 +29,13 @@ const fn deg(value: f32) -> f32 {
 /// forward (flexion, positive swinging back) and the left elbow opened 15°; the right arm as in the square guard.
 pub const ORTHODOX_GUARD_RAD: [f32; DOF_COUNT] = [0.0, deg(-30.0), 0.0, 0.0, 0.0, 0.0, deg(-10.0), 0.0, 0.0, deg(15.0)];
 
+/// How much further forward the lead hand's targets lie than the square guard's reach volume (m): the stance's
+/// guard holds the lead fist 0.10 m nearer the target (0.41 m ahead of the root against 0.30 m, measured in the
+/// headless scene: tests/python/test_moves.py), so the lead hand's moves cover the volume moved forward by this
+/// much and punch as far from their guard as a square guard's punch does; a target at the front of the square
+/// volume already touches the lead fist. The rear hand's volume is the square guard's.
+pub const LEAD_REACH_FORWARD_M: f32 = 0.10;
+
 impl Stance {
     /// The joint targets of this stance's guard (rad, action order).
     pub fn guard_targets(self) -> [f32; DOF_COUNT] {
