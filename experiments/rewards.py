@@ -21,4 +21,3 @@ def hook_sweep(f):
     near = np.maximum(0.0, 0.3 - f["fist_r_bag_distance"]) ** 2
     vx, vz = f["fist_r_vel_x"], f["fist_r_vel_z"]
     return {"along": near * 10.0 * (vx * ux + vz * uz), "across": near * 10.0 * 1.5 * (vx * uz - vz * ux)}
-
