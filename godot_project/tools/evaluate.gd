@@ -37,6 +37,13 @@
 ##   `recover()` is called 1 s on);
 ## - `reset_target`: each later punch of a combo starts with the bag hanging as placed again (its start, not where
 ##   the punches before swung it);
+## - `defender`: {`blocks`}: a second character of the addon's scene stands facing the first instead of the bag,
+##   its root at the placement's distance and side (the height is its own), and the punch aims at a hurtbox on its
+##   head (a sphere of the head mesh's size, a kinematic body carried by its torso); with `blocks`, its own
+##   controller calls `block()` as the episode starts (`lead_s` later comes the punch: the warning). The row's
+##   struck entry is then {`outcome`, `head_impulse_ns`}: the punch's `punch_finished` outcome ("landed": on the
+##   head or the body, "blocked": on an arm first, "whiffed") and the impulse of the fist's first frame on the head
+##   (N s; absent when it never reached it);
 ## - `cancel_delay_s`: a combo's moveset with this cancel delay for every move (the next punch starts that long
 ##   after the one before landed, or ended without landing).
 ## A motion (the moving node's own frame at the start: +Z ahead, +X its left, +Y up): `velocity_mps` [left, up,
@@ -73,6 +80,8 @@ const MOVES: Array[StringName] = [&"jab", &"cross", &"lead_hook", &"rear_hook", 
 ## A struck character's bodies, and how near its guard each must be to be back (degrees).
 const STRUCK_BODIES := ["Torso", "UpperArmR", "ForearmR", "UpperArmL", "ForearmL"]
 const BACK_IN_GUARD_DEG := 10.0
+## The defender's hurtbox on its head: the head mesh's radius (m).
+const HEAD_RADIUS_M := 0.1
 
 
 ## The node a game moves: the character's holder (`body`) or the target's hook (`target`) run the same motion.
@@ -340,6 +349,14 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 		return null
 	var sized: Vector3 = character.call("arm_lengths")
 	var bag: RigidBody3D = controller.get("target")
+	# What the punch aims at and counts hits on: the bag, or a defender's head.
+	var target: CollisionObject3D = bag
+	if episode.has("defender"):
+		if body_motion != null or target_motion != null or not combo.is_empty() or episode.get("start", "guard") != "guard":
+			_fail("episode %d: a defender stands: no body or target motion, no combo, a start from guard" % index)
+			return null
+		target = _add_defender(controller, bag, layer_slot, offset, bool(episode.defender.get("blocks", false)))
+		bag = null
 	slot.controller = controller
 	slot.row = [0, 0, 0.0, "", 0.0, sized.x, sized.y, sized.z, [], {}, index]
 	if holder != null:
@@ -378,15 +395,17 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 		return slot
 	var row := slot.row
 	var timings: Array = row[8]
-	var bag_start := [bag.global_transform, bag.linear_velocity, bag.angular_velocity]
+	var bag_start := [bag.global_transform, bag.linear_velocity, bag.angular_velocity] if bag != null else []
 	var reset_target := bool(episode.get("reset_target", false))
 	controller.connect("punch_started", func(_move, _hand, combo_index: int):
 		if reset_target and combo_index > 0:
 			_put_back(bag, bag_start)
 		timings.append([_frame - slot.commanded_at, -1]))
-	controller.connect("hit", func(_impulse, _speed, _position, body, _push, _hand):
-		if body == bag:
+	controller.connect("hit", func(impulse, _speed, _position, body, _push, _hand):
+		if body == target:
 			row[0] += 1
+			if target != bag:
+				row[9]["head_impulse_ns"] = impulse
 			if not timings.is_empty() and timings[-1][1] < 0:
 				timings[-1][1] = _frame - slot.commanded_at)
 	var finish := func() -> void:
@@ -425,9 +444,46 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 			controller.call("punch", slot.move)
 			return
 		row[3] = metrics.get("ended", "")
+		if target != bag:
+			row[9]["outcome"] = metrics.get("outcome", "")
 		if slot.combo.is_empty() and not until_recovered:
 			finish.call())
 	return slot
+
+
+## A defending character in place of `bag` (freed), facing the puncher of `controller`, its root `offset`'s distance
+## and side from the puncher's, on the bag's collision layers, with a controller of its own (blocking from the start
+## with `blocks`); returns the hurtbox on its head the punch now aims at.
+func _add_defender(controller: Node, bag: RigidBody3D, layer_slot: int, offset: Vector3, blocks: bool) -> CollisionObject3D:
+	var sandbag := bag.get_parent()
+	var parent := sandbag.get_parent()
+	parent.remove_child(sandbag)
+	sandbag.free()
+	var puncher: Node3D = controller.get("character")
+	var defender: Node3D = PunchPair.CHARACTER_SCENE.instantiate()
+	defender.transform = Transform3D(Basis(Vector3.UP, PI), puncher.position + Vector3(offset.x, 0.0, offset.z))
+	var layer := 1 << (2 * layer_slot)
+	PunchPair.set_layers(defender, layer << 1, layer)
+	parent.add_child(defender)
+	var hurtbox := AnimatableBody3D.new()
+	hurtbox.sync_to_physics = false  # carried by the torso
+	var shape := CollisionShape3D.new()
+	var sphere := SphereShape3D.new()
+	sphere.radius = HEAD_RADIUS_M
+	shape.shape = sphere
+	hurtbox.add_child(shape)
+	hurtbox.position = (defender.get_node("Torso/HeadMesh") as Node3D).position
+	hurtbox.collision_layer = layer << 1
+	hurtbox.collision_mask = 0
+	defender.get_node("Torso").add_child(hurtbox)
+	controller.set("target", hurtbox)
+	var guard: Node = ClassDB.instantiate("PunchController")
+	guard.set("character", defender)
+	guard.set("target", puncher.get_node("Torso"))
+	parent.add_child(guard)
+	if blocks:
+		guard.call_deferred("block")
+	return hurtbox
 
 
 ## Hangs the bag as it was placed again: [transform, linear velocity, angular velocity].

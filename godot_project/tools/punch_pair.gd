@@ -18,11 +18,11 @@ static func add(parent: Node, slot: int, origin: Vector3, bag_offset: Vector3, p
 	var character_layer := 1 << (2 * slot)
 	var character: Node3D = CHARACTER_SCENE.instantiate()
 	character.position = origin
-	_set_layers(character, character_layer, character_layer << 1)
+	set_layers(character, character_layer, character_layer << 1)
 	parent.add_child(character)
 	var sandbag: Node3D = SANDBAG_SCENE.instantiate()
 	sandbag.position = origin + bag_offset
-	_set_layers(sandbag, character_layer << 1, character_layer)
+	set_layers(sandbag, character_layer << 1, character_layer)
 	parent.add_child(sandbag)
 	if bag_velocity != Vector3.ZERO:
 		# Swinging on its rope: the bag turns about the hook as it moves (ω = r × v / |r|²), as in training.
@@ -110,7 +110,7 @@ static func write_json(path: String, data: Dictionary) -> void:
 	out.close()
 
 
-static func _set_layers(scene_root: Node, layer: int, mask: int) -> void:
+static func set_layers(scene_root: Node, layer: int, mask: int) -> void:
 	for body in scene_root.find_children("*", "CollisionObject3D", true, false):
 		body.collision_layer = layer
 		body.collision_mask = mask

@@ -137,7 +137,12 @@ def test_scales_and_proportions_make_the_sizes_conditions_in_order():
     ({"placements": {"side_m": [0.1, -0.1]}, "conditions": [{"name": "a"}]}, "placements.side_m \\[0.1, -0.1\\] runs downward"),
     ({"conditions": [{"name": "a", "combo": ["jab", "haymaker"]}]}, "combo is a list of moves"),
     ({"conditions": [{"name": "a", "combo": ["jab"], "move": "cross"}]}, "a move or a combo, not both"),
-    ({"success": "return", "conditions": [{"name": "a", "combo": ["jab"]}]}, "a combo's or a struck character's success is \"hit\""),
+    ({"success": "return", "conditions": [{"name": "a", "combo": ["jab"]}]}, "a combo's, a struck character's or a defender's success is \"hit\""),
+    ({"success": "return", "conditions": [{"name": "a", "move": "jab", "defender": {}}]}, "a defender's success is \"hit\""),
+    ({"conditions": [{"name": "a", "defender": {"blocks": "yes"}}]}, "defender.blocks: true or false"),
+    ({"conditions": [{"name": "a", "defender": {"dodges": True}}]}, "unknown key\\(s\\) 'dodges'"),
+    ({"conditions": [{"name": "a", "combo": ["jab"], "defender": {}}]}, "a defender stands in the bag's place"),
+    ({"placements": {"distance_m": [0.9, 0.7]}, "conditions": [{"name": "a"}]}, "placements.distance_m \\[0.9, 0.7\\] runs downward"),
     ({"conditions": [{"name": "a", "cancel_delay_s": [0.0, 0.5]}]}, "cancel_delay_s delays a combo's next punch; it needs a combo"),
     ({"conditions": [{"name": "a", "combo": ["jab"], "cancel_delay_s": [0.5, 0.1]}]}, "the lower delay first"),
     ({"conditions": [{"name": "a", "combo": ["jab"], "cancel_delay_s": [0.0, 3.0]}]}, "at most 2"),
@@ -155,7 +160,7 @@ def test_a_scenario_that_cannot_be_played_is_refused_with_its_reason(data, messa
 
 
 def test_unknown_scenarios_and_conditions_are_refused_naming_what_there_is(tmp_path):
-    with pytest.raises(ScenarioError, match="no scenario named 'nope'; the shipped ones are body, combos, frame_data, from_recovery, hands, held_out, hits, moving, sizes, stance, stance_moving"):
+    with pytest.raises(ScenarioError, match="no scenario named 'nope'; the shipped ones are blocks, body, combos, frame_data, from_recovery, hands, held_out, hits, moving, sizes, stance, stance_moving"):
         scenario_of(EvalArgs(policy=POLICY, scenario="nope"))
     with pytest.raises(ScenarioError, match="unknown condition\\(s\\) 'moonwalk'; the scenario's are: standing"):
         scenario_of(EvalArgs(policy=POLICY, scenario="moving", conditions=["moonwalk"]))

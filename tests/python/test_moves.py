@@ -161,6 +161,23 @@ def test_from_the_stances_guard_the_character_turns_and_still_lands(tmp_path):
     assert np.degrees(waist) == pytest.approx(-30.0, abs=3.0), np.degrees(waist)
 
 
+def test_a_character_stands_in_its_stance_before_it_punches():
+    """`stance_pose` set before the controller is ready: the character turns into the stance's guard without a punch
+    and without a `recovered` (a game's `recovered` handlers wait for punches); setting `stance` or `stance_pose` while
+    it is idle turns it into the other stance's guard, then back to the square guard."""
+    script = PROJECT_ROOT / "tests" / "godot" / "stance_at_rest.gd"
+    run = run_godot(["--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), "--script", str(script)],
+                    check=False, timeout_s=60)
+    line = next((line for line in run.log.splitlines() if line.startswith("STANCE_AT_REST ")), None)
+    assert line is not None and run.fatal_lines() == [], run.log[-3000:]
+    report = json.loads(line[len("STANCE_AT_REST "):])
+    orthodox, southpaw, square = report["turn_deg"]
+    # The orthodox guard turns the trunk 30° to the right (the left shoulder forward); the southpaw's to the left.
+    assert orthodox == pytest.approx(-30.0, abs=5.0) and southpaw == pytest.approx(30.0, abs=5.0), report
+    assert square == pytest.approx(0.0, abs=3.0), report
+    assert report["signals"] == [], report
+
+
 def test_training_starts_in_the_guard_the_game_stands_in():
     """The training server's `stance_guard_actions`: a lead-in holding the orthodox guard leaves the character as
     `stance_pose` holds it in the game (trunk turned 30° right, the lead elbow opened, the lead fist nearer the target),

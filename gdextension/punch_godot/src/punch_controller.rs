@@ -15,10 +15,11 @@ use godot::classes::{Engine, INode, Node, Node3D, PhysicsShapeQueryParameters3D,
 use godot::global::{godot_error, godot_warn};
 use godot::obj::{Base, Gd, InstanceId, NewGd, Singleton, WithBaseField, WithSignals, WithUserSignals};
 use godot::prelude::PhantomVar;
-use godot::prelude::{Export, GodotClass, GodotConvert, Var, godot_api, try_load};
+use godot::prelude::{Export, GodotClass, GodotConvert, ToGodot, Var, godot_api, try_load};
 use punch_core::contract::character::{Body, DEFAULT_DECISION_PERIOD, DOF_COUNT};
 use punch_core::contract::mirror::mirror_point;
 use punch_core::contract::sensing::{CharacterGeometry, FrameReading};
+use punch_core::contract::stance::HIGH_GUARD_RAD;
 use punch_core::game::lifecycle::{Drive, Ending, Event, FrameNeeds, Lifecycle, NoiseSettings, PunchStart};
 use punch_core::game::moves::{Hand, Move, Stance};
 use punch_core::game::policy_gate::{DecisionRequest, PunchingPolicy, decide_batched};
@@ -154,16 +155,21 @@ pub struct PunchController {
     moveset: Option<Gd<PunchMoveset>>,
     /// Which hand leads: ORTHODOX (the left, the default) or SOUTHPAW (the right). The jab, the lead hook and the
     /// lead uppercut are the lead hand's, the other three the rear's; a left-hand punch plays its policy
-    /// mirrored. Takes effect at the next punch.
+    /// mirrored. With `stance_pose` on, an idle character turns into the new stance's guard at once; a punch
+    /// plays on as it started.
     #[export]
+    #[var(set = set_stance)]
     stance: PunchStance,
     /// Stand in the stance's guard: the trunk turned 30° to bring the lead shoulder forward, the lead hand a little
     /// ahead (docs/moves.md). Recoveries drive there, and a punch asked for away from it returns there first
     /// (`guard_first`). Off (the default): the square guard `boxing.tres`'s policies were trained from. On, an empty
     /// `moveset` plays `res://addons/punch_controller/policies/boxing_stance.tres`, whose lead moves and rear
     /// uppercut were trained from the stance's guard (BENCHMARKS.md, "The six moves"); a moveset of the game's own
-    /// plays as set. Takes effect at the next punch or recovery.
+    /// plays as set. The character stands in the guard from the moment the controller is ready: set while it is
+    /// idle, it turns into the guard at once (quietly: no `recovered`); set during a punch or recovery, from the
+    /// next one.
     #[export]
+    #[var(set = set_stance_pose)]
     stance_pose: bool,
     /// The move `punch()` throws when it is given none ("jab", "cross", "lead_hook", "rear_hook",
     /// "lead_uppercut", "rear_uppercut"); empty (the default): `policy`, with the right hand, as trained.
@@ -256,6 +262,10 @@ pub struct PunchController {
 #[godot_api]
 impl INode for PunchController {
     fn ready(&mut self) {
+        if self.stance_pose {
+            // Deferred: the character (often the controller's parent) is ready only after its children.
+            self.base_mut().call_deferred("set_stance_pose", &[true.to_variant()]);
+        }
         if self.autostart {
             self.base_mut().call_deferred("punch", &[]);
         }
@@ -430,6 +440,41 @@ impl PunchController {
         Self::emit_events(&mut this);
     }
 
+    /// Raises a high guard now (both fists in front of the face, the trunk square; docs/hits.md) and holds it for
+    /// `seconds` (0 or less: until `stop_blocking()`), then goes back into the character's guard; no `recovered`
+    /// either way. A running punch ends (interrupted; what was queued is dropped). A punch, `recover()` or `cancel()`
+    /// ends the block too; a hit below `stagger_impulse_ns` does not (the arms give a little and rise again). Returns
+    /// false, with the reason in the log, when there is no character to block with, it is knocked down, or `seconds`
+    /// is not a number.
+    #[func(gd_self)]
+    fn block(mut this: Gd<Self>, #[opt(default = 0.0)] seconds: f32) -> bool {
+        let started = this.bind_mut().start_block(seconds);
+        let blocked = match started {
+            Ok(character) => {
+                Self::take_over(&this, character);
+                true
+            }
+            Err(error) => {
+                godot_error!("PunchController '{}': {error}", this.get_name());
+                false
+            }
+        };
+        Self::emit_events(&mut this);
+        blocked
+    }
+
+    /// Ends a block now (`block()`): the character goes back into its guard. Does nothing when none holds.
+    #[func]
+    fn stop_blocking(&mut self) {
+        self.lifecycle.lower_block();
+    }
+
+    /// True while a block holds its high guard (`block()`).
+    #[func]
+    fn is_blocking(&self) -> bool {
+        self.lifecycle.is_blocking()
+    }
+
     /// The target placements `punch(move_name)` covers (with no move: `default_move`'s, or `policy`'s), in the
     /// character's frame: `distance_m`, `height_m` and `side_m` ranges of the target's centre (Vector2(low, high);
     /// +Z ahead, +Y up, +X the character's left; a left-hand move's is the mirror image of its policy's),
@@ -493,6 +538,21 @@ impl PunchController {
     #[func]
     fn set_policy(&mut self, policy: Option<Gd<PunchPolicy>>) {
         self.policy = policy;
+    }
+
+    /// Sets `stance`; with `stance_pose` on, an idle character turns into that stance's guard (no `recovered`).
+    #[func]
+    fn set_stance(&mut self, stance: PunchStance) {
+        self.stance = stance;
+        self.settle_into_guard();
+    }
+
+    /// Sets `stance_pose`; an idle character turns into the guard it gives (the stance's, or the square guard when
+    /// off) at once, without a `recovered`.
+    #[func]
+    fn set_stance_pose(&mut self, stance_pose: bool) {
+        self.stance_pose = stance_pose;
+        self.settle_into_guard();
     }
 
     /// Sets `noise_sigma`: clamped to 0..1 with a warning; a value that is not a number is refused (the
@@ -665,6 +725,27 @@ impl PunchController {
         Ok(Prepared { start, identity, character })
     }
 
+    /// Starts a block of `seconds` (0 or less: until stopped); returns the character it drives.
+    fn start_block(&mut self, seconds: f32) -> Result<Gd<PunchCharacter>, String> {
+        if !seconds.is_finite() {
+            return Err(format!("block({seconds}): the seconds must be a number"));
+        }
+        if self.down {
+            return Err("the character is knocked down: it blocks once recover() (or a punch) brought it back".into());
+        }
+        let character = live(&self.character).ok_or("no character set (or it was freed)")?;
+        let geometry = geometry_of(&character)?;
+        if !self.base().is_inside_tree() || self.leaving_tree {
+            return Err("the controller is not in the scene tree".into());
+        }
+        let ticks_per_s = Engine::singleton().get_physics_ticks_per_second() as f32;
+        let frames = (seconds > 0.0).then(|| (seconds * ticks_per_s).round().max(1.0) as u32);
+        self.lifecycle.set_guard(self.guard_targets());
+        self.lifecycle.block(geometry, HIGH_GUARD_RAD, frames);
+        self.drive_from_now(character.clone());
+        Ok(character)
+    }
+
     /// Starts a recovery; returns the character it drives.
     fn start_recovery(&mut self) -> Result<Gd<PunchCharacter>, String> {
         let character = live(&self.character).ok_or("no character set (or it was freed)")?;
@@ -760,11 +841,14 @@ impl PunchController {
         if self.down {
             return None; // down stays down, however it is struck, until the game brings it back
         }
+        // A hit given as 60 N s arrives as 59.9999 after the engine's float math: it still reaches a 60 N s threshold.
+        let reaches = |threshold: f32| impulse_ns >= threshold * (1.0 - 1e-4);
+        if self.lifecycle.is_blocking() && !reaches(self.stagger_impulse_ns) {
+            return Some(Reaction::Flinched); // the block holds: its guard drives the arms back up
+        }
         let geometry = geometry_of(character).ok()?;
         let guard = self.guard_targets();
         self.lifecycle.set_guard(guard);
-        // A hit given as 60 N s arrives as 59.9999 after the engine's float math: it still reaches a 60 N s threshold.
-        let reaches = |threshold: f32| impulse_ns >= threshold * (1.0 - 1e-4);
         if reaches(self.knockdown_impulse_ns) {
             self.lifecycle.struck(geometry, false);
             self.lifecycle.cancel(); // no way back to guard: it hangs until the game says
@@ -785,6 +869,25 @@ impl PunchController {
     fn punching_policy(&self) -> Result<Rc<PunchingPolicy>, String> {
         let mut policy = self.policy.clone().ok_or("no policy set")?;
         policy.bind_mut().punching()
+    }
+
+    /// Drives an idle character in the tree into the guard `stance` and `stance_pose` give, quietly (a punch or
+    /// recovery running, a knocked-down body, or a character another controller drives now keeps what it has until
+    /// the next).
+    fn settle_into_guard(&mut self) {
+        if !self.base().is_inside_tree() || self.leaving_tree || self.down || self.lifecycle.is_active() {
+            return;
+        }
+        let Some(character) = live(&self.character) else { return };
+        let me = self.base().instance_id();
+        if PunchControllerRegistry::driver_of(character.instance_id()).is_some_and(|driver| driver != me) {
+            return;
+        }
+        let Ok(geometry) = geometry_of(&character) else { return };
+        self.lifecycle.set_guard(self.guard_targets());
+        self.lifecycle.settle(geometry);
+        PunchControllerRegistry::take_over(character.instance_id(), me);
+        self.drive_from_now(character);
     }
 
     /// The guard recoveries drive to: the stance's (`stance_pose`), or the square guard.

@@ -116,6 +116,13 @@ impl PunchControllerRegistry {
         hub.drivers.retain(|(_, controller)| active.contains(controller));
     }
 
+    /// The active controller that drives `character` now, if one does.
+    pub fn driver_of(character: InstanceId) -> Option<InstanceId> {
+        let hub = Self::singleton();
+        let hub = hub.bind();
+        hub.drivers.iter().find(|(driven, _)| *driven == character).map(|(_, controller)| *controller)
+    }
+
     /// Records that `controller` drives `character` from now on; returns the controller that drove it until
     /// now, if another one did.
     pub fn take_over(character: InstanceId, controller: InstanceId) -> Option<InstanceId> {

@@ -263,6 +263,8 @@ def episodes_of(scenario: Scenario, still: list[EpisodeConditions], swinging: li
                     struck = condition.struck
                     episode["struck"] = {"part": struck.part, "impulse_ns": struck.impulse_ns,
                                          "direction": struck.direction(np.random.default_rng(episode["seed"]))}
+                if condition.defender is not None:
+                    episode["defender"] = {"blocks": condition.defender.blocks}
                 if condition.cancel_delay_s != (0.0, 0.0):
                     low, high = condition.cancel_delay_s
                     episode["cancel_delay_s"] = round(float(np.random.default_rng(episode["seed"]).uniform(low, high)), 4)
@@ -301,6 +303,9 @@ def play_policy(policy: Path, episodes: list[dict[str, Any]], groups: list[Group
                 if index == 0:
                     result["features"] = features
                     result["actions"] = np.array(recorded(directory, meta, "actions", group.start, group.count))
+            elif group.condition.defender is not None:
+                # At a defender: its guard stood in the fist's way first.
+                result["success"] = np.array([row[9].get("outcome") == "blocked" for row in rows], dtype=bool)
             elif group.condition.struck is not None:
                 # Struck: every body back within 10° of its guard (evaluate.gd's BACK_IN_GUARD_DEG), and `recovered` said so.
                 result["success"] = np.array([row[9]["back_s"] >= 0 and row[9]["recovered_s"] >= 0 for row in rows], dtype=bool)
@@ -375,6 +380,8 @@ class Row:
     """`until_recovered`: the median time from the last punch's contact to `recovered` (s)"""
     struck: dict[str, Any] | None = None
     """a struck character's (`struck_figures`): how far its bodies turned and its head moved, when it was back"""
+    defended: dict[str, Any] | None = None
+    """at a defender (`defended_figures`): what the punches became, and how often and how hard they reached its head"""
 
     def to_json(self) -> dict[str, Any]:
         return {**asdict(self), "success_interval": list(self.success_interval)}
@@ -401,7 +408,20 @@ def make_row(group: Group, result: dict[str, Any], placements: int, best: np.nda
                missed_placements=sorted({int(p) for p, ok in zip(placement, won, strict=True) if not ok}),
                return_fraction_of_search_best=fraction, impact_spread_m=result.get("impact_spread_m"),
                **timing_figures(group, rows, won, float(result["physics_hz"])),
-               struck=struck_figures(rows) if group.condition.struck is not None else None)
+               struck=struck_figures(rows) if group.condition.struck is not None else None,
+               defended=defended_figures(rows) if group.condition.defender is not None else None)
+
+
+def defended_figures(rows: list[list[Any]]) -> dict[str, Any]:
+    """A defender's figures over its episodes (evaluate.gd's per-episode entry): how many punches `landed`, were
+    `blocked` and `whiffed` (`punch_finished`'s outcome), how many reached the head at all (first or after an arm), and
+    the mean impulse of the fist's first frame on the head over all the punches (N s; 0 for one that never reached it)."""
+    entries = [row[9] for row in rows]
+    outcomes = [entry.get("outcome", "") for entry in entries]
+    head = [float(entry.get("head_impulse_ns", 0.0)) for entry in entries]
+    return {"landed": outcomes.count("landed"), "blocked": outcomes.count("blocked"), "whiffed": outcomes.count("whiffed"),
+            "head_reached": sum(1 for entry in entries if "head_impulse_ns" in entry),
+            "head_impulse_ns_mean": round(float(np.mean(head)), 3) if head else 0.0}
 
 
 def struck_figures(rows: list[list[Any]]) -> dict[str, Any]:
@@ -457,6 +477,8 @@ def run_eval(args: EvalArgs, progress: bool = True, *, backend: Backend = LOCAL)
             lead_forward_m = pool.info.stance_lead_forward_m
     else:
         reach = ReachVolume.from_json(metadata[0].reach_volume)
+    if scenario.distance_m is not None:
+        reach = dataclasses.replace(reach, distance_m=scenario.distance_m)
     if scenario.height_m is not None:
         reach = dataclasses.replace(reach, height_m=scenario.height_m)
     if scenario.side_m is not None:
@@ -539,6 +561,8 @@ def markdown_rows(scenario: Scenario, rows: list[dict[str, Any]]) -> list[str]:
     struck = any(c.struck for c in scenario.conditions)
     header += ["largest turn of a body (°, median)", "head moved (cm, median)", "back within 10° of guard (s, median / longest)",
                "recovered (s, median)", "staggered / knocked down"] if struck else []
+    defended = any(c.defender for c in scenario.conditions)
+    header += ["landed / blocked / whiffed", "fist reached the head", "on the head, first frame (N s, mean)"] if defended else []
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for row in rows:
         low, high = row["success_interval"]
@@ -564,6 +588,10 @@ def markdown_rows(scenario: Scenario, rows: list[dict[str, Any]]) -> list[str]:
             cells += [f"{figures['peak_turn_deg']:.1f}", f"{100 * figures['head_moved_m']:.1f}",
                       f"{back[0]:.2f} / {back[1]:.2f}" if back else "-", _seconds(figures.get("recovered_s")),
                       f"{figures['staggered']} / {figures['knocked_down']}"] if figures else ["-"] * 5
+        if defended:
+            figures = row.get("defended") or {}
+            cells += [f"{figures['landed']} / {figures['blocked']} / {figures['whiffed']}", str(figures["head_reached"]),
+                      f"{figures['head_impulse_ns_mean']:.2f}"] if figures else ["-"] * 3
         lines.append("| " + " | ".join(cells) + " |")
     return lines
 
@@ -588,10 +616,15 @@ def write_report(out: Path, args: EvalArgs, scenario: Scenario, report: dict[str
     if any(c.struck for c in scenario.conditions):
         measured += (" (a struck character's, which throws no punch: every body back within 10° of its guard, and "
                      "`recovered`)")
+    if any(c.defender for c in scenario.conditions):
+        measured = ("at a defender (a second character standing in the bag's place, its root at the placement, the punch "
+                    "aimed at a hurtbox on its head): the punch's `punch_finished` outcome `blocked`, its fist's first "
+                    "contact on the defender's arm")
     lead_forward_m = report.get("lead_forward_m", 0.0)
     lines = [f"# punch eval: {args.policy}", "",
              f"Scenario `{scenario.name}` ({scenario.source}): {scenario.description}.", "",
              f"{scenario.placements} held-out placements drawn from the {scenario.volume}'s reach volume"
+             + (f" at distances {scenario.distance_m[0]:g}-{scenario.distance_m[1]:g} m" if scenario.distance_m else "")
              + (f" at heights {scenario.height_m[0]:g}-{scenario.height_m[1]:g} m" if scenario.height_m else "")
              + (f" (a lead hand's move from the stance's guard: each {lead_forward_m:g} m further ahead, as its guard holds "
                 "the fist that much nearer; a combination from there with a lead hand's move: at the distances both "

@@ -107,8 +107,10 @@ MOVESET_MEASUREMENTS = (
     Measurement("combos"),
     Measurement("frame_data"),
     Measurement("from_recovery"),
-    # The standing character struck by the game: its reaction and its way back to guard (HITS_SECTION).
+    # The standing character struck by the game: its reaction and its way back to guard (HITS_SECTION) ...
     Measurement(HITS_SCENARIO := "hits"),
+    # ... and blocking: jabs and crosses at the head of a second character that blocks or stands in guard.
+    Measurement(BLOCKS_SCENARIO := "blocks"),
 )
 MOVESET_KEY = "moveset"
 """`measure`'s key (and output folder) of the default moveset's measurements"""
@@ -381,9 +383,11 @@ def write_results(recipes: list[Recipe], reports: dict[str, list[dict[str, Any]]
         hits = ["The addon's character (`punch_character.tscn`) standing in guard, struck by the game "
                 "(`PunchCharacter.take_hit`) and reacting with its controller's defaults (`react_to_hits`, "
                 "`stagger_impulse_ns` 60, `knockdown_impulse_ns` 320; docs/hits.md). No punch is thrown; the `--policy` "
-                "only places a sandbag nobody punches.", ""]
+                "only places a sandbag nobody punches. Then blocking (`PunchController.block()`): the moveset's jab and "
+                "cross at the head of a second character of the addon's scene that blocks or stands in guard "
+                "(docs/hits.md).", ""]
         for run in reports[MOVESET_KEY]:
-            part = hits if run["measurement"].scenario == HITS_SCENARIO else body
+            part = hits if run["measurement"].scenario in (HITS_SCENARIO, BLOCKS_SCENARIO) else body
             part += [f"### `{run['command']}`", "", *benchmarks_body(_repository_paths(run["markdown"]), depth=1), ""]
         write_section(COMBOS_SECTION, command, "\n".join(body).strip(), oldest([MOVESET_KEY]))
         write_section(HITS_SECTION, command, "\n".join(hits).strip(), oldest([MOVESET_KEY]))

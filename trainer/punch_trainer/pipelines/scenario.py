@@ -76,6 +76,16 @@ class Struck:
 
 
 @dataclass(frozen=True)
+class Defender:
+    """A second character of the addon's scene standing in the bag's place, facing the puncher: its root at the
+    placement's distance and side, and the punch aimed at a hurtbox on its head. The rows count what the punch became
+    (`punch_finished`'s outcome) and how often, and how hard, the fist reached the head."""
+
+    blocks: bool = False
+    """its controller calls `block()` as the episode starts; the punch comes `lead_s` later (the warning)"""
+
+
+@dataclass(frozen=True)
 class Condition:
     """One way to play a punch at every placement; a report row at each of its sigmas."""
 
@@ -111,6 +121,8 @@ class Condition:
     it (what a punch from another's recovery can reach, whatever the target did)"""
     struck: Struck | None = None
     """a hit on the standing character instead of a punch (its rows: how far the body turned, when it was back)"""
+    defender: Defender | None = None
+    """a defending character instead of the bag, the punch at its head (success: the punch was blocked)"""
     cancel_delay_s: tuple[float, float] = (0.0, 0.0)
     """a combo's cancel windows: each episode draws one delay (s, uniform in this band, from its seed) for every
     move of the moveset, so the next punch starts at a random moment after the one before landed"""
@@ -130,6 +142,9 @@ class Scenario:
     seed: int
     volume: Literal["policy", "spec"]
     conditions: tuple[Condition, ...]
+    distance_m: tuple[float, float] | None = None
+    """a band of target distances that replaces the volume's (a defender's root, out of reach of the puncher's guard);
+    None: the volume's"""
     height_m: tuple[float, float] | None = None
     """a band of target heights that replaces the volume's (a body band below the head band); None: the volume's"""
     side_m: tuple[float, float] | None = None
@@ -144,13 +159,13 @@ class Scenario:
 
 CONDITION_KEYS = ("name", "sigmas", "noise_decisions", "noise_seed", "start", "arms", "lead_s", "body", "target", "move",
                   "stance", "stance_pose", "combo", "until_recovered", "guard_first", "reset_target",
-                  "cancel_delay_s", "struck")
+                  "cancel_delay_s", "struck", "defender")
 COMBO_MOVES = ("jab", "cross", "lead_hook", "rear_hook", "lead_uppercut", "rear_uppercut")
 LEAD_MOVES = ("jab", "lead_hook", "lead_uppercut")
 """the moves of the lead hand (the left in the orthodox stance; punch_core::game::moves)"""
 SCENARIO_KEYS = ("name", "description", "success", "placements", "noisy_punches", "search_iterations", "naturalness",
                  "conditions")
-PLACEMENT_KEYS = ("count", "seed", "volume", "height_m", "side_m")
+PLACEMENT_KEYS = ("count", "seed", "volume", "distance_m", "height_m", "side_m")
 MOTION_KEYS = tuple(field.name for field in fields(Motion))
 
 
@@ -318,6 +333,10 @@ def _condition(index: int, table: Any, defaults: Mapping[str, Any], scenario_sig
     struck = _struck(f"{where}: struck", merged["struck"]) if "struck" in merged else None
     if struck is not None and (combo or move or start != "guard" or body is not None or target is not None):
         raise ScenarioError(f"{where}: a struck character stands in guard: no move, combo, start, body or target")
+    defender = _defender(f"{where}: defender", merged["defender"]) if "defender" in merged else None
+    if defender is not None and (combo or struck or start != "guard" or body is not None or target is not None):
+        raise ScenarioError(f"{where}: a defender stands in the bag's place for one punch from guard: no combo, struck, "
+                            "start, body or target")
     return Condition(
         name=name, sigmas=_sigmas(f"{where}: sigmas", merged.get("sigmas", "all"), scenario_sigmas),
         noise_seed=int(_number(f"{where}: noise_seed", noise_seed, 0, 2**32 - 1, whole=True)),
@@ -326,7 +345,18 @@ def _condition(index: int, table: Any, defaults: Mapping[str, Any], scenario_sig
         lead_s=float(_number(f"{where}: lead_s", merged.get("lead_s", 0.0), 0.0, 10.0)),
         body=body, target=target, swinging=swinging, move=move, stance=stance, stance_pose=stance_pose,
         combo=tuple(combo), until_recovered=until_recovered, guard_first=guard_first,
-        reset_target=reset_target, cancel_delay_s=cancel_delay_s, struck=struck)
+        reset_target=reset_target, cancel_delay_s=cancel_delay_s, struck=struck, defender=defender)
+
+
+def _defender(where: str, table: Any) -> Defender:
+    """A `defender = { blocks = true }` table, checked."""
+    if not isinstance(table, Mapping):
+        raise ScenarioError(f"{where}: a table ({{ blocks = true }})")
+    _unknown(where, table, ("blocks",))
+    blocks = table.get("blocks", False)
+    if not isinstance(blocks, bool):
+        raise ScenarioError(f"{where}.blocks: true or false, not {blocks!r}")
+    return Defender(blocks=blocks)
 
 
 def _struck(where: str, table: Any) -> Struck:
@@ -381,8 +411,8 @@ def build_scenario(data: Mapping[str, Any], source: str) -> Scenario:
     volume = placements.get("volume", "policy")
     if volume not in ("policy", "spec"):
         raise ScenarioError(f"{source}: placements.volume is \"policy\" or \"spec\", not {volume!r}")
-    height_m, side_m = (_band(source, placements, key, low, high) for key, low, high in (("height_m", 0.0, 3.0),
-                                                                                       ("side_m", -1.0, 1.0)))
+    distance_m, height_m, side_m = (_band(source, placements, key, low, high) for key, low, high in (
+        ("distance_m", 0.0, 3.0), ("height_m", 0.0, 3.0), ("side_m", -1.0, 1.0)))
     success = data.get("success", "hit")
     if success not in ("hit", "return"):
         raise ScenarioError(f"{source}: success is \"hit\" or \"return\", not {success!r}")
@@ -395,8 +425,9 @@ def build_scenario(data: Mapping[str, Any], source: str) -> Scenario:
     if not isinstance(tables, list) or not tables:
         raise ScenarioError(f"{source}: no [[conditions]]")
     conditions = [_condition(i, table, defaults, scenario_sigmas, seed) for i, table in enumerate(tables)]
-    if success == "return" and any(c.combo or c.struck for c in conditions):
-        raise ScenarioError(f"{source}: a combo's or a struck character's success is \"hit\" (a reward scores one punch)")
+    if success == "return" and any(c.combo or c.struck or c.defender for c in conditions):
+        raise ScenarioError(f"{source}: a combo's, a struck character's or a defender's success is \"hit\" (a reward "
+                            "scores one punch at a bag)")
     rows = [(c.name, sigma) for c in conditions for sigma in c.sigmas]
     doubled = sorted({row for row in rows if rows.count(row) > 1})
     if doubled:
@@ -409,7 +440,8 @@ def build_scenario(data: Mapping[str, Any], source: str) -> Scenario:
     if not isinstance(naturalness, bool):
         raise ScenarioError(f"{source}: naturalness is true or false")
     return Scenario(name=str(name), description=str(data.get("description", "")), source=source, success=success,
-                    placements=count, seed=seed, volume=volume, conditions=tuple(conditions), height_m=height_m, side_m=side_m,
+                    placements=count, seed=seed, volume=volume, conditions=tuple(conditions), distance_m=distance_m,
+                    height_m=height_m, side_m=side_m,
                     noisy_punches=int(_number("noisy_punches", data.get("noisy_punches", 1), 1, 1000, whole=True)),
                     search_iterations=int(_number("search_iterations", data.get("search_iterations", 0), 0, 100_000, whole=True)),
                     naturalness=naturalness)

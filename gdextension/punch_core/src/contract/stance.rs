@@ -36,6 +36,14 @@ pub const ORTHODOX_GUARD_RAD: [f32; DOF_COUNT] = [0.0, deg(-30.0), 0.0, 0.0, 0.0
 /// volume already touches the lead fist. The rear hand's volume is the square guard's.
 pub const LEAD_REACH_FORWARD_M: f32 = 0.10;
 
+/// The high guard a block raises (rad, from the square guard, action order): the trunk square, each upper arm 20°
+/// forward and 20° in toward the body, turned 30° across it, the elbows as bent as in the guard. It puts both fists
+/// in front of the face, 0.23 m ahead of the head's centre line, 8 cm either side of it and 3 cm above the head's
+/// centre (measured in the headless scene), the forearms rising to them: a straight punch at the head meets a glove or
+/// a forearm first, as a boxer's high guard ("shell") takes it.
+pub const HIGH_GUARD_RAD: [f32; DOF_COUNT] =
+    [0.0, 0.0, deg(-20.0), deg(30.0), deg(20.0), 0.0, deg(-20.0), deg(-30.0), deg(-20.0), 0.0];
+
 impl Stance {
     /// The joint targets of this stance's guard (rad, action order).
     pub fn guard_targets(self) -> [f32; DOF_COUNT] {
@@ -64,6 +72,14 @@ mod tests {
             "the lead hand out"
         );
         assert_eq!(guard[index("shoulder_r_flexion")], 0.0);
+    }
+
+    #[test]
+    fn the_high_guard_is_its_own_mirror_image_within_every_range() {
+        assert_eq!(mirror_targets(&HIGH_GUARD_RAD), HIGH_GUARD_RAD, "both arms rise alike");
+        for (target, dof) in HIGH_GUARD_RAD.iter().zip(&DOFS) {
+            assert!(dof.lower_rad < *target && *target < dof.upper_rad, "{} at {target}", dof.name);
+        }
     }
 
     #[test]

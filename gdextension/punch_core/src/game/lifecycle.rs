@@ -140,6 +140,10 @@ pub struct Lifecycle<P: Clone> {
     last_record: PunchRecord,
     /// The guard a recovery drives to (rad, action order; all 0: the square guard).
     guard: [f32; DOF_COUNT],
+    /// The running recovery says `Recovered` when it is there (false: a quiet `settle` into a new guard).
+    announce_recovery: bool,
+    /// While a block holds its guard (the running recovery): the quiet way back to `guard` when it ends.
+    after_block: Option<Box<Recovery>>,
     /// Moves asked for while a punch ran, oldest first, by the caller's names: the caller builds each one's
     /// `PunchStart` when it is due (`due`, `chain`).
     queued: VecDeque<String>,
@@ -161,6 +165,8 @@ impl<P: Clone> Default for Lifecycle<P> {
             hold_next: false,
             last_record: PunchRecord::default(),
             guard: [0.0; DOF_COUNT],
+            announce_recovery: true,
+            after_block: None,
             queued: VecDeque::new(),
             window_in: None,
             cancel_delay_frames: 0,
@@ -248,6 +254,7 @@ impl<P: Clone> Lifecycle<P> {
     /// dropped. `identity` tells policies apart for the noise: a new seed or a new policy starts a new sequence
     /// of punches.
     pub fn start(&mut self, start: PunchStart<P>, identity: usize, noise: NoiseSettings) {
+        self.after_block = None;
         self.queued.clear();
         self.interrupt();
         self.end_string();
@@ -301,6 +308,7 @@ impl<P: Clone> Lifecycle<P> {
 
     /// Ends the punch or recovery that is running; the joints then hold the pose they are in.
     pub fn cancel(&mut self) {
+        self.after_block = None;
         self.queued.clear();
         self.interrupt();
         self.end_string();
@@ -313,6 +321,43 @@ impl<P: Clone> Lifecycle<P> {
     /// when it is there.
     pub fn recover(&mut self, geometry: CharacterGeometry) {
         self.back_to_guard(Recovery::new(geometry, self.guard), Ending::Interrupted);
+    }
+
+    /// Drives an idle character into its guard pose without a word (no `Recovered`): a character that has just
+    /// been given a new guard (a stance) stands in it before it is asked for anything. Does nothing while a punch or
+    /// recovery runs: that one ends in the new guard anyway.
+    pub fn settle(&mut self, geometry: CharacterGeometry) {
+        if self.is_active() {
+            return;
+        }
+        self.back_to_guard(Recovery::new(geometry, self.guard), Ending::Interrupted);
+        self.announce_recovery = false;
+    }
+
+    /// Blocks: ends what runs (a punch, interrupted; what was queued is dropped) and drives the character into
+    /// `block_guard`, holding it there for `frames` physics frames (None: until `lower_block`, a punch, a recovery
+    /// or `cancel`), then quietly back into its guard. Says nothing itself (no `Recovered`).
+    pub fn block(&mut self, geometry: CharacterGeometry, block_guard: [f32; DOF_COUNT], frames: Option<u32>) {
+        self.back_to_guard(
+            Recovery::new(geometry, block_guard).holding(frames.unwrap_or(u32::MAX)),
+            Ending::Interrupted,
+        );
+        self.announce_recovery = false;
+        self.after_block = Some(Box::new(Recovery::new(geometry, self.guard)));
+    }
+
+    /// True while a block holds its guard.
+    pub fn is_blocking(&self) -> bool {
+        self.after_block.is_some()
+    }
+
+    /// Ends a block now: the character goes quietly back into its guard. Nothing happens if none holds.
+    pub fn lower_block(&mut self) {
+        if let Some(back) = self.after_block.take() {
+            self.phase = Phase::Recovering(back, [Vec3::ZERO; 5]);
+            self.hold_next = false;
+            self.announce_recovery = false;
+        }
     }
 
     /// The character was struck: a running punch ends (`Ending::Struck`; what was queued is dropped) unless it has
@@ -335,6 +380,8 @@ impl<P: Clone> Lifecycle<P> {
         self.end_string();
         self.phase = Phase::Recovering(Box::new(recovery), [Vec3::ZERO; 5]);
         self.hold_next = false;
+        self.announce_recovery = true;
+        self.after_block = None;
     }
 
     /// First half of a physics frame: the character's bodies were just read into `reading`. Steps a
@@ -349,11 +396,17 @@ impl<P: Clone> Lifecycle<P> {
             Phase::Recovering(recovery, commands) => {
                 match recovery.step(reading) {
                     Some(next) => *commands = next,
-                    None => {
-                        self.phase = Phase::Idle;
-                        self.hold_next = true;
-                        self.events.push_back(Event::Recovered);
-                    }
+                    None => match self.after_block.take() {
+                        // A block's time is up: back to the guard, as quietly.
+                        Some(back) => self.phase = Phase::Recovering(back, *commands),
+                        None => {
+                            self.phase = Phase::Idle;
+                            self.hold_next = true;
+                            if self.announce_recovery {
+                                self.events.push_back(Event::Recovered);
+                            }
+                        }
+                    },
                 }
                 FrameNeeds::Nothing
             }
@@ -417,6 +470,7 @@ impl<P: Clone> Lifecycle<P> {
                     if let Some(commands) = recovery.step(&reading) {
                         self.phase = Phase::Recovering(Box::new(recovery), commands);
                         self.hold_next = false;
+                        self.announce_recovery = true;
                     }
                 }
                 None
@@ -651,6 +705,83 @@ mod tests {
     }
 
     #[test]
+    fn settling_into_a_new_guard_says_nothing_and_waits_for_what_runs() {
+        let mut lifecycle = Lifecycle::<Policy>::default();
+        let mut away = FakeWorld::new(1).read_slot(0);
+        away.bodies[Body::ForearmR.index()].rotation = Quat::from_rotation_x(0.5);
+        lifecycle.settle(rest_geometry());
+        assert!(lifecycle.is_recovering(), "an idle character is driven into its guard");
+        lifecycle.begin_frame(&away);
+        assert!(matches!(lifecycle.act(None, CALM), Ok(Drive::Motors(commands)) if commands[2].length() > 1.0));
+        lifecycle.begin_frame(&FakeWorld::new(1).read_slot(0));
+        assert_eq!(
+            (lifecycle.act(None, CALM).ok(), events(&mut lifecycle)),
+            (Some(Drive::Hold), vec![]),
+            "no Recovered"
+        );
+        // A recovery asked for afterwards still says when it is there.
+        lifecycle.recover(rest_geometry());
+        lifecycle.begin_frame(&FakeWorld::new(1).read_slot(0));
+        assert_eq!(events(&mut lifecycle), vec![Event::Recovered]);
+        // While a punch runs, settling changes nothing: the punch ends in the new guard anyway.
+        let mut world = FakeWorld::new(1);
+        lifecycle.start(start(1, false), 1, CALM);
+        lifecycle.settle(rest_geometry());
+        assert!(lifecycle.is_punching());
+        frame(&mut lifecycle, &mut world, CALM, forward);
+        assert!(matches!(events(&mut lifecycle)[..], [Event::Started { .. }]));
+    }
+
+    #[test]
+    fn a_block_ends_the_punch_holds_its_guard_for_its_time_then_goes_back_quietly() {
+        let (mut lifecycle, mut world) = (Lifecycle::default(), FakeWorld::new(1));
+        lifecycle.start(start(1, false), 1, CALM);
+        lifecycle.enqueue(["2".to_string()]);
+        frame(&mut lifecycle, &mut world, CALM, forward);
+        let high = [0.5; DOF_COUNT];
+        lifecycle.block(rest_geometry(), high, Some(3));
+        assert!(lifecycle.is_blocking() && !lifecycle.is_punching() && lifecycle.queued().count() == 0);
+        let heard = events(&mut lifecycle);
+        assert!(
+            matches!(
+                heard[..],
+                [
+                    Event::Started { .. },
+                    Event::Finished(_, Ending::Interrupted),
+                    Event::ComboFinished { thrown: 1, .. }
+                ]
+            ),
+            "{heard:?}"
+        );
+        // Held for its three frames even once there (the fake world's joints never move), then back to guard.
+        for _ in 0..3 {
+            lifecycle.begin_frame(&world.read_slot(0));
+            assert!(lifecycle.is_blocking() && lifecycle.is_recovering());
+            assert!(matches!(lifecycle.act(None, CALM), Ok(Drive::Motors(_))));
+        }
+        lifecycle.begin_frame(&world.read_slot(0));
+        assert!(!lifecycle.is_blocking() && lifecycle.is_recovering(), "on its way back to guard");
+        lifecycle.act(None, CALM).expect("drives");
+        lifecycle.begin_frame(&world.read_slot(0));
+        assert_eq!((lifecycle.act(None, CALM).ok(), events(&mut lifecycle)), (Some(Drive::Hold), vec![]), "quietly");
+        // Held until lowered; a punch or a cancel ends it too.
+        lifecycle.block(rest_geometry(), high, None);
+        for _ in 0..500 {
+            lifecycle.begin_frame(&world.read_slot(0));
+            lifecycle.act(None, CALM).expect("drives");
+        }
+        assert!(lifecycle.is_blocking());
+        lifecycle.lower_block();
+        assert!(!lifecycle.is_blocking() && lifecycle.is_recovering());
+        lifecycle.block(rest_geometry(), high, None);
+        lifecycle.start(start(1, false), 1, CALM);
+        assert!(!lifecycle.is_blocking() && lifecycle.is_punching());
+        lifecycle.block(rest_geometry(), high, None);
+        lifecycle.cancel();
+        assert!(!lifecycle.is_blocking() && !lifecycle.is_recovering());
+    }
+
+    #[test]
     fn a_struck_punch_gives_way_and_returns_to_guard_unless_it_has_armour() {
         let (mut lifecycle, mut world) = (Lifecycle::default(), FakeWorld::new(1));
         lifecycle.start(start(1, false), 1, CALM);
@@ -782,6 +913,11 @@ mod tests {
         Cancel,
         Recover,
         Fail,
+        /// `PunchController.block`: for some frames, or until lowered.
+        Block(Option<u32>),
+        LowerBlock,
+        /// A new stance or `stance_pose` set while idle.
+        Settle,
         /// Another's fist (or the game's `take_hit`) struck the character, with or without hyper-armour.
         Struck(bool),
         Frames(usize),
@@ -796,6 +932,9 @@ mod tests {
             Just(Call::Cancel),
             Just(Call::Recover),
             Just(Call::Fail),
+            prop::option::of(1..90u32).prop_map(Call::Block),
+            Just(Call::LowerBlock),
+            Just(Call::Settle),
             any::<bool>().prop_map(Call::Struck),
             (1..70usize).prop_map(Call::Frames),
             Just(Call::FailedInference),
@@ -889,6 +1028,13 @@ mod tests {
                             _ => lifecycle.fail("the character was freed"),
                         }
                     }
+                    Call::Block(frames) => {
+                        listener.waiting.clear();
+                        lifecycle.block(rest_geometry(), [0.3; DOF_COUNT], frames);
+                        prop_assert!(lifecycle.is_blocking() && !lifecycle.is_punching());
+                    }
+                    Call::LowerBlock => lifecycle.lower_block(),
+                    Call::Settle => lifecycle.settle(rest_geometry()),
                     Call::Struck(armoured) => {
                         let punching = lifecycle.is_punching();
                         let ended = lifecycle.struck(rest_geometry(), armoured);
@@ -914,7 +1060,9 @@ mod tests {
                 let expected: Vec<String> = listener.waiting.iter().map(u8::to_string).collect();
                 prop_assert_eq!(queued, expected);
             }
-            // However it got here, a game that lets frames run hears every queued move start, and the end.
+            // However it got here, a game that lets frames run (and lowers a block it holds) hears every queued move
+            // start, and the end.
+            lifecycle.lower_block();
             for _ in 0..1000 {
                 frame(&mut lifecycle, &mut world, CALM, forward);
                 for event in events(&mut lifecycle) { listener.hear(&event)?; }

@@ -399,6 +399,12 @@ impl Recovery {
         self
     }
 
+    /// Holds the guard for exactly `frames` physics frames, settled or not (a block, whose end the caller decides).
+    pub fn holding(mut self, frames: u32) -> Self {
+        self.frames = (frames, frames);
+        self
+    }
+
     /// Ends near the guard rather than settled in it (`READY_ANGLE_RAD`, `READY_SPEED_RAD_S`): a return to guard
     /// before a punch (`guard_first`), which the policies land from as they do from the guard itself.
     pub fn ready_to_punch(mut self) -> Self {

@@ -1,0 +1,74 @@
+## `PunchController.block()` as a game calls it, on one character standing in guard: a block of 0.5 s (where the fists
+## are while it holds and after it, `is_blocking()` along the way), a block held until `stop_blocking()`, a punch asked
+## for during a block, and blocks refused (seconds not a number; a knocked-down character). Prints `BLOCKING <json>` and quits.
+extends SceneTree
+
+const CHARACTER_SCENE := preload("res://addons/punch_controller/scenes/punch_character.tscn")
+const SANDBAG_SCENE := preload("res://addons/punch_controller/scenes/punch_sandbag.tscn")
+
+var _character: Node3D
+var _controller: Node
+var _frame := 0
+var _report := {"signals": [], "samples": {}}
+
+
+func _initialize() -> void:
+	_character = CHARACTER_SCENE.instantiate()
+	root.add_child(_character)
+	var sandbag: Node3D = SANDBAG_SCENE.instantiate()
+	sandbag.position = PunchSpec.default_target_offset()
+	root.add_child(sandbag)
+	_controller = ClassDB.instantiate("PunchController")
+	_controller.set("character", _character)
+	_controller.set("target", sandbag.get_node("Bag"))
+	_controller.set("policy", load("res://addons/punch_controller/policies/straight.onnx"))
+	root.add_child(_controller)
+	for name in ["punch_started", "punch_finished", "recovered"]:
+		_controller.connect(name, func(_a = null, _b = null, _c = null): _report.signals.append([name, _frame]))
+
+
+## The fists (their centres) and the head's centre in the character's frame: +Z ahead, +Y up.
+func _sample(label: String) -> void:
+	var to_local := _character.global_transform.affine_inverse()
+	_report.samples[label] = {
+		"blocking": _controller.call("is_blocking"),
+		"head": _vector(to_local * (_character.get_node("Torso/HeadMesh") as Node3D).global_position),
+		"fists": [_vector(to_local * (_character.get_node("ForearmL/FistL") as Node3D).global_position),
+			_vector(to_local * (_character.get_node("ForearmR/FistR") as Node3D).global_position)],
+	}
+
+
+func _vector(v: Vector3) -> Array:
+	return [snappedf(v.x, 0.001), snappedf(v.y, 0.001), snappedf(v.z, 0.001)]
+
+
+func _physics_process(_delta: float) -> bool:
+	_frame += 1
+	match _frame:
+		10:
+			_sample("guard")
+			_report.blocked = _controller.call("block", 0.5)
+		50:  # 1/3 s into the block
+			_sample("blocking")
+		150:  # 0.75 s after the block's end
+			_sample("after")
+			_controller.call("block")  # until stopped
+		400:
+			_sample("held")
+			_controller.call("stop_blocking")
+		500:
+			_sample("stopped")
+			_controller.call("block")
+		530:
+			_report.punched = _controller.call("punch")
+			_report.blocking_after_punch = _controller.call("is_blocking")
+		700:
+			_report.refused = _controller.call("block", NAN)
+			var chest: Vector3 = (_character.get_node("Torso") as Node3D).global_position
+			_character.call("take_hit", &"torso", -_character.global_basis.z * 400.0, chest)
+		720:
+			_report.knocked_down = _controller.call("is_knocked_down")
+			_report.refused_when_down = _controller.call("block")
+			print("BLOCKING ", JSON.stringify(_report))
+			quit(0)
+	return false
