@@ -3,8 +3,8 @@
 ## Run: tools/godot --headless --path godot_project --script res://tools/build_scenes.gd
 ##
 ## Body data: de Leva (1996) segment parameters scaled to an 80 kg, 1.74 m male. Welded segments become one
-## rigid body (head + neck + upper trunk + middle trunk = torso; forearm + hand = forearm), whose centre of
-## mass and principal moments come from the parallel-axis theorem. Arm length convention: shoulder joint to
+## rigid body (upper trunk + middle trunk = torso; forearm + hand = forearm), whose centre of mass and principal
+## moments come from the parallel-axis theorem; the head (with the neck) hangs on a sprung neck joint. Arm length convention: shoulder joint to
 ## fist centre = 0.282 + 0.269 + 0.068 = 0.619 m (the paper's 0.84 m arm measures to the fingertips of a
 ## longer reference person). Frame: the character faces +Z, +X is its left, +Y up; the pose is a guard.
 ##
@@ -28,7 +28,15 @@ const FIST_FROM_WRIST := 0.068
 const UPPER_ARM_FORWARD_DEG := 35.0
 const ELBOW_FLEXION_DEG := 120.0
 
-const TORSO := {"mass": 31.38, "com_y": 1.3313, "inertia": Vector3(0.8672, 0.3167, 1.0310)}
+# The torso and the head together are the welded trunk the policies were trained on (31.38 kg, centre of mass
+# 1.3313 m, principal moments 0.8672, 0.3167, 1.0310 kg m²): the head's segment (6.94% of the mass, 0.2429 m
+# from the suprasternale's height 1.442 m to the vertex, centre of mass halfway, radii of gyration 31.5%, 26.1%
+# and 30.3% of its length) taken out by the parallel-axis theorem.
+const TORSO := {"mass": 25.832, "com_y": 1.2815, "inertia": Vector3(0.4711, 0.2944, 0.6373)}
+const HEAD := {"mass": 5.552, "com_y": 1.5636, "inertia": Vector3(0.0325, 0.0223, 0.0301)}
+# The neck joint's height, and the head's one collision shape: a capsule from the neck to the crown.
+const NECK_Y := 1.442  # the head's segment starts at the suprasternale's height
+const HEAD_CAPSULE := {"radius": 0.09, "height": 0.26, "centre_y": 1.58}
 const UPPER_ARM := {"mass": 2.17, "com_from_shoulder": 0.163, "inertia": Vector3(0.01249, 0.00431, 0.01402)}
 const FOREARM := {"mass": 1.79, "com_from_elbow": 0.1816, "inertia": Vector3(0.02386, 0.00196, 0.02489)}
 const FIST_RADIUS := 0.045
@@ -182,15 +190,9 @@ func _build_character() -> Node3D:
 
 	var torso := _rigid_body("Torso", TORSO.mass, TORSO.inertia, Transform3D(Basis.IDENTITY, Vector3(0, TORSO.com_y, 0)))
 	root.add_child(torso)
-	# One box from the waist (omphalion) to the shoulders (suprasternale); the head is drawn, not collided.
+	# One box from the waist (omphalion) to the shoulders (suprasternale).
 	var trunk := _box(Vector3(0.34, 0.386, 0.22))
 	_shape(torso, "TorsoShape", trunk[0], trunk[1], _shirt, Transform3D(Basis.IDENTITY, Vector3(0, 1.249 - TORSO.com_y, 0)))
-	var head := MeshInstance3D.new()
-	head.name = "HeadMesh"
-	head.mesh = _sphere(0.1)[1]
-	head.material_override = _skin
-	head.position = Vector3(0, 1.58 - TORSO.com_y, 0)
-	torso.add_child(head)
 	_joint("Waist", Vector3(0, WAIST_Y, 0), pelvis, torso, root)
 
 	var upper_angle := deg_to_rad(UPPER_ARM_FORWARD_DEG)
@@ -238,6 +240,28 @@ func _build_character() -> Node3D:
 		marker.set_meta("radius_m", FIST_RADIUS)  # the fist's size, for sensing which contacts are the fist's
 		forearm.add_child(marker)
 		_joint("Elbow" + suffix, elbow, upper, forearm, root)
+
+	# The head last (Body::ALL order), on the neck: a spring, no motor (the Rust core's NECK).
+	var head := _rigid_body("Head", HEAD.mass, HEAD.inertia, Transform3D(Basis.IDENTITY, Vector3(0, HEAD.com_y, 0)))
+	root.add_child(head)
+	var head_shape := CollisionShape3D.new()
+	head_shape.name = "HeadShape"
+	head_shape.shape = _capsule(HEAD_CAPSULE.radius, HEAD_CAPSULE.height)[0]
+	head_shape.position = Vector3(0, HEAD_CAPSULE.centre_y - HEAD.com_y, 0)
+	head.add_child(head_shape)
+	var head_mesh := MeshInstance3D.new()
+	head_mesh.name = "HeadMesh"
+	head_mesh.mesh = _sphere(0.1)[1]
+	head_mesh.material_override = _skin
+	head_mesh.position = Vector3(0, 1.58 - HEAD.com_y, 0)
+	head.add_child(head_mesh)
+	var neck_mesh := MeshInstance3D.new()
+	neck_mesh.name = "NeckMesh"
+	neck_mesh.mesh = _capsule(0.05, 0.14)[1]
+	neck_mesh.material_override = _skin
+	neck_mesh.position = Vector3(0, 1.49 - HEAD.com_y, 0)
+	head.add_child(neck_mesh)
+	_joint("Neck", Vector3(0, NECK_Y, 0), torso, head, root)
 
 	# Limits and motors from the Rust core's DOF table, stored in the scene (PunchCharacter explains why).
 	if not root.call("store_joint_settings"):

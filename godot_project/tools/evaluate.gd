@@ -32,14 +32,14 @@
 ## - `guard_first` (default true): `PunchController.guard_first`; false: a punch asked for away from the guard
 ##   starts from wherever the arms are;
 ## - `struck`: {`part`, `impulse_ns`, `direction` [x, y, z] in the character's frame}: no punch; the standing character
-##   is struck by the game (`PunchCharacter.take_hit`: the torso 15 cm above its centre, the head at its mesh, an arm
+##   is struck by the game (`PunchCharacter.take_hit`: the torso 15 cm above its centre, the head at its centre, an arm
 ##   at its upper arm) after `lead_s` (at least 2 frames), and the episode ends at `recovered` (after `knocked_down`,
 ##   `recover()` is called 1 s on);
 ## - `reset_target`: each later punch of a combo starts with the bag hanging as placed again (its start, not where
 ##   the punches before swung it);
 ## - `defender`: {`blocks`}: a second character of the addon's scene stands facing the first instead of the bag,
-##   its root at the placement's distance and side (the height is its own), and the punch aims at a hurtbox on its
-##   head (a sphere of the head mesh's size, a kinematic body carried by its torso); with `blocks`, its own
+##   its root at the placement's distance and side (the height is its own), and the punch aims at its head (the
+##   `Head` body, on its neck); with `blocks`, its own
 ##   controller calls `block()` as the episode starts (`lead_s` later comes the punch: the warning). The row's
 ##   struck entry is then {`outcome`, `head_impulse_ns`}: the punch's `punch_finished` outcome ("landed": on the
 ##   head or the body, "blocked": on an arm first, "whiffed") and the impulse of the fist's first frame on the head
@@ -78,10 +78,8 @@ const ADDON_MOVESET := "res://addons/punch_controller/policies/boxing.tres"
 const STANCE_MOVESET := "res://addons/punch_controller/policies/boxing_stance.tres"
 const MOVES: Array[StringName] = [&"jab", &"cross", &"lead_hook", &"rear_hook", &"lead_uppercut", &"rear_uppercut"]
 ## A struck character's bodies, and how near its guard each must be to be back (degrees).
-const STRUCK_BODIES := ["Torso", "UpperArmR", "ForearmR", "UpperArmL", "ForearmL"]
+const STRUCK_BODIES := ["Torso", "UpperArmR", "ForearmR", "UpperArmL", "ForearmL", "Head"]
 const BACK_IN_GUARD_DEG := 10.0
-## The defender's hurtbox on its head: the head mesh's radius (m).
-const HEAD_RADIUS_M := 0.1
 
 
 ## The node a game moves: the character's holder (`body`) or the target's hook (`target`) run the same motion.
@@ -453,7 +451,7 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 
 ## A defending character in place of `bag` (freed), facing the puncher of `controller`, its root `offset`'s distance
 ## and side from the puncher's, on the bag's collision layers, with a controller of its own (blocking from the start
-## with `blocks`); returns the hurtbox on its head the punch now aims at.
+## with `blocks`); returns its head, which the punch now aims at.
 func _add_defender(controller: Node, bag: RigidBody3D, layer_slot: int, offset: Vector3, blocks: bool) -> CollisionObject3D:
 	var sandbag := bag.get_parent()
 	var parent := sandbag.get_parent()
@@ -465,25 +463,15 @@ func _add_defender(controller: Node, bag: RigidBody3D, layer_slot: int, offset: 
 	var layer := 1 << (2 * layer_slot)
 	PunchPair.set_layers(defender, layer << 1, layer)
 	parent.add_child(defender)
-	var hurtbox := AnimatableBody3D.new()
-	hurtbox.sync_to_physics = false  # carried by the torso
-	var shape := CollisionShape3D.new()
-	var sphere := SphereShape3D.new()
-	sphere.radius = HEAD_RADIUS_M
-	shape.shape = sphere
-	hurtbox.add_child(shape)
-	hurtbox.position = (defender.get_node("Torso/HeadMesh") as Node3D).position
-	hurtbox.collision_layer = layer << 1
-	hurtbox.collision_mask = 0
-	defender.get_node("Torso").add_child(hurtbox)
-	controller.set("target", hurtbox)
+	var head: RigidBody3D = defender.get_node("Head")
+	controller.set("target", head)
 	var guard: Node = ClassDB.instantiate("PunchController")
 	guard.set("character", defender)
 	guard.set("target", puncher.get_node("Torso"))
 	parent.add_child(guard)
 	if blocks:
 		guard.call_deferred("block")
-	return hurtbox
+	return head
 
 
 ## Hangs the bag as it was placed again: [transform, linear velocity, angular velocity].
@@ -540,9 +528,9 @@ func _strike(slot: Slot) -> bool:
 	var character: Node3D = slot.character
 	for body in STRUCK_BODIES:
 		slot.guard_rotations[body] = _rotation_in(character, body)
-	slot.head_at = character.global_transform.affine_inverse() * character.get_node("Torso/HeadMesh").global_position
+	slot.head_at = character.global_transform.affine_inverse() * character.get_node("Head").global_position
 	var part := StringName(slot.struck.part)
-	var at := {&"head": "Torso/HeadMesh", &"left_arm": "UpperArmL", &"right_arm": "UpperArmR"}
+	var at := {&"head": "Head/HeadMesh", &"left_arm": "UpperArmL", &"right_arm": "UpperArmR"}
 	var point: Vector3 = character.get_node(at.get(part, "Torso")).global_position
 	if part == &"torso":
 		point += character.global_basis.y * 0.15
@@ -562,7 +550,7 @@ func _measure_struck(slot: Slot) -> void:
 	for body in STRUCK_BODIES:
 		worst = maxf(worst, rad_to_deg(_rotation_in(character, body).angle_to(slot.guard_rotations[body])))
 	figures.peak_deg = maxf(figures.peak_deg, worst)
-	var head: Vector3 = character.global_transform.affine_inverse() * character.get_node("Torso/HeadMesh").global_position
+	var head: Vector3 = character.global_transform.affine_inverse() * character.get_node("Head").global_position
 	figures.head_moved_m = maxf(figures.head_moved_m, head.distance_to(slot.head_at))
 	if worst > BACK_IN_GUARD_DEG:
 		slot.back_at = -1

@@ -32,7 +32,7 @@ func _sample(label: String) -> void:
 	var to_local := _character.global_transform.affine_inverse()
 	_report.samples[label] = {
 		"blocking": _controller.call("is_blocking"),
-		"head": _vector(to_local * (_character.get_node("Torso/HeadMesh") as Node3D).global_position),
+		"head": _vector(to_local * (_character.get_node("Head/HeadMesh") as Node3D).global_position),
 		"fists": [_vector(to_local * (_character.get_node("ForearmL/FistL") as Node3D).global_position),
 			_vector(to_local * (_character.get_node("ForearmR/FistR") as Node3D).global_position)],
 	}

@@ -155,7 +155,7 @@ func _command(fighter: Fighter) -> void:
 func _strike(fighter: Fighter) -> void:
 	_game_hits += 1
 	var part: StringName = PARTS[_rng.randi_range(0, PARTS.size() - 1)]
-	var at := {&"head": "Torso/HeadMesh", &"torso": "Torso", &"left_arm": "ForearmL", &"right_arm": "ForearmR"}
+	var at := {&"head": "Head/HeadMesh", &"torso": "Torso", &"left_arm": "ForearmL", &"right_arm": "ForearmR"}
 	var point: Vector3 = fighter.character.get_node(at[part]).global_position
 	var direction := Vector3(_rng.randf_range(-1, 1), _rng.randf_range(-0.3, 0.3), _rng.randf_range(-1, 1)).normalized()
 	var strength := _rng.randf_range(320.0, 400.0) if _rng.randf() < 0.1 else _rng.randf_range(1.0, 120.0)

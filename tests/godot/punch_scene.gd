@@ -2,7 +2,8 @@
 ## trained policy (--policy=PATH) and no noise; three such pairs, 3 m apart, sharing the policy, so their
 ## decisions run batched. Then all three punch again from their guard pose, and a few frames into that punch
 ## pair 1's `noise_sigma` is set to 0.8, as a designer dragging the inspector's slider while the game runs
-## would. Prints `PUNCH_SCENE <json>` with the signals seen and the first round's inference counts, then quits.
+## would. Prints `PUNCH_SCENE <json>` with the signals seen (each `punch_finished` with where the fist ended) and the
+## first round's inference counts, then quits.
 extends SceneTree
 
 const PAIRS := 3
@@ -31,7 +32,13 @@ func _initialize() -> void:
 		root.add_child(controller)
 		controller.connect("punch_started", func(_move, _hand, _combo_index): _report.started += 1)
 		controller.connect("hit", func(impulse, speed, position, _body, _push, _hand): _report.hits.append([pair, impulse, speed, position.x]))
-		controller.connect("punch_finished", func(metrics): metrics["pair"] = pair; _report.finished.append(metrics))
+		controller.connect("punch_finished", func(metrics):
+			metrics["pair"] = pair
+			# Where the punching fist ended, in the character's frame (m): noise shows here even in a punch whose
+			# peaks came before it and that struck nothing.
+			var fist: Vector3 = character.global_transform.affine_inverse() * character.get_node("ForearmR/FistR").global_position
+			metrics["fist_end"] = [fist.x, fist.y, fist.z]
+			_report.finished.append(metrics))
 		_controllers.append(controller)
 
 

@@ -3,7 +3,8 @@
 ## struck while it runs, with and without `hyper_armour`; refused hits; and a character punched by another's
 ## controller (its `hit_taken`, the attacker's `punch_finished` outcome) and a punch that strikes nothing.
 ## The 60 N s hit again on a turned, a walking and a short-armed character. For each struck character: the largest
-## turn of any body away from its guard (degrees, in the character's frame), when every body was back within 10 degrees of it and when `recovered` came (s after the hit), and the
+## turn of any body away from its guard (degrees, in the character's frame), the head's largest move (m), when every
+## body was back within 10 degrees of it and when `recovered` came (s after the hit), and the
 ## `hit_taken`, `staggered` and `knocked_down` signals; a knocked-down character gets `recover()` a second after its
 ## hit. Prints `TAKING_HITS <json>` and quits.
 extends SceneTree
@@ -11,7 +12,7 @@ extends SceneTree
 const CHARACTER_SCENE := preload("res://addons/punch_controller/scenes/punch_character.tscn")
 const SANDBAG_SCENE := preload("res://addons/punch_controller/scenes/punch_sandbag.tscn")
 const POLICY := "res://addons/punch_controller/policies/straight.onnx"
-const BODIES := ["Torso", "UpperArmR", "ForearmR", "UpperArmL", "ForearmL"]
+const BODIES := ["Torso", "UpperArmR", "ForearmR", "UpperArmL", "ForearmL", "Head"]
 ## Impulses (N s) the game's hits carry: a punch on a sandbag is 5-10 N s, a real straight about 27.
 const IMPULSES_NS := [10.0, 30.0, 60.0]
 const BACK_IN_GUARD_DEG := 10.0
@@ -31,6 +32,8 @@ class Watched:
 	var staggered: Array = []
 	var knocked_down: Array = []
 	var down_after_1s := false
+	var head_rest := Vector3.ZERO
+	var head_moved_m := 0.0
 
 
 var _frame := 0
@@ -47,6 +50,13 @@ func _initialize() -> void:
 		for from in ["front", "right"]:
 			var push: Vector3 = (Vector3.FORWARD if from == "front" else Vector3.RIGHT) * impulse
 			_watched.append(_standing(Vector3(x, 0, 0), {"impulse_ns": impulse, "from": from, "push": push}))
+			x += 3.0
+	# The head, on its neck: struck on the forehead from the front and from the side.
+	for impulse in [30.0, 60.0]:
+		for from in ["front", "right"]:
+			var push: Vector3 = (Vector3.FORWARD if from == "front" else Vector3.RIGHT) * impulse
+			_watched.append(_standing(Vector3(x, 0, 0), {"impulse_ns": impulse, "from": from, "push": push,
+				"part": "head"}))
 			x += 3.0
 	# A knock-down: the body hangs limp until the game calls `recover()`, a second later.
 	_watched.append(_standing(Vector3(x, 0, 0), {"impulse_ns": 320.0, "from": "front", "push": Vector3.FORWARD * 320.0,
@@ -177,14 +187,17 @@ func _strike_all() -> void:
 		_report.refused.append(character.take_hit(bad[0], bad[1], bad[2]))
 
 
-## The game's hit on a character's chest, 15 cm above the torso's centre, `push` in the character's frame.
+## The game's hit on a character's chest, 15 cm above the torso's centre, or on its forehead, 3 cm above the head's
+## centre; `push` in the character's frame.
 func _strike(watched: Watched, push: Vector3) -> void:
-	var torso: Node3D = watched.character.get_node("Torso")
-	var point := torso.global_position + Vector3(0, 0.15, 0)
+	var part := StringName(watched.get_meta("hit", {}).get("part", "torso"))
+	var body: Node3D = watched.character.get_node("Head" if part == &"head" else "Torso")
+	var point := body.global_position + Vector3(0, 0.03 if part == &"head" else 0.15, 0)
 	watched.struck_at = _frame
 	watched.peak_deg = 0.0
 	watched.back_at = -1
-	if not watched.character.take_hit(&"torso", watched.character.global_basis * push, point):
+	watched.head_rest = _head_in_character_frame(watched)
+	if not watched.character.take_hit(part, watched.character.global_basis * push, point):
 		push_error("take_hit refused a hit it should take")
 
 
@@ -196,6 +209,7 @@ func _measure(watched: Watched) -> void:
 		var now := _in_character_frame(watched, body)
 		worst = maxf(worst, rad_to_deg(now.angle_to(watched.rest[body])))
 	watched.peak_deg = maxf(watched.peak_deg, worst)
+	watched.head_moved_m = maxf(watched.head_moved_m, _head_in_character_frame(watched).distance_to(watched.head_rest))
 	if watched.back_at < 0 and watched.peak_deg > BACK_IN_GUARD_DEG and worst <= BACK_IN_GUARD_DEG:
 		watched.back_at = _frame
 	elif worst > BACK_IN_GUARD_DEG:
@@ -205,6 +219,10 @@ func _measure(watched: Watched) -> void:
 func _in_character_frame(watched: Watched, body: String) -> Quaternion:
 	var node: Node3D = watched.character.get_node(body)
 	return (watched.character.global_basis.inverse() * node.global_basis).get_rotation_quaternion()
+
+
+func _head_in_character_frame(watched: Watched) -> Vector3:
+	return watched.character.global_transform.affine_inverse() * watched.character.get_node("Head").global_position
 
 
 func _seconds(frames: int) -> float:
@@ -222,6 +240,7 @@ func _finish() -> void:
 			var hit: Dictionary = watched.get_meta("hit")
 			var arms: Vector3 = watched.character.arm_lengths()
 			row.merge({"impulse_ns": hit.impulse_ns, "from": hit.from, "variant": hit.get("variant", ""),
+				"part": hit.get("part", "torso"), "head_moved_m": snappedf(watched.head_moved_m, 0.001),
 				"arm_m": snappedf(arms.x + arms.y, 0.001)})
 			_report.struck.append(row)
 		else:
@@ -231,7 +250,8 @@ func _finish() -> void:
 		_report.duel[role] = {"hits_taken": watched.hits_taken, "finished": watched.finished}
 	var character: Node3D = _duel.struck.character
 	_report.parts = [character.part_of(character.get_node("ForearmL")), character.part_of(character.get_node("UpperArmR")),
-		character.part_of(character.get_node("Torso")), character.part_of(_duel.attacker.character.get_node("Torso")),
+		character.part_of(character.get_node("Torso")), character.part_of(character.get_node("Head")),
+		character.part_of(_duel.attacker.character.get_node("Torso")),
 		character.part_of(null)]
 	print("TAKING_HITS ", JSON.stringify(_report))
 	quit(0)

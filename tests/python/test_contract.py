@@ -16,7 +16,8 @@ from punch_trainer.sim.env import PunchVectorEnv
 
 pytestmark = [pytest.mark.godot, pytest.mark.expensive]
 SMOOTHING_WINDOW = 3
-COMPARED_FRAMES = 15  # before any contact: the game and the training server agree to about 1e-5 there
+COMPARED_FRAMES = 15  # at most; before any contact: the game and the training server agree to about 1e-5 there
+CHARACTER_IMPULSE = slice(18, 21)  # `character_impulse_*`: the character's contact on the bag this frame
 
 
 def features_in_the_training_server(policy, smoothing_window: int) -> np.ndarray:
@@ -48,8 +49,12 @@ def test_a_pretrained_policy_carries_its_contract_and_plays_with_its_smoothing(t
     in_game = replay_frames(replay / "frames", 0, json.loads((replay / "frames" / "meta.json").read_text()))["features"][0]
     smoothed = features_in_the_training_server(policy, SMOOTHING_WINDOW)
     unsmoothed = features_in_the_training_server(policy, 1)
-    agreement = np.abs(in_game[:COMPARED_FRAMES] - smoothed[:COMPARED_FRAMES]).max()
-    departure = np.abs(in_game[:COMPARED_FRAMES] - unsmoothed[:COMPARED_FRAMES]).max()
+    # Contacts are solved in an order that differs between the two worlds: compare the frames before the first.
+    touching = np.flatnonzero((np.abs(in_game[:, CHARACTER_IMPULSE]) + np.abs(smoothed[:, CHARACTER_IMPULSE])).sum(1) > 0)
+    compared = min(COMPARED_FRAMES, int(touching[0]) if touching.size else COMPARED_FRAMES)
+    assert compared >= 5, f"the punch touched the bag at frame {compared}: too soon to compare"
+    agreement = np.abs(in_game[:compared] - smoothed[:compared]).max()
+    departure = np.abs(in_game[:compared] - unsmoothed[:compared]).max()
     print(f"game vs training server: smoothing {SMOOTHING_WINDOW} {agreement:.2e}, smoothing 1 {departure:.2e}")
     assert agreement < 1e-3 and departure > 10 * agreement
 

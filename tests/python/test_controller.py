@@ -50,9 +50,9 @@ def test_punch_controllers_play_a_shared_policy_batched_in_a_game_scene(policy):
     noise_free, noisy, control = second_round
     print("second round (peak fist speed, strongest hit):", [(m["peak_fist_speed_mps"], m["strongest_hit_ns"]) for m in second_round])
     assert noise_free["peak_fist_speed_mps"] == pytest.approx(control["peak_fist_speed_mps"], rel=0.01)
-    departs = [abs(noisy[key] - noise_free[key]) > 0.1 for key in ("peak_fist_speed_mps", "peak_off_fist_speed_mps")]
-    assert any(departs) or \
-        abs(noisy["strongest_hit_ns"] - noise_free["strongest_hit_ns"]) > 0.1 * noise_free["strongest_hit_ns"], second_round
+    # Where each fist ended: the noisy punch's peaks may come before its noise does, and a punch may whiff.
+    end = {i: np.array(m["fist_end"]) for i, m in enumerate(second_round)}
+    assert np.linalg.norm(end[0] - end[2]) < 0.01 and np.linalg.norm(end[1] - end[0]) > 0.03, second_round
     # One ONNX Runtime call per decision tick for all three controllers.
     assert (report["inference"]["calls"], report["inference"]["rows"]) == (10, 30)
 

@@ -4,7 +4,7 @@
 
 use glam::{Quat, Vec3};
 
-use crate::contract::character::Body;
+use crate::contract::character::{BODY_COUNT, Body};
 use crate::contract::motion::RootPose;
 use crate::contract::sensing::{BagContact, CharacterGeometry, FrameReading};
 use crate::contract::spec::EpisodeConditions;
@@ -20,7 +20,7 @@ pub const FAKE_BAG_ID: u64 = 77;
 /// A character at the origin facing +Z, every body at rest in the guard pose.
 pub fn rest_geometry() -> CharacterGeometry {
     CharacterGeometry {
-        rest_rotations: [Quat::IDENTITY; 6],
+        rest_rotations: [Quat::IDENTITY; BODY_COUNT],
         fist_offsets: [FIST_OFFSET; 2],
         fist_radius_m: 0.045,
         joint_anchors: [(Vec3::ZERO, Vec3::ZERO); 5],

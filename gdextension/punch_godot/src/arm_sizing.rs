@@ -10,7 +10,7 @@ use godot::classes::{
 };
 use godot::obj::Gd;
 use punch_core::contract::arm_size::{ArmLengths, ArmScale, Stretch};
-use punch_core::contract::character::{Body, JOINTS};
+use punch_core::contract::character::{BODY_COUNT, Body, JOINTS, NECK};
 use punch_core::contract::sensing::CharacterGeometry;
 
 use crate::convert::{vec3, vector3};
@@ -54,7 +54,7 @@ impl SceneArms {
     pub fn capture(
         root: &Gd<Node3D>,
         bodies: &[Gd<godot::classes::PhysicsBody3D>],
-        rest_from_root: &[Transform3D; 6],
+        rest_from_root: &[Transform3D; BODY_COUNT],
         geometry: &CharacterGeometry,
     ) -> Result<SceneArms, String> {
         let mut arm_bodies = Vec::new();
@@ -214,11 +214,11 @@ impl SceneArms {
     }
 }
 
-/// Rebuilds every joint of the character, in `JOINTS` order (so their order in Jolt's solver is the scene's),
-/// from where its bodies and joint nodes are now: a joint's anchors are read from the transforms when it is
-/// built, so a joint moved with its bodies must be rebuilt.
+/// Rebuilds every joint of the character, in `JOINTS` order and the `NECK` last (so their order in Jolt's solver
+/// is the scene's), from where its bodies and joint nodes are now: a joint's anchors are read from the transforms
+/// when it is built, so a joint moved with its bodies must be rebuilt.
 pub fn rebuild_joints(root: &Gd<Node3D>) -> Result<(), String> {
-    for joint in JOINTS {
+    for joint in JOINTS.iter().chain([&NECK]) {
         let mut node = root
             .get_node_or_null(joint.node_name)
             .and_then(|n| n.try_cast::<Generic6DofJoint3D>().ok())

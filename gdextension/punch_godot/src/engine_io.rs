@@ -10,7 +10,9 @@ use godot::classes::{
     PhysicsShapeQueryParameters3D,
 };
 use godot::obj::{Gd, Singleton};
-use punch_core::contract::character::{Axis, Body, JOINTS, engine_axis, joint_dofs};
+use punch_core::contract::character::{
+    Axis, BODY_COUNT, Body, EngineAxis, JOINTS, engine_axis, joint_dofs, neck_engine_axis,
+};
 use punch_core::contract::sensing::{BagContact, CharacterGeometry, FrameReading, MAX_BAG_CONTACTS};
 use punch_core::game::punch::Touch;
 
@@ -18,14 +20,23 @@ use crate::convert::{godot_axis, rotation, vec3};
 
 /// One joint axis's engine settings, for scene-node joints (`PunchCharacter`) and physics-server joints (the
 /// training world) alike, so that both build the same constraint: linear axes locked, the DOF table's angular
-/// limits and motor torque (`engine_axis`), springs off, motors at rest.
+/// limits and motor torque (`engine_axis`) or the neck's range and spring (`neck_engine_axis`), motors at rest.
 pub struct AxisSettings {
-    pub params: [(G6dofJointAxisParam, f32); 6],
+    pub params: [(G6dofJointAxisParam, f32); 9],
     pub flags: [(G6dofJointAxisFlag, bool); 6],
 }
 
+/// The settings of `axis` of joint `joint_index` (`JOINTS` order).
 pub fn joint_axis_settings(joint_index: usize, axis: Axis) -> AxisSettings {
-    let settings = engine_axis(joint_index, axis);
+    axis_settings(engine_axis(joint_index, axis))
+}
+
+/// The settings of `axis` of the neck.
+pub fn neck_axis_settings(axis: Axis) -> AxisSettings {
+    axis_settings(neck_engine_axis(axis))
+}
+
+fn axis_settings(settings: EngineAxis) -> AxisSettings {
     AxisSettings {
         params: [
             (G6dofJointAxisParam::LINEAR_LOWER_LIMIT, 0.0),
@@ -34,11 +45,14 @@ pub fn joint_axis_settings(joint_index: usize, axis: Axis) -> AxisSettings {
             (G6dofJointAxisParam::ANGULAR_UPPER_LIMIT, settings.upper_rad),
             (G6dofJointAxisParam::ANGULAR_MOTOR_FORCE_LIMIT, settings.max_torque_nm),
             (G6dofJointAxisParam::ANGULAR_MOTOR_TARGET_VELOCITY, 0.0),
+            (G6dofJointAxisParam::ANGULAR_SPRING_STIFFNESS, settings.spring_nm_per_rad),
+            (G6dofJointAxisParam::ANGULAR_SPRING_DAMPING, settings.spring_damping_nms_per_rad),
+            (G6dofJointAxisParam::ANGULAR_SPRING_EQUILIBRIUM_POINT, 0.0),
         ],
         flags: [
             (G6dofJointAxisFlag::ENABLE_LINEAR_LIMIT, true),
             (G6dofJointAxisFlag::ENABLE_ANGULAR_LIMIT, true),
-            (G6dofJointAxisFlag::ENABLE_ANGULAR_SPRING, false),
+            (G6dofJointAxisFlag::ENABLE_ANGULAR_SPRING, settings.spring_nm_per_rad > 0.0),
             (G6dofJointAxisFlag::ENABLE_LINEAR_SPRING, false),
             (G6dofJointAxisFlag::ENABLE_LINEAR_MOTOR, false),
             (G6dofJointAxisFlag::ENABLE_MOTOR, settings.motor),
@@ -74,7 +88,11 @@ pub fn drive_joints(joint_rids: &[Rid; 5], motor_velocities: &[Vec3; 5]) {
 }
 
 /// Adds the contacts the target reported with the character's bodies (`body_rids`, `Body::ALL` order).
-pub fn add_bag_contacts(target: &Gd<PhysicsDirectBodyState3D>, body_rids: &[Rid; 6], reading: &mut FrameReading) {
+pub fn add_bag_contacts(
+    target: &Gd<PhysicsDirectBodyState3D>,
+    body_rids: &[Rid; BODY_COUNT],
+    reading: &mut FrameReading,
+) {
     for contact in 0..target.get_contact_count() {
         let collider = target.get_contact_collider(contact);
         let Some(body) = body_rids.iter().position(|rid| *rid == collider) else { continue };
@@ -95,7 +113,7 @@ pub fn add_bag_contacts(target: &Gd<PhysicsDirectBodyState3D>, body_rids: &[Rid;
 /// scene. Target data (bag size and mass) is left at zero for the caller to fill.
 pub fn character_geometry(
     root: &Gd<Node3D>,
-    bodies: &[Transform3D; 6],
+    bodies: &[Transform3D; BODY_COUNT],
     joints: &[Transform3D; 5],
     root_transform: Transform3D,
 ) -> Result<CharacterGeometry, String> {
@@ -117,10 +135,10 @@ pub fn character_geometry(
     });
     // Read with the scale taken out: a character under a scaled parent (a rig in centimetres) has scaled bodies here.
     let turn = |basis: Basis, what: &str| rotation(basis).map_err(|cause| format!("{what} {cause}"));
-    let rest_rotations: [Quat; 6] = {
-        let [a, b, c, d, e, f] = std::array::from_fn(|i| turn(bodies[i].basis, Body::ALL[i].node_name()));
-        [a?, b?, c?, d?, e?, f?]
-    };
+    let mut rest_rotations = [Quat::IDENTITY; BODY_COUNT];
+    for (i, rest) in rest_rotations.iter_mut().enumerate() {
+        *rest = turn(bodies[i].basis, Body::ALL[i].node_name())?;
+    }
     Ok(CharacterGeometry {
         rest_rotations,
         fist_offsets,

@@ -31,13 +31,13 @@ use godot::meta::ToGodot;
 use godot::obj::{Base, EngineEnum, Gd, InstanceId, Singleton, WithBaseField};
 use godot::prelude::{GodotClass, godot_api};
 use punch_core::contract::arm_size::{ARM_SCALE_RANGE, ArmLengths, ArmScale};
-use punch_core::contract::character::{Axis, Body, BodyPart, JOINTS};
+use punch_core::contract::character::{Axis, BODY_COUNT, Body, BodyPart, JOINTS, NECK};
 use punch_core::contract::sensing::{BodyState, CharacterGeometry, MAX_BAG_CONTACTS};
 use punch_core::rig::transform::{SaidOnce, TransformError};
 
 use crate::arm_sizing::{SceneArms, rebuild_joints};
 use crate::convert::{rigid, rotation, vec3, vector3};
-use crate::engine_io::{character_geometry, drive_joints, enable_motors, joint_axis_settings};
+use crate::engine_io::{character_geometry, drive_joints, enable_motors, joint_axis_settings, neck_axis_settings};
 use crate::punch_controller_registry::PunchControllerRegistry;
 
 /// A move of the character's root larger than this in one physics frame (m) is a teleport (see `PunchCharacter`):
@@ -82,10 +82,10 @@ pub struct Rig {
     pub bodies: Vec<Gd<PhysicsBody3D>>,
     pub joint_rids: [Rid; 5],
     /// The bodies' physics-server RIDs (`Body::ALL` order), to recognise their contacts on a target.
-    pub body_rids: [Rid; 6],
+    pub body_rids: [Rid; BODY_COUNT],
     /// Each body as a `RigidBody3D` when it is one (`Body::ALL` order), cast once here: a cast every frame
     /// was a measurable part of the controller's per-frame work (BENCHMARKS.md, controller inference).
-    rigid: [Option<Gd<RigidBody3D>>; 6],
+    rigid: [Option<Gd<RigidBody3D>>; BODY_COUNT],
     /// The physics states of the forearms (`Body::ALL` index, state), to read the fists' contacts.
     pub forearm_states: Vec<(usize, Gd<PhysicsDirectBodyState3D>)>,
     /// The kinematic pelvis's physics state: where the last step put it, with the velocity it moved at.
@@ -93,7 +93,7 @@ pub struct Rig {
     /// Rest-pose geometry (without target data, which the controller adds).
     pub geometry: CharacterGeometry,
     /// Each body's rest transform relative to the character's root (`Body::ALL` order).
-    rest_from_root: [Transform3D; 6],
+    rest_from_root: [Transform3D; BODY_COUNT],
     /// The arms' lengths as the bodies and joints are now.
     pub arm_lengths: ArmLengths,
 }
@@ -119,8 +119,9 @@ impl Rig {
     /// physics state where the last step put it and the velocity of that move (the root's motion, which the
     /// core's sensing turns into the root's frame and its `root_vel`/`root_spin` features). A body whose transform
     /// or velocity is not a number (physics blew up) is an error naming it.
-    pub fn read_bodies(&self) -> Result<[BodyState; 6], String> {
-        let states: [Result<BodyState, String>; 6] = std::array::from_fn(|i| {
+    pub fn read_bodies(&self) -> Result<[BodyState; BODY_COUNT], String> {
+        let mut states = [BodyState::default(); BODY_COUNT];
+        for (i, state) in states.iter_mut().enumerate() {
             let (transform, linear, angular) = match &self.rigid[i] {
                 Some(rigid) => (
                     self.bodies[i].get_global_transform(),
@@ -139,10 +140,9 @@ impl Rig {
             if !(position.is_finite() && linear.is_finite() && angular.is_finite()) {
                 return Err(bad(TransformError::NotFinite));
             }
-            Ok(BodyState { position, rotation, linear_velocity: linear, angular_velocity: angular })
-        });
-        let [a, b, c, d, e, f] = states;
-        Ok([a?, b?, c?, d?, e?, f?])
+            *state = BodyState { position, rotation, linear_velocity: linear, angular_velocity: angular };
+        }
+        Ok(states)
     }
 
     /// Puts body `index` (`Body::ALL` order) at `transform` at once, with no velocity. The kinematic pelvis is
@@ -285,7 +285,7 @@ impl PunchCharacter {
     #[func]
     fn store_joint_settings(&mut self) -> bool {
         let base = self.base().clone();
-        for (joint_index, joint) in JOINTS.iter().enumerate() {
+        for (joint_index, joint) in JOINTS.iter().chain([&NECK]).enumerate() {
             match base.get_node_or_null(joint.node_name).and_then(|n| n.try_cast::<Generic6DofJoint3D>().ok()) {
                 Some(mut node) => configure_joint(&mut node, joint_index),
                 None => {
@@ -483,13 +483,19 @@ impl PunchCharacter {
         let bodies: Vec<Gd<PhysicsBody3D>> = Body::ALL
             .iter()
             .map(|body| {
-                base.get_node_or_null(body.node_name())
-                    .and_then(|n| n.try_cast::<PhysicsBody3D>().ok())
-                    .ok_or_else(|| format!("missing physics body '{}'", body.node_name()))
+                base.get_node_or_null(body.node_name()).and_then(|n| n.try_cast::<PhysicsBody3D>().ok()).ok_or_else(
+                    || match body {
+                        // A character scene saved before the head had its own body.
+                        Body::Head => "missing physics body 'Head' (on the 'Neck' joint): build the character scene \
+                                       again from the addon's punch_character.tscn"
+                            .to_string(),
+                        _ => format!("missing physics body '{}'", body.node_name()),
+                    },
+                )
             })
             .collect::<Result<_, _>>()?;
         let mut joints = Vec::new();
-        for (joint_index, joint) in JOINTS.iter().enumerate() {
+        for (joint_index, joint) in JOINTS.iter().chain([&NECK]).enumerate() {
             let mut node = base
                 .get_node_or_null(joint.node_name)
                 .and_then(|n| n.try_cast::<Generic6DofJoint3D>().ok())
@@ -527,7 +533,7 @@ impl PunchCharacter {
                 }
             }
         }
-        let body_transforms: [Transform3D; 6] = std::array::from_fn(|i| bodies[i].get_global_transform());
+        let body_transforms: [Transform3D; BODY_COUNT] = std::array::from_fn(|i| bodies[i].get_global_transform());
         let joint_transforms: [Transform3D; 5] = std::array::from_fn(|j| joints[j].get_global_transform());
         let root_inverse = base.get_global_transform().affine_inverse();
         let geometry = character_geometry(&base, &body_transforms, &joint_transforms, base.get_global_transform())?;
@@ -565,9 +571,11 @@ pub fn is_teleport(from: Transform3D, to: Transform3D) -> bool {
 /// changed values are set: a limit change rebuilds the engine's constraint, which moves it in Jolt's solve
 /// order. The addon's scene already holds these values (`store_joint_settings`), so at `ready` this changes
 /// nothing; it matters only for a hand-edited scene. The node's enums have the physics server's values.
+/// `joint_index`: of `JOINTS`, or `JOINTS.len()` for the `NECK`.
 fn configure_joint(joint: &mut Gd<Generic6DofJoint3D>, joint_index: usize) {
     for axis in Axis::ALL {
-        let settings = joint_axis_settings(joint_index, axis);
+        let settings =
+            if joint_index < JOINTS.len() { joint_axis_settings(joint_index, axis) } else { neck_axis_settings(axis) };
         for (param, value) in settings.params {
             let param = Param::from_ord(param.ord());
             let current = match axis {

@@ -15,7 +15,8 @@
 //! - The chest takes the simulated torso's rotation, shared evenly along the spine; the clavicles, twist bones
 //!   on the arm and the hand follow their segment rigidly, as at rest. With `fist_curl`, the fingers below each
 //!   hand close into a fist (`punch_core::rig::fist`: each finger bone bends toward the palm about an axis read from
-//!   the rest). Hips, legs, neck and head keep the animation's pose. Only rotations are written
+//!   the rest). The neck and head keep the animation's pose on the chest, turned by the simulated head's snap on
+//!   its neck (a hit). Hips and legs keep the animation's pose. Only rotations are written
 //!   (`set_bone_pose_rotation`), so the rig keeps its own bone lengths.
 //! - Blending: each written bone's local rotation (the fingers' included) is `slerp(animation, simulated, w)`;
 //!   `w` eases from 0 to 1 over `blend_in_s` when a punch (or the recovery after it) starts and back over
@@ -69,7 +70,8 @@ const GUARD_FROM_CONTROLLER: i32 = 1;
 /// modifier that must run first) and point `controller` at the `PunchController` that drives a
 /// `PunchCharacter`. Every physics frame it writes the simulated upper body (spine to chest, clavicles, arms
 /// and hands, the fingers closed into fists) onto the skeleton after the animation, blended with it around
-/// punches; the legs, head and everything else keep the animation. Bones are found by name (`bone_map`, filled in automatically and
+/// punches, the head turned by the simulated head's snap when it is hit; the legs and everything else keep the
+/// animation. Bones are found by name (`bone_map`, filled in automatically and
 /// editable); a skeleton without the bones it needs gets one error, and then keeps its animation.
 #[derive(GodotClass)]
 #[class(base = SkeletonModifier3D, init, tool)]
@@ -134,7 +136,7 @@ pub struct PunchSkeletonModifier {
     /// Why the skeleton cannot be mapped (for the warnings); logged once per problem.
     problem: Option<String>,
     /// The poser for the character it was made for.
-    poser: Option<(InstanceId, SkeletonPoser, [Gd<Node3D>; 5])>,
+    poser: Option<(InstanceId, SkeletonPoser, [Gd<Node3D>; 6])>,
     /// The character whose arms were sized to this rig (tried once: a refusal is logged once).
     sized_for: Option<InstanceId>,
     /// The shoulder joints in the upper arms' frames ([right, left]), where the simulated shoulders are.
@@ -485,8 +487,8 @@ impl PunchSkeletonModifier {
             let bound = character.bind();
             let rig = bound.rig().ok_or("the PunchCharacter is not ready")?;
             let root = bound.standing().ok_or("the PunchCharacter is not ready")?;
-            let bodies: [Gd<Node3D>; 5] =
-                [Body::Torso, Body::UpperArmR, Body::ForearmR, Body::UpperArmL, Body::ForearmL]
+            let bodies: [Gd<Node3D>; 6] =
+                [Body::Torso, Body::UpperArmR, Body::ForearmR, Body::UpperArmL, Body::ForearmL, Body::Head]
                     .map(|b| rig.bodies[b.index()].clone().upcast::<Node3D>());
             (rig.geometry_at(root), bodies)
         };
@@ -620,8 +622,12 @@ impl PunchSkeletonModifier {
                 .map(|q| to_skeleton * q)
                 .map_err(|c| (format!("the simulated body '{}'", bodies[i].get_name()), c))
         };
-        let rotations =
-            BodyRotations { torso: body(0)?, upper_arm: [body(1)?, body(3)?], forearm: [body(2)?, body(4)?] };
+        let rotations = BodyRotations {
+            torso: body(0)?,
+            head: body(5)?,
+            upper_arm: [body(1)?, body(3)?],
+            forearm: [body(2)?, body(4)?],
+        };
         // The animation's pose: every written bone's (read for the blend, and for the spine always).
         let animated = poser.written_bones().map(local).collect::<Result<Vec<_>, _>>()?;
         let fingers = self.fist_bones().map(|(b, _)| local(b)).collect::<Result<Vec<_>, _>>()?;

@@ -24,7 +24,7 @@ use godot::classes::{
 use godot::meta::ToGodot;
 use godot::obj::{Gd, NewGd, Singleton};
 use punch_core::contract::arm_size::ArmScale;
-use punch_core::contract::character::{Axis, Body, JOINTS};
+use punch_core::contract::character::{Axis, BODY_COUNT, Body, JOINTS, JointSpec, NECK};
 use punch_core::contract::motion::RootPose;
 use punch_core::contract::sensing::{BodyState, CharacterGeometry, FrameReading, MAX_BAG_CONTACTS};
 use punch_core::contract::spec::EpisodeConditions;
@@ -32,7 +32,7 @@ use punch_core::training::session::World;
 
 use crate::arm_sizing::SceneArms;
 use crate::convert::{godot_axis, quat, quaternion, vec3, vector3};
-use crate::engine_io::{add_bag_contacts, character_geometry, drive_joints, joint_axis_settings};
+use crate::engine_io::{add_bag_contacts, character_geometry, drive_joints, joint_axis_settings, neck_axis_settings};
 
 /// Most slots per arena: a slot uses two of the 32 collision layers, one for its character and one for its bag.
 pub const MAX_SLOTS_PER_WORLD: usize = 16;
@@ -106,7 +106,7 @@ impl BodyTemplate {
 struct CharacterTemplate {
     /// `Body::ALL` order.
     bodies: Vec<BodyTemplate>,
-    /// Joint frames in the parent's and the child's local coordinates, `JOINTS` order.
+    /// Joint frames in the parent's and the child's local coordinates, `JOINTS` order, then the `NECK`'s.
     joint_frames: Vec<(Transform3D, Transform3D)>,
     geometry: CharacterGeometry,
 }
@@ -148,7 +148,7 @@ impl CharacterTemplate {
                 .iter()
                 .map(|b| child_3d(&root, b.node_name())?.try_cast::<PhysicsBody3D>().map_err(|_| "not a body".into()))
                 .collect::<Result<_, String>>()?;
-            let rest: [Transform3D; 6] = std::array::from_fn(|i| own.bodies[i].transform);
+            let rest: [Transform3D; BODY_COUNT] = std::array::from_fn(|i| own.bodies[i].transform);
             let scene_arms = SceneArms::capture(&root, &bodies, &rest, &own.geometry)?;
             ArmScale::between(scene_arms.lengths, arms.lengths(scene_arms.lengths)).map_err(|e| e.to_string())?;
             scene_arms.apply(None, arms);
@@ -164,7 +164,7 @@ impl CharacterTemplate {
         let bodies: Vec<BodyTemplate> = body_nodes.iter().map(BodyTemplate::read).collect::<Result<_, _>>()?;
         let mut joint_frames = Vec::new();
         let mut joint_transforms = Vec::new();
-        for joint in &JOINTS {
+        for joint in JOINTS.iter().chain([&NECK]) {
             let node = child_3d(root, joint.node_name)?;
             node.clone()
                 .try_cast::<Generic6DofJoint3D>()
@@ -176,7 +176,7 @@ impl CharacterTemplate {
             joint_transforms.push(at);
         }
         // The template's frame is the scene root's, so the root sits at the identity.
-        let body_transforms: [Transform3D; 6] = std::array::from_fn(|i| bodies[i].transform);
+        let body_transforms: [Transform3D; BODY_COUNT] = std::array::from_fn(|i| bodies[i].transform);
         let joint_transforms: [Transform3D; 5] = std::array::from_fn(|j| joint_transforms[j]);
         let geometry = character_geometry(root, &body_transforms, &joint_transforms, Transform3D::IDENTITY)?;
         Ok(Self { bodies, joint_frames, geometry })
@@ -215,9 +215,10 @@ impl BagTemplate {
 /// One slot's engine objects.
 struct Slot {
     /// `Body::ALL` order (the pelvis is kinematic).
-    bodies: [Rid; 6],
+    bodies: [Rid; BODY_COUNT],
     states: Vec<Gd<PhysicsDirectBodyState3D>>,
     joints: [Rid; 5],
+    neck: Rid,
     bag: Rid,
     bag_state: Gd<PhysicsDirectBodyState3D>,
     pin: Rid,
@@ -278,7 +279,7 @@ impl TrainingWorld {
     fn free_all(&mut self) {
         let mut server = PhysicsServer3D::singleton();
         for slot in self.slots.drain(..) {
-            let joints = slot.joints.into_iter().chain([slot.pin]);
+            let joints = slot.joints.into_iter().chain([slot.neck, slot.pin]);
             for rid in joints.chain(slot.bodies).chain([slot.bag]).chain(slot.rope_anchor) {
                 server.free_rid(rid);
             }
@@ -323,23 +324,26 @@ impl TrainingWorld {
         // (under Jolt a body that does not mask the other acts as immovable to it).
         let character_layer = 1u32 << (2 * (slot % self.slots_per_world));
         let bag_layer = character_layer << 1;
-        let bodies: [Rid; 6] = std::array::from_fn(|i| {
+        let bodies: [Rid; BODY_COUNT] = std::array::from_fn(|i| {
             character.bodies[i].create(server, space, Vector3::ZERO, character_layer, bag_layer)
         });
-        let joints: [Rid; 5] = std::array::from_fn(|j| {
+        // The joints in the scene's order (the game creates them so): `JOINTS`, then the neck.
+        let mut make_joint = |j: usize, spec: &JointSpec| {
             let joint = server.joint_create();
             let (frame_a, frame_b) = character.joint_frames[j];
             server.joint_make_generic_6dof(
                 joint,
-                bodies[JOINTS[j].parent.index()],
+                bodies[spec.parent.index()],
                 frame_a,
-                bodies[JOINTS[j].child.index()],
+                bodies[spec.child.index()],
                 frame_b,
             );
             server.joint_disable_collisions_between_bodies(joint, true);
             configure_server_joint(server, joint, j);
             joint
-        });
+        };
+        let joints: [Rid; 5] = std::array::from_fn(|j| make_joint(j, &JOINTS[j]));
+        let neck = make_joint(JOINTS.len(), &NECK);
         let offset = Vector3::new(placement.side_m, placement.height_m, placement.distance_m);
         let bag = self.bag.body.create(server, space, offset, bag_layer, character_layer);
         server.body_set_max_contacts_reported(bag, BAG_MAX_CONTACTS);
@@ -377,6 +381,7 @@ impl TrainingWorld {
             bodies,
             states,
             joints,
+            neck,
             bag,
             bag_state,
             pin,
@@ -407,10 +412,12 @@ impl Drop for TrainingWorld {
     }
 }
 
-/// Limits and motors of a server joint (`joint_axis_settings`).
+/// Limits and motors of a server joint (`joint_axis_settings`): `joint_index` of `JOINTS`, or `JOINTS.len()` for
+/// the neck (`neck_axis_settings`).
 fn configure_server_joint(server: &mut Gd<PhysicsServer3D>, joint: Rid, joint_index: usize) {
     for axis in Axis::ALL {
-        let settings = joint_axis_settings(joint_index, axis);
+        let settings =
+            if joint_index < JOINTS.len() { joint_axis_settings(joint_index, axis) } else { neck_axis_settings(axis) };
         for (param, value) in settings.params {
             server.generic_6dof_joint_set_param(joint, godot_axis(axis), param, value);
         }
@@ -439,7 +446,7 @@ impl World for TrainingWorld {
             }
             self.arenas.push(arena);
         }
-        if self.slots.iter().any(|s| s.states.len() != 6) {
+        if self.slots.iter().any(|s| s.states.len() != BODY_COUNT) {
             return Err("a body of the character has no direct state".into());
         }
         Ok(())
@@ -466,7 +473,7 @@ impl World for TrainingWorld {
 
     fn read(&self, slot: usize) -> FrameReading {
         let slot = &self.slots[slot];
-        let mut bodies = [BodyState::default(); 6];
+        let mut bodies = [BodyState::default(); BODY_COUNT];
         for (body, state) in bodies.iter_mut().zip(&slot.states) {
             *body = read_state(state);
         }

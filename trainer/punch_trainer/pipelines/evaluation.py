@@ -618,7 +618,7 @@ def write_report(out: Path, args: EvalArgs, scenario: Scenario, report: dict[str
                      "`recovered`)")
     if any(c.defender for c in scenario.conditions):
         measured = ("at a defender (a second character standing in the bag's place, its root at the placement, the punch "
-                    "aimed at a hurtbox on its head): the punch's `punch_finished` outcome `blocked`, its fist's first "
+                    "aimed at its head): the punch's `punch_finished` outcome `blocked`, its fist's first "
                     "contact on the defender's arm")
     lead_forward_m = report.get("lead_forward_m", 0.0)
     lines = [f"# punch eval: {args.policy}", "",

@@ -78,7 +78,7 @@ class Struck:
 @dataclass(frozen=True)
 class Defender:
     """A second character of the addon's scene standing in the bag's place, facing the puncher: its root at the
-    placement's distance and side, and the punch aimed at a hurtbox on its head. The rows count what the punch became
+    placement's distance and side, and the punch aimed at its head (its `Head` body). The rows count what the punch became
     (`punch_finished`'s outcome) and how often, and how hard, the fist reached the head."""
 
     blocks: bool = False

@@ -27,7 +27,11 @@ pub const POSITION_GAIN_PER_S: f32 = 20.0;
 /// peak fist speeds near the human maximum (about 12 m/s) under any action sequence.
 pub const MAX_JOINT_SPEED_RAD_S: f32 = 18.0;
 
+/// Number of rigid bodies of the character (`Body::ALL`).
+pub const BODY_COUNT: usize = 7;
+
 /// Rigid bodies of the character, in the order every per-body array uses. The pelvis is kinematic: it carries the root.
+/// The head (with the neck) comes last: it hangs on the passive `NECK` joint and no policy drives it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Body {
     Pelvis,
@@ -36,11 +40,12 @@ pub enum Body {
     ForearmR,
     UpperArmL,
     ForearmL,
+    Head,
 }
 
 impl Body {
-    pub const ALL: [Body; 6] =
-        [Body::Pelvis, Body::Torso, Body::UpperArmR, Body::ForearmR, Body::UpperArmL, Body::ForearmL];
+    pub const ALL: [Body; BODY_COUNT] =
+        [Body::Pelvis, Body::Torso, Body::UpperArmR, Body::ForearmR, Body::UpperArmL, Body::ForearmL, Body::Head];
 
     /// Node name of the body in the character scene.
     pub const fn node_name(self) -> &'static str {
@@ -51,6 +56,7 @@ impl Body {
             Body::ForearmR => "ForearmR",
             Body::UpperArmL => "UpperArmL",
             Body::ForearmL => "ForearmL",
+            Body::Head => "Head",
         }
     }
 
@@ -59,9 +65,10 @@ impl Body {
     }
 
     /// The part of the body a hit on this body strikes, as `PunchCharacter.hit_taken` names it: the pelvis and
-    /// the chest are the torso (the head is welded to the chest and has no collider of its own).
+    /// the chest are the torso.
     pub const fn part(self) -> BodyPart {
         match self {
+            Body::Head => BodyPart::Head,
             Body::Pelvis | Body::Torso => BodyPart::Torso,
             Body::UpperArmR | Body::ForearmR => BodyPart::RightArm,
             Body::UpperArmL | Body::ForearmL => BodyPart::LeftArm,
@@ -96,11 +103,11 @@ impl BodyPart {
         BodyPart::ALL.into_iter().find(|part| part.name() == name)
     }
 
-    /// The bodies a hit on this part may push (the one nearest the hit takes it): the head's is the chest it is
-    /// welded to.
+    /// The bodies a hit on this part may push (the one nearest the hit takes it).
     pub const fn bodies(self) -> &'static [Body] {
         match self {
-            BodyPart::Head | BodyPart::Torso => &[Body::Torso],
+            BodyPart::Head => &[Body::Head],
+            BodyPart::Torso => &[Body::Torso],
             BodyPart::LeftArm => &[Body::UpperArmL, Body::ForearmL],
             BodyPart::RightArm => &[Body::UpperArmR, Body::ForearmR],
         }
@@ -144,6 +151,22 @@ pub const JOINTS: [JointSpec; 5] = [
     JointSpec { node_name: "ShoulderL", parent: Body::Torso, child: Body::UpperArmL },
     JointSpec { node_name: "ElbowL", parent: Body::UpperArmL, child: Body::ForearmL },
 ];
+
+/// The neck: the head hangs on it from the chest, held by springs and never driven (no policy observes or moves
+/// it), so a hit on the head snaps it and it swings back. Not one of `JOINTS`: it is created after them, in the
+/// game as in the training server.
+pub const NECK: JointSpec = JointSpec { node_name: "Neck", parent: Body::Torso, child: Body::Head };
+
+/// How far the neck turns either way from upright about each axis (X: nodding, Y: turning, Z: tilting), rad:
+/// inside an adult's active range (about 50° of flexion and 60° of extension, 70° of rotation, 45° of tilt).
+pub const NECK_RANGE_RAD: [f32; 3] = [deg(40.0), deg(60.0), deg(35.0)];
+/// The neck's springs about X, Y and Z, N m/rad: a head (5.55 kg, its centre 0.12 m above the neck joint) nods
+/// about 6.6 Hz, and leans about 1.6° behind the chest when the trunk nods at 50 rad/s² (a punch's); softer to the
+/// side, where the trunk does not give (the waist does not bend sideways): 30 N s on the forehead from the front or
+/// the side moves the head at least 5 cm.
+pub const NECK_STIFFNESS_NM_PER_RAD: [f32; 3] = [200.0, 120.0, 100.0];
+/// The neck's damping about X, Y and Z, N m s/rad: about 0.7 of critical, so a snapped head settles within a swing.
+pub const NECK_DAMPING_NMS_PER_RAD: [f32; 3] = [6.7, 2.3, 4.8];
 
 /// One actuated degree of freedom: a joint axis with limits relative to the rest (guard) pose and a torque
 /// limit for its motor.
@@ -275,8 +298,12 @@ pub struct EngineAxis {
     pub lower_rad: f32,
     pub upper_rad: f32,
     pub max_torque_nm: f32,
-    /// Actuated axes have a velocity motor; the others are locked (lower == upper == 0).
+    /// Actuated axes have a velocity motor; the others are locked (lower == upper == 0), but the neck's.
     pub motor: bool,
+    /// A spring toward the rest angle (the neck's), N m/rad; 0: none.
+    pub spring_nm_per_rad: f32,
+    /// The spring's damping, N m s/rad.
+    pub spring_damping_nms_per_rad: f32,
 }
 
 /// Engine settings of `axis` of joint `joint` (index into `JOINTS`).
@@ -287,9 +314,34 @@ pub fn engine_axis(joint: usize, axis: Axis) -> EngineAxis {
             upper_rad: -dof.lower_rad + HARD_LIMIT_MARGIN_RAD,
             max_torque_nm: dof.max_torque_nm,
             motor: true,
+            ..EngineAxis::LOCKED
         },
-        None => EngineAxis { lower_rad: 0.0, upper_rad: 0.0, max_torque_nm: 0.0, motor: false },
+        None => EngineAxis::LOCKED,
     }
+}
+
+/// Engine settings of `axis` of the `NECK`: a spring within its range, no motor.
+pub fn neck_engine_axis(axis: Axis) -> EngineAxis {
+    let range = NECK_RANGE_RAD[axis.index()];
+    EngineAxis {
+        lower_rad: -range,
+        upper_rad: range,
+        spring_nm_per_rad: NECK_STIFFNESS_NM_PER_RAD[axis.index()],
+        spring_damping_nms_per_rad: NECK_DAMPING_NMS_PER_RAD[axis.index()],
+        ..EngineAxis::LOCKED
+    }
+}
+
+impl EngineAxis {
+    /// An axis that does not turn.
+    pub const LOCKED: EngineAxis = EngineAxis {
+        lower_rad: 0.0,
+        upper_rad: 0.0,
+        max_torque_nm: 0.0,
+        motor: false,
+        spring_nm_per_rad: 0.0,
+        spring_damping_nms_per_rad: 0.0,
+    };
 }
 
 /// Joint-angle targets (rad) for an action in [-1, 1]^10: 0 holds the guard pose, +1 and -1 reach the
@@ -386,6 +438,7 @@ mod tests {
         }
         assert_eq!(BodyPart::named("tail"), None);
         assert_eq!(Body::Pelvis.part(), BodyPart::Torso);
+        assert_eq!(Body::Head.part(), BodyPart::Head);
     }
 
     #[test]
@@ -451,10 +504,19 @@ mod tests {
         assert!(elbow.motor);
         assert!((elbow.lower_rad - (-deg(118.0) - HARD_LIMIT_MARGIN_RAD)).abs() < 1e-6);
         assert!((elbow.upper_rad - (deg(25.0) + HARD_LIMIT_MARGIN_RAD)).abs() < 1e-6);
-        assert_eq!(
-            engine_axis(2, Axis::Y),
-            EngineAxis { lower_rad: 0.0, upper_rad: 0.0, max_torque_nm: 0.0, motor: false }
-        );
+        assert_eq!(engine_axis(2, Axis::Y), EngineAxis::LOCKED);
+    }
+
+    #[test]
+    fn the_neck_is_a_spring_within_its_range_and_no_motor() {
+        for axis in Axis::ALL {
+            let neck = neck_engine_axis(axis);
+            assert!(!neck.motor && neck.max_torque_nm == 0.0, "{axis:?}");
+            assert!(neck.lower_rad < 0.0 && neck.upper_rad == -neck.lower_rad, "{axis:?}");
+            assert!(neck.spring_nm_per_rad > 0.0 && neck.spring_damping_nms_per_rad > 0.0, "{axis:?}");
+        }
+        assert!(JOINTS.iter().all(|joint| joint.child != Body::Head), "no policy drives the head");
+        assert_eq!((NECK.parent, NECK.child), (Body::Torso, Body::Head));
     }
 
     #[test]

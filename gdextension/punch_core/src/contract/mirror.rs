@@ -370,7 +370,7 @@ mod tests {
     use proptest::prelude::*;
 
     use super::*;
-    use crate::contract::character::{Axis, Body, joint_target, targets_from_action};
+    use crate::contract::character::{Axis, BODY_COUNT, Body, joint_target, targets_from_action};
     use crate::contract::controller::CharacterController;
     use crate::contract::observation::{observation, observation_names};
     use crate::contract::sensing::{BagContact, BodyState, CharacterGeometry, FrameReading};
@@ -512,7 +512,7 @@ mod tests {
     }
 
     /// Body and joint partners: `Body::ALL` and `JOINTS` orders.
-    const BODY_PARTNER: [usize; 6] = [0, 1, 4, 5, 2, 3];
+    const BODY_PARTNER: [usize; BODY_COUNT] = [0, 1, 4, 5, 2, 3, 6];
     const JOINT_PARTNER: [usize; 5] = [0, 3, 4, 1, 2];
 
     /// A character as symmetric as the addon's scene (rest rotations about X, right parts at -x, left at +x),
@@ -524,7 +524,7 @@ mod tests {
         let (shoulder, upper_arm_top) = (Vec3::new(-0.18, 0.09, 0.01), Vec3::new(-0.004, 0.14, 0.0));
         let (elbow_in_arm, elbow_in_forearm) = (Vec3::new(0.003, -0.14, 0.0), Vec3::new(0.0, 0.1, -0.002));
         CharacterGeometry {
-            rest_rotations: [Quat::IDENTITY, Quat::IDENTITY, arm, forearm, arm, forearm],
+            rest_rotations: [Quat::IDENTITY, Quat::IDENTITY, arm, forearm, arm, forearm, Quat::IDENTITY],
             fist_offsets: [fist, mirror_point(fist)],
             fist_radius_m: 0.045,
             joint_anchors: [

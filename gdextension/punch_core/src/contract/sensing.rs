@@ -5,7 +5,7 @@
 use glam::{Quat, Vec3};
 
 use crate::contract::arm_size::ArmLengths;
-use crate::contract::character::{Body, DOF_COUNT, DOFS, JOINTS, PHYSICS_HZ, dof_angles, joint_rotation};
+use crate::contract::character::{BODY_COUNT, Body, DOF_COUNT, DOFS, JOINTS, PHYSICS_HZ, dof_angles, joint_rotation};
 
 /// State of one rigid body in world coordinates.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -36,7 +36,7 @@ pub struct BagContact {
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct FrameReading {
     /// Bodies in `Body::ALL` order.
-    pub bodies: [BodyState; 6],
+    pub bodies: [BodyState; BODY_COUNT],
     pub bag: BodyState,
     /// The character's contacts on the bag this frame: the first `contact_count` entries.
     pub contacts: [BagContact; MAX_BAG_CONTACTS],
@@ -47,7 +47,7 @@ pub struct FrameReading {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CharacterGeometry {
     /// World rotation of each body in the rest pose (`Body::ALL` order).
-    pub rest_rotations: [Quat; 6],
+    pub rest_rotations: [Quat; BODY_COUNT],
     /// Fist centres in the forearm's local frame: [right, left].
     pub fist_offsets: [Vec3; 2],
     pub fist_radius_m: f32,

@@ -24,8 +24,10 @@
 //!
 //! The spine: the chest's rotation from the animation's chest to the target is split evenly along the spine
 //! chain, as `bone_map::BoneMap::waist_share` says (each of the `n` bones turns by the same `1/n` of it about
-//! one global axis; rotations about one axis compose, so the chest lands exactly on its target). The hips,
-//! legs, neck and head keep the animation.
+//! one global axis; rotations about one axis compose, so the chest lands exactly on its target). The neck and
+//! the head keep the animation on the chest, turned by the simulated head's snap on its neck (its rotation away
+//! from the chest's, `SkeletonPoser::pose`), shared evenly along the bones from the chest's child to the head
+//! in the same way. The hips and legs keep the animation.
 //!
 //! Blending: the skeleton's local rotations are `slerp(animation, target, w)` with `w` eased in and out
 //! (smoothstep of the elapsed fraction of the blend time: no step in the weight, nor in its rate, at either
@@ -115,6 +117,8 @@ fn frame_or(direction: Vec3, hint: Vec3, fallback: Vec3, what: &str) -> Result<Q
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BodyFrames {
     pub torso: Quat,
+    /// The head's: the character frame at rest, as the torso's.
+    pub head: Quat,
     /// [right, left], as `CharacterGeometry::fist_offsets`.
     pub upper_arm: [Quat; 2],
     pub forearm: [Quat; 2],
@@ -127,6 +131,7 @@ impl BodyFrames {
     pub fn from_geometry(geometry: &CharacterGeometry) -> Result<BodyFrames, PoseError> {
         let rest = geometry.rest_rotations;
         let torso = rest[Body::Torso.index()].inverse() * geometry.root_rotation;
+        let head = rest[Body::Head.index()].inverse() * geometry.root_rotation;
         let mut upper_arm = [Quat::IDENTITY; 2];
         let mut forearm = [Quat::IDENTITY; 2];
         for (side, (upper, fore, shoulder, elbow)) in
@@ -147,7 +152,7 @@ impl BodyFrames {
             forearm[side] = frame(fore_dir, q_f.inverse() * (q_u * -upper_dir))
                 .ok_or_else(|| PoseError::Degenerate(what(if side == 0 { "right forearm" } else { "left forearm" })))?;
         }
-        Ok(BodyFrames { torso, upper_arm, forearm, shoulders: [Vec3::ZERO; 2] })
+        Ok(BodyFrames { torso, head, upper_arm, forearm, shoulders: [Vec3::ZERO; 2] })
     }
 
     /// The same frames with the shoulder joints' rest places (in the character's frame, relative to its root)
@@ -163,6 +168,8 @@ impl BodyFrames {
 enum Drive {
     /// A spine bone: its share of the chest's turn (index into the chain).
     Spine(usize),
+    /// A bone from the chest's child to the head: the animation on its new parent, and its share of the head's snap.
+    Neck,
     /// Rigidly with a driving segment, as at rest: `G = G_driver · offset`.
     Follow { driver: Segment, offset: Quat },
     /// A driving segment itself.
@@ -189,6 +196,7 @@ struct Write {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BodyRotations {
     pub torso: Quat,
+    pub head: Quat,
     /// [right, left].
     pub upper_arm: [Quat; 2],
     pub forearm: [Quat; 2],
@@ -200,6 +208,8 @@ pub struct SkeletonPoser {
     writes: Vec<Write>,
     hips: usize,
     spine: Vec<usize>,
+    /// How many bones share the head's snap (from the chest's child to the head; 0: the head keeps the animation).
+    neck_bones: usize,
     /// `F_rest⁻¹ · R_rest` of the chest, upper arms and forearms ([right, left]).
     chest_offset: Quat,
     upper_offset: [Quat; 2],
@@ -284,6 +294,13 @@ impl SkeletonPoser {
         for (k, &bone) in map.spine.iter().enumerate() {
             writes.push(Write { bone, parent: parent_of(bone)?, drive: Drive::Spine(k) });
         }
+        // The neck and the head, when the head hangs below the chest (a rig whose head is elsewhere keeps its
+        // animation's head).
+        let neck = between(chest, map.head).map(|path| [path, vec![map.head]].concat()).unwrap_or_default();
+        let neck_bones = neck.len();
+        for bone in neck {
+            writes.push(Write { bone, parent: parent_of(bone)?, drive: Drive::Neck });
+        }
         for (i, &side) in SIDES.iter().enumerate() {
             let arm = map.arm(side);
             let chain = [
@@ -316,6 +333,7 @@ impl SkeletonPoser {
             writes,
             hips: map.hips,
             spine: map.spine.clone(),
+            neck_bones,
             chest_offset,
             upper_offset,
             fore_offset,
@@ -404,6 +422,15 @@ impl SkeletonPoser {
         }
         let (axis, angle) = turn.to_axis_angle();
         let share = Quat::from_axis_angle(axis, angle / self.spine.len() as f32);
+        // The head's snap: its turn away from the chest (both anatomical frames in the skeleton's space), shared
+        // evenly by the neck's bones. Each bone turns its animated pose on its new parent by one share about one
+        // global axis, so the k-th carries k + 1 shares and the head all of the snap.
+        let mut snap = (bodies.head * f.head) * (bodies.torso * f.torso).inverse();
+        if snap.w < 0.0 {
+            snap = -snap;
+        }
+        let (snap_axis, snap_angle) = snap.to_axis_angle();
+        let neck_share = Quat::from_axis_angle(snap_axis, snap_angle / self.neck_bones.max(1) as f32);
 
         // New globals of written bones, parents first.
         let mut written: Vec<(usize, Quat)> = Vec::with_capacity(self.writes.len());
@@ -416,6 +443,11 @@ impl SkeletonPoser {
                     let parent =
                         if k == 0 { hips_global } else { new_global(&written, write.parent).unwrap_or(hips_global) };
                     (local, (parent * local).normalize())
+                }
+                Drive::Neck => {
+                    let parent = new_global(&written, write.parent).unwrap_or(hips_global);
+                    let target = (neck_share * parent * animated_local(write.bone)).normalize();
+                    ((parent.inverse() * target).normalize(), target)
                 }
                 Drive::Follow { driver, offset } => {
                     self.local_for(&written, write.parent, segment(driver) * offset, hips_global)

@@ -59,7 +59,7 @@ fn geometry() -> CharacterGeometry {
     let upper = Quat::from_rotation_x(-35f32.to_radians());
     let fore = Quat::from_rotation_x(-155f32.to_radians());
     CharacterGeometry {
-        rest_rotations: [Quat::IDENTITY, Quat::IDENTITY, upper, fore, upper, fore],
+        rest_rotations: [Quat::IDENTITY, Quat::IDENTITY, upper, fore, upper, fore, Quat::IDENTITY],
         fist_offsets: [Vec3::new(0.0, -0.155, 0.0); 2],
         fist_radius_m: 0.045,
         joint_anchors: [
@@ -124,7 +124,8 @@ fn some_bodies(seed: f32) -> BodyRotations {
             0.4 * (seed * k).sin(),
         )
     };
-    BodyRotations { torso: r(0.3) * Quat::from_rotation_y(0.1), upper_arm: [r(1.0), r(2.0)], forearm: [r(3.0), r(4.0)] }
+    let torso = r(0.3) * Quat::from_rotation_y(0.1);
+    BodyRotations { torso, head: torso, upper_arm: [r(1.0), r(2.0)], forearm: [r(3.0), r(4.0)] }
 }
 
 #[test]
@@ -226,6 +227,7 @@ fn at_the_equivalent_pose_the_rig_keeps_its_rest_and_the_hand_stays_straight() {
         let f = |bone: usize, child: usize| frame(rest[child].1 - rest[bone].1, Vec3::Z).expect("valid");
         let bodies = BodyRotations {
             torso: frames.torso.inverse(),
+            head: frames.head.inverse(),
             upper_arm: [
                 f(map.right.upper_arm, map.right.forearm) * frames.upper_arm[0].inverse(),
                 f(map.left.upper_arm, map.left.forearm) * frames.upper_arm[1].inverse(),
@@ -260,10 +262,34 @@ fn the_spine_shares_the_chest_turn_evenly_and_the_chest_lands_on_its_target() {
     for t in &turns {
         assert!((t - turns[0]).abs() < 1e-4, "{turns:?}");
     }
-    // Legs, neck and head are never written.
+    // The legs are never written; the neck and the head keep the animation on the chest (no snap here).
     let written: Vec<usize> = poser.written_bones().collect();
-    assert!(!written.contains(&map.hips) && !written.contains(&map.head));
-    assert_eq!(written.len(), 3 + 2 * 4);
+    assert!(!written.contains(&map.hips) && written.contains(&map.head));
+    assert_eq!(written.len(), 3 + 2 * 4 + 2);
+    let globals = globals(&poser, &parents, &rest, &locals);
+    let head_on_chest = |g: &[Quat]| g[map.chest()].inverse() * g[map.head];
+    assert!(angle(head_on_chest(&globals), rest[map.chest()].0.inverse() * rest[map.head].0) < 1e-4);
+}
+
+#[test]
+fn the_head_snaps_as_the_simulated_head_turns_on_its_neck_shared_by_the_neck_bones() {
+    let (poser, parents, rest, map) = poser(0.3, 1);
+    let still = some_bodies(0.7);
+    // The simulated head turned 30 degrees about a tilted axis away from the chest (in the skeleton's space).
+    let snap = Quat::from_axis_angle(Vec3::new(1.0, 0.4, -0.3).normalize(), 30f32.to_radians());
+    let snapped = BodyRotations { head: snap * still.head, ..still };
+    let hips = rest[map.hips].0;
+    let animated = |b| rest_local(&parents, &rest, b);
+    let before = globals(&poser, &parents, &rest, &poser.pose(&still, hips, animated));
+    let after = globals(&poser, &parents, &rest, &poser.pose(&snapped, hips, animated));
+    // The head turns by the whole snap, the neck (halfway up) by half of it; nothing else moves.
+    assert!(angle(after[map.head], snap * before[map.head]) < 1e-4);
+    let neck = map.neck.expect("the humanoid has a neck");
+    let half = Quat::from_axis_angle(Vec3::new(1.0, 0.4, -0.3).normalize(), 15f32.to_radians());
+    assert!(angle(after[neck], half * before[neck]) < 1e-4);
+    for bone in poser.written_bones().filter(|&b| b != map.head && b != neck) {
+        assert!(angle(after[bone], before[bone]) < 1e-5, "bone {bone}");
+    }
 }
 
 #[test]
@@ -372,7 +398,7 @@ proptest::proptest! {
         let q = |i: usize| {
             Quat::from_euler(glam::EulerRot::YXZ, angles[3 * i], angles[3 * i + 1], angles[3 * i + 2]).normalize()
         };
-        let bodies = BodyRotations { torso: q(0), upper_arm: [q(1), q(2)], forearm: [q(3), q(4)] };
+        let bodies = BodyRotations { torso: q(0), head: q(5), upper_arm: [q(1), q(2)], forearm: [q(3), q(4)] };
         // The chest's animated turn exactly opposite the target's (a half turn to share) or any other.
         let animated = |b: usize| if degenerate_spine { Quat::from_rotation_y(std::f32::consts::PI) } else { q(5 + b % 3) };
         let locals = poser.pose(&bodies, q(7) * rest[map.hips].0, animated);
