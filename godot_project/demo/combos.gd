@@ -30,7 +30,7 @@ func _ready() -> void:
 			row.marks.append("%d" % _number_of(move))
 			row.landed = false
 			_show(row))
-		controller.hit.connect(func(_impulse, _speed, _position, body, _push, _hand):
+		controller.hit.connect(func(_impulse, _speed, _position, body, _push, _hand, _part, _blocked):
 			row.landed = row.landed or body == row.bag)
 		controller.punch_finished.connect(func(_metrics):
 			row.marks[-1] += " ✓" if row.landed else " ✗"

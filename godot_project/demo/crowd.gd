@@ -24,7 +24,7 @@ func _ready() -> void:
 		var bag: RigidBody3D = sandbag.get_node("Bag")
 		var controller := add_controller(character, bag, 0.1, index + 1)
 		var landed := [false]
-		controller.hit.connect(func(_impulse, _speed, _position, body, _push, _hand): landed[0] = landed[0] or body == bag)
+		controller.hit.connect(func(_impulse, _speed, _position, body, _push, _hand, _part, _blocked): landed[0] = landed[0] or body == bag)
 		controller.punch_finished.connect(func(_metrics):
 			count_punch(landed[0], "crowd")
 			landed[0] = false)

@@ -204,7 +204,8 @@ func _on_punch_started(move: StringName, hand: StringName, _combo_index: int) ->
 	_last_punch.text = "%s, %s hand: ..." % ["swing" if move == &"" else _move_label(move), hand]
 
 
-func _on_hit(impulse: float, speed: float, _position: Vector3, body: Node3D, _push: Vector3, hand: StringName) -> void:
+func _on_hit(impulse: float, speed: float, _position: Vector3, body: Node3D, _push: Vector3, hand: StringName,
+		_part: StringName, _blocked: bool) -> void:
 	_impact.text = "impact: %.1f m/s, %.2f N·s" % [speed, impulse]
 	var what := "the bag" if body == _bag else (String(body.name) if body != null else "something since freed")
 	_hits.append("%s (%s fist)" % [what, hand])

@@ -24,7 +24,7 @@ func _ready() -> void:
 	for index in 2:
 		var opponent := _fighters[1 - index]
 		var controller := add_controller(_fighters[index], opponent.get_node("Torso"), 0.1, index + 1)
-		controller.hit.connect(func(_impulse, _speed, _position, body, _push, _hand):
+		controller.hit.connect(func(_impulse, _speed, _position, body, _push, _hand, _part, _blocked):
 			_landed = _landed or (body != null and opponent.is_ancestor_of(body)))
 		# Its own punch's recovery, not the one from being struck (`react_to_hits`), hands the turn over.
 		controller.recovered.connect(func(): if _turn % 2 == index: _next())

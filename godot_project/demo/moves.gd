@@ -21,7 +21,7 @@ func _ready() -> void:
 		var label := add_label_above(where.origin)
 		var row := {"move": MOVES[index], "controller": controller, "sandbag": null, "bag": null, "label": label,
 			"origin": where.origin, "landed": false}
-		controller.hit.connect(func(_impulse, _speed, _position, body, _push, _hand):
+		controller.hit.connect(func(_impulse, _speed, _position, body, _push, _hand, _part, _blocked):
 			row.landed = row.landed or body == row.bag)
 		controller.punch_finished.connect(func(_metrics):
 			count_punch(row.landed, "moves")

@@ -147,7 +147,7 @@ func _add_fighter(fighter_name: String, where: Vector3, yaw: float, seed: int, c
 	add_child(controller)
 	fighter.controller = controller
 	# A punch hits when a fist strikes the opponent: its trunk (the target), or the guard in front of it.
-	controller.hit.connect(func(_impulse, _speed, _position, body, _push, _hand):
+	controller.hit.connect(func(_impulse, _speed, _position, body, _push, _hand, _part, _blocked):
 		if body != null and fighter.opponent.character.is_ancestor_of(body):
 			fighter.hit = true
 			fighter.on_body = fighter.on_body or body == fighter.controller.target)

@@ -120,7 +120,7 @@ func _add_fighter(file: String, rig: Node3D, place: Transform3D, index: int) -> 
 	_add_idle(rig, skeleton, modifier.bone_map, 1.1 + 0.15 * index)
 	var fighter := {"name": file, "rig": rig, "character": character, "controller": controller,
 		"modifier": modifier, "punches": 0, "hits_on_bag": 0, "hits_on_opponent": 0}
-	controller.hit.connect(func(_impulse, _speed, _position, body, _push, _hand): _on_hit(fighter, body))
+	controller.hit.connect(func(_impulse, _speed, _position, body, _push, _hand, _part, _blocked): _on_hit(fighter, body))
 	controller.punch_finished.connect(func(_metrics): _on_punch_finished(fighter))
 	controller.recovered.connect(func(): _timer.start(PAUSE_S))
 	return fighter

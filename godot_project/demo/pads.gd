@@ -79,7 +79,8 @@ func _add_pad() -> AnimatableBody3D:
 
 
 ## The presented mitt struck: it gives way along the punch, then comes back to where it is held.
-func _on_hit(_impulse: float, _speed: float, _position: Vector3, body: Node3D, push: Vector3, _hand: StringName) -> void:
+func _on_hit(_impulse: float, _speed: float, _position: Vector3, body: Node3D, push: Vector3, _hand: StringName,
+		_part: StringName, _blocked: bool) -> void:
 	if body != _controller.target:
 		return
 	_landed = true

@@ -399,7 +399,7 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 		if reset_target and combo_index > 0:
 			_put_back(bag, bag_start)
 		timings.append([_frame - slot.commanded_at, -1]))
-	controller.connect("hit", func(impulse, _speed, _position, body, _push, _hand):
+	controller.connect("hit", func(impulse, _speed, _position, body, _push, _hand, _part, _blocked):
 		if body == target:
 			row[0] += 1
 			if target != bag:

@@ -1,10 +1,14 @@
-## Pairs of characters facing each other, each controller punching its opponent's torso at random times with random
+## Pairs of characters facing each other, each controller punching its opponent's head or torso at random times with random
 ## moves and combinations (the addon's moveset, random stance and noise), cancelling and recovering at random, while
 ## the game strikes random parts at random strengths (`take_hit`, up to knock-downs, after which it calls `recover()`
 ## some time later). Every promise is checked as the signals come: each `punch_started` gets exactly one
 ## `punch_finished`, with an `ended` and an `outcome` it knows; `hit_taken` names a part and its source; a knocked-down
 ## controller says so until it is brought back. Every second the bodies are checked: finite, near their character,
-## above the floor. Prints `BOUT_CHAOS <json>` and quits. Options: --seed=N --seconds=S --pairs=N.
+## above the floor. Every `--sample-s` seconds (10) the run notes the process's memory (Godot's own allocations, and
+## all of it resident), the engine's objects and nodes,
+## and the physics frame's cost (all of it, and the controllers' part): a long run (`punch bench soak`: 20 pairs for
+## 10 minutes) shows whether they stay flat. Prints `BOUT_CHAOS <json>` and quits. Options: --seed=N --seconds=S
+## --pairs=N --sample-s=S.
 extends SceneTree
 
 const CHARACTER_SCENE := preload("res://addons/punch_controller/scenes/punch_character.tscn")
@@ -13,13 +17,14 @@ const MOVES := [&"jab", &"cross", &"lead_hook", &"rear_hook", &"lead_uppercut", 
 const PARTS := [&"head", &"torso", &"left_arm", &"right_arm"]
 const ENDINGS := ["completed", "interrupted", "chained", "struck"]
 const OUTCOMES := ["landed", "blocked", "whiffed"]
-const BODIES := ["Torso", "UpperArmR", "ForearmR", "UpperArmL", "ForearmL"]
+const BODIES := ["Torso", "UpperArmR", "ForearmR", "UpperArmL", "ForearmL", "Head"]
 
 
 ## One fighter and what its listener has heard.
 class Fighter:
 	var character: Node3D
 	var controller: PunchController
+	var opponent: Node3D
 	var punch_open := false
 	var started := 0
 	var finished := 0
@@ -30,13 +35,17 @@ class Fighter:
 	var get_up_at := -1
 
 
-var _options := {"seed": "1", "seconds": "30", "pairs": "10"}
+var _options := {"seed": "1", "seconds": "30", "pairs": "10", "sample-s": "10"}
 var _rng := RandomNumberGenerator.new()
 var _fighters: Array[Fighter] = []
 var _frame := 0
 var _problems: Array = []
 var _calls := 0
 var _game_hits := 0
+var _samples: Array = []
+var _frame_usec := 0
+var _frames_timed := 0
+var _last_frame_at := -1
 
 
 func _initialize() -> void:
@@ -50,6 +59,8 @@ func _initialize() -> void:
 		var origin := Vector3(4.0 * pair, 0, 0)
 		var a := _add_fighter(Transform3D(Basis.IDENTITY, origin), pair * 2)
 		var b := _add_fighter(Transform3D(Basis(Vector3.UP, PI), origin + Vector3(0, 0, distance)), pair * 2 + 1)
+		a.opponent = b.character
+		b.opponent = a.character
 		a.controller.target = b.character.get_node("Torso")
 		b.controller.target = a.character.get_node("Torso")
 
@@ -103,6 +114,14 @@ func _add_fighter(where: Transform3D, index: int) -> Fighter:
 
 func _physics_process(_delta: float) -> bool:
 	_frame += 1
+	# Headless with --fixed-fps, frames run back to back: the wall time between two is one frame's whole cost.
+	var now := Time.get_ticks_usec()
+	if _last_frame_at >= 0:
+		_frame_usec += now - _last_frame_at
+		_frames_timed += 1
+	_last_frame_at = now
+	if _frame % roundi(float(_options["sample-s"]) * Engine.physics_ticks_per_second) == 0:
+		_sample()
 	var seconds := float(_options.seconds)
 	if _frame <= roundi(seconds * Engine.physics_ticks_per_second):
 		for fighter in _fighters:
@@ -125,7 +144,7 @@ func _physics_process(_delta: float) -> bool:
 			_problem(fighter, "%d started, %d finished" % [fighter.started, fighter.finished])
 		_check_bodies(fighter)
 	var report := {"problems": _problems.slice(0, 10), "problem_count": _problems.size(), "calls": _calls,
-		"game_hits": _game_hits, "fighters": []}
+		"game_hits": _game_hits, "fighters": [], "samples": _samples}
 	for fighter in _fighters:
 		report.fighters.append({"started": fighter.started, "finished": fighter.finished, "endings": fighter.endings,
 			"outcomes": fighter.outcomes, "hits_taken": fighter.hits_taken, "knocked_down": fighter.knocked_down})
@@ -138,6 +157,7 @@ func _physics_process(_delta: float) -> bool:
 func _command(fighter: Fighter) -> void:
 	_calls += 1
 	var roll := _rng.randf()
+	fighter.controller.target = fighter.opponent.get_node("Head" if _rng.randf() < 0.5 else "Torso")
 	if roll < 0.55:
 		fighter.controller.punch(MOVES[_rng.randi_range(0, MOVES.size() - 1)])
 	elif roll < 0.8:
@@ -161,6 +181,32 @@ func _strike(fighter: Fighter) -> void:
 	var strength := _rng.randf_range(320.0, 400.0) if _rng.randf() < 0.1 else _rng.randf_range(1.0, 120.0)
 	if not fighter.character.take_hit(part, direction * strength, point):
 		_problem(fighter, "a hit refused")
+
+
+## Where the run stands: seconds played, the process's memory (MB), the engine's objects and nodes, and the mean cost
+## of a frame since the last sample (µs: the whole frame, physics and all, and the controllers' part).
+func _sample() -> void:
+	_samples.append({"s": float(_frame) / Engine.physics_ticks_per_second,
+		"memory_mb": snappedf(OS.get_static_memory_usage() / 1048576.0, 0.01), "rss_mb": _resident_mb(),
+		"objects": int(Performance.get_monitor(Performance.OBJECT_COUNT)),
+		"nodes": int(Performance.get_monitor(Performance.OBJECT_NODE_COUNT)),
+		"frame_usec": snappedf(float(_frame_usec) / maxi(_frames_timed, 1), 0.1),
+		"controllers_usec": snappedf(PunchProbe.take_frame_cost_usec(), 0.1)})
+	_frame_usec = 0
+	_frames_timed = 0
+
+
+## The process's resident memory (MB: Godot's, the extension's and ONNX Runtime's alike), from Linux's
+## /proc/self/status; -1 elsewhere.
+func _resident_mb() -> float:
+	var status := FileAccess.open("/proc/self/status", FileAccess.READ)  # its length reads 0: read it line by line
+	while status != null and not status.eof_reached():
+		var line := status.get_line()
+		if line.begins_with("VmRSS:"):
+			return snappedf(float(line.split(":")[1].strip_edges().split(" ")[0]) / 1024.0, 0.1)
+		if line.is_empty():
+			break
+	return -1.0
 
 
 ## Every body finite, within 1.2 m of its character's chest height and above the floor.

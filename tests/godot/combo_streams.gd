@@ -148,7 +148,7 @@ func _listen(stream: Stream) -> void:
 			stream.successor = &""
 		stream.last_index = combo_index
 		_maybe_command_in_handler(stream))
-	controller.connect("hit", func(_impulse, _speed, _position, _body, _push, _hand):
+	controller.connect("hit", func(_impulse, _speed, _position, _body, _push, _hand, _part, _blocked):
 		if stream.chained or not stream.punch_open:
 			_problem(stream, "a hit outside a punch")
 		_maybe_command_in_handler(stream))

@@ -26,7 +26,7 @@ func _initialize() -> void:
 	_controller = _demo.get_node("PunchController")
 	_controller.punch_started.connect(func(move, hand, _combo_index):
 		_current.started.append([String(move), String(hand)]))
-	_controller.hit.connect(func(_impulse, _speed, position, body, _push, hand):
+	_controller.hit.connect(func(_impulse, _speed, position, body, _push, hand, _part, _blocked):
 		var on_bag: bool = body != null and body == _demo.get("_bag")
 		_current.hits.append({"bag": on_bag, "hand": String(hand), "x": _offset(position).x}))
 	_controller.punch_finished.connect(func(metrics): _current.finished.append(

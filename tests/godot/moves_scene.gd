@@ -49,7 +49,7 @@ func _add_pair(index: int, stance: int, move: StringName, stance_pose: bool) -> 
 	var entry := {"stance": stance, "move": String(move), "stance_pose": stance_pose, "bag_side_m": offset.x,
 		"started": [], "hits": [], "finished": []}
 	controller.connect("punch_started", func(move_name, hand, _combo_index): entry.started.append([String(move_name), String(hand)]))
-	controller.connect("hit", func(_impulse, speed, position, body, _push, hand):
+	controller.connect("hit", func(_impulse, speed, position, body, _push, hand, _part, _blocked):
 		entry.hits.append({"hand": String(hand), "speed": speed, "x": position.x - origin.x, "bag": body == sandbag.get_node("Bag")}))
 	controller.connect("punch_finished", func(metrics): entry.finished.append(metrics))
 	return {"controller": controller, "entry": entry, "move": move}

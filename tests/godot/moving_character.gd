@@ -61,7 +61,7 @@ func _initialize() -> void:
 		_controller.set("policy", load(policy))
 	root.add_child(_controller)
 	_controller.connect("punch_started", func(_move, _hand, _combo_index): _report.started += 1)
-	_controller.connect("hit", func(_impulse, _hit_speed, _position, _body, _push, _hand): _report.hits += 1)
+	_controller.connect("hit", func(_impulse, _hit_speed, _position, _body, _push, _hand, _part, _blocked): _report.hits += 1)
 	_controller.connect("punch_finished", func(metrics: Dictionary):
 		var record: Dictionary = PunchProbe.last_punch_record(_controller)
 		var gap_column: int = Array(PunchSpec.feature_names()).find("joint_gap_max_m")

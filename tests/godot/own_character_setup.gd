@@ -92,7 +92,7 @@ func _run(glb: String) -> void:
 	# The set-up character punches its sandbag.
 	var landed := {"hits": 0, "on_bag": 0, "finished": false}
 	var bag := sandbag.get_node("Bag")
-	controller.connect("hit", func(_impulse, _speed, _position, body, _push, _hand):
+	controller.connect("hit", func(_impulse, _speed, _position, body, _push, _hand, _part, _blocked):
 		landed.hits += 1
 		landed.on_bag += int(body == bag))
 	controller.connect("punch_finished", func(_metrics): landed.finished = true)

@@ -31,7 +31,7 @@ func _initialize() -> void:
 		controller.set("policy", load(policy))
 		root.add_child(controller)
 		controller.connect("punch_started", func(_move, _hand, _combo_index): _report.started += 1)
-		controller.connect("hit", func(impulse, speed, position, _body, _push, _hand): _report.hits.append([pair, impulse, speed, position.x]))
+		controller.connect("hit", func(impulse, speed, position, _body, _push, _hand, _part, _blocked): _report.hits.append([pair, impulse, speed, position.x]))
 		controller.connect("punch_finished", func(metrics):
 			metrics["pair"] = pair
 			# Where the punching fist ended, in the character's frame (m): noise shows here even in a punch whose

@@ -79,7 +79,7 @@ func _controller_for(name: String, character: Node3D, target: Node3D) -> Node:
 	if not _report.has(name):
 		_report[name] = {"events": [], "punch_returned": [], "sigma": [], "first_means": []}
 	controller.connect("punch_started", func(_move, _hand, _combo_index): _on_started(name, controller))
-	controller.connect("hit", func(_impulse, _speed, _position, _body, _push, _hand): _on_hit(name, controller))
+	controller.connect("hit", func(_impulse, _speed, _position, _body, _push, _hand, _part, _blocked): _on_hit(name, controller))
 	controller.connect("punch_finished", func(metrics): _on_finished(name, controller, metrics))
 	return controller
 

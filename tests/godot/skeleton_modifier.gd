@@ -144,7 +144,7 @@ func _add(name: String, rig: Node3D, twin: Node3D, yaw_deg: float, at: Vector3) 
 		"controller": controller, "modifier": modifier, "frames": [], "hit_gap_m": -1.0, "hits": 0,
 		"hit_pending": false, "skinned_hit_gap_m": -1.0, "skinned_front_m": -1.0,
 		"hand_skin": {}}
-	controller.connect("hit", func(_impulse, _speed, _position, _body, _push, _hand):
+	controller.connect("hit", func(_impulse, _speed, _position, _body, _push, _hand, _part, _blocked):
 		entry.hits += 1
 		# The skeleton's pose is the modified one only while it updates: measured at its next update.
 		entry.hit_pending = entry.hit_gap_m < 0.0)

@@ -28,6 +28,8 @@ class Watched:
 	var back_at := -1
 	var recovered_at := -1
 	var hits_taken: Array = []
+	## The `hit`s its own fists struck: [part, blocked].
+	var hits: Array = []
 	var finished: Array = []
 	var staggered: Array = []
 	var knocked_down: Array = []
@@ -108,6 +110,8 @@ func _add(origin: Vector3) -> Watched:
 	watched.character.hit_taken.connect(func(part, impulse, point, from):
 		watched.hits_taken.append({"part": part, "impulse_ns": snappedf(impulse.length(), 0.01), "from": from != null,
 			"at": _frame, "point": [point.x, point.y, point.z]}))
+	watched.controller.hit.connect(func(_impulse, _speed, _position, _body, _push, _hand, part, blocked):
+		watched.hits.append([part, blocked]))
 	watched.controller.punch_finished.connect(func(metrics): watched.finished.append({"ended": metrics.ended,
 		"outcome": metrics.outcome}))
 	watched.controller.recovered.connect(func(): if watched.struck_at >= 0 and watched.recovered_at < 0:
@@ -247,7 +251,7 @@ func _finish() -> void:
 			_report.punch_struck["armour" if watched.get_meta("armour") else "no_armour"] = row
 	for role in _duel:
 		var watched: Watched = _duel[role]
-		_report.duel[role] = {"hits_taken": watched.hits_taken, "finished": watched.finished}
+		_report.duel[role] = {"hits_taken": watched.hits_taken, "finished": watched.finished, "hits": watched.hits}
 	var character: Node3D = _duel.struck.character
 	_report.parts = [character.part_of(character.get_node("ForearmL")), character.part_of(character.get_node("UpperArmR")),
 		character.part_of(character.get_node("Torso")), character.part_of(character.get_node("Head")),

@@ -32,7 +32,7 @@ func _initialize() -> void:
 			controller.set("hit_layers", 1 << 1)
 		root.add_child(controller)
 		_report[kind] = {"hits": [], "finished": null}
-		controller.connect("hit", func(impulse, speed, _position, body, push, _hand):
+		controller.connect("hit", func(impulse, speed, _position, body, push, _hand, _part, _blocked):
 			_report[kind].hits.append({"impulse": impulse, "speed": speed, "body": body.name if body else "",
 				"push": [push.x, push.y, push.z]}))
 		controller.connect("punch_finished", func(metrics): _report[kind].finished = metrics)

@@ -7,6 +7,7 @@ import json
 
 import pytest
 
+from characters import DEFAULT_OUT, make_characters
 from punch_trainer.sim.godot import GODOT_PROJECT, PROJECT_ROOT, run_godot
 
 pytestmark = pytest.mark.godot
@@ -99,6 +100,11 @@ def test_a_punch_on_another_character_reaches_it_and_says_what_became_of_it(repo
     [attack] = duel["attacker"]["finished"]
     # The first thing the fist met decides: the struck one's guard arm (blocked) or its torso (landed).
     assert attack["outcome"] == ("blocked" if taken[0]["part"].endswith("arm") else "landed"), (attack, taken)
+    # The attacker's `hit`s name the parts its fist struck, as the struck one's `hit_taken`s do, blocked on an arm.
+    hits = duel["attacker"]["hits"]
+    assert [part for part, _ in hits] == [t["part"] for t in taken], (hits, taken)
+    assert all(blocked == part.endswith("arm") for part, blocked in hits), hits
+    assert duel["whiffer"]["hits"] == []
     assert duel["whiffer"]["finished"] == [{"ended": "completed", "outcome": "whiffed"}]
     assert duel["attacker"]["hits_taken"] == [] and duel["whiffer"]["hits_taken"] == []
 
@@ -123,6 +129,25 @@ def test_a_chaotic_bout_keeps_every_promise(seed):
     assert all(f["hits_taken"] > 0 for f in fighters) and sum(f["endings"].get("struck", 0) for f in fighters) > 50, fighters
     assert sum(f["knocked_down"] for f in fighters) > 0
     assert all(sum(f["outcomes"].get(o, 0) for f in fighters) > 0 for o in ("landed", "blocked", "whiffed"))
+
+
+def test_the_bout_demo_trades_strings_blocks_and_hits_between_two_own_characters():
+    """godot_project/demo/bout.tscn: the two converted CC0 fighters (orthodox and southpaw), each run by its scripted
+    AI, throw strings at each other's head and body, raise their guards and take hits; every punch says what it
+    became and some of each happen."""
+    make_characters(DEFAULT_OUT)
+    run = run_godot(["--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), "res://demo/bout.tscn", "--",
+                     "--seconds=20"], check=False, timeout_s=300)
+    assert "ERROR" not in run.log and run.fatal_lines() == [], run.log[-3000:]
+    line = next(line for line in run.log.splitlines() if line.startswith("BOUT "))
+    fighters = json.loads(line[len("BOUT "):])
+    print(fighters)
+    assert [f["stance"] for f in fighters] == ["orthodox", "southpaw"] and all(f["mapped"] for f in fighters)
+    for fighter in fighters:
+        assert fighter["strings"] >= 5 and fighter["punches"] >= fighter["strings"], fighter
+        assert fighter["landed"] + fighter["blocked"] + fighter["whiffed"] == fighter["punches"], fighter
+        assert fighter["landed"] > 0 and fighter["blocks"] > 0 and fighter["hits_taken"] > 0, fighter
+    assert sum(f["struck"].get("head", 0) for f in fighters) > 0 and sum(f["blocked"] for f in fighters) > 0, fighters
 
 
 def test_the_hits_demo_shows_a_flinch_a_stagger_and_a_knock_down():

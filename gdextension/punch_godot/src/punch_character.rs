@@ -238,8 +238,8 @@ impl PunchCharacter {
         }
     }
 
-    /// The part (`&"torso"`, `&"left_arm"`, `&"right_arm"`) `body` is of this character; empty when it is not one of
-    /// its bodies.
+    /// The part (`&"head"`, `&"torso"`, `&"left_arm"`, `&"right_arm"`) `body` is of this character; empty when it is
+    /// not one of its bodies.
     #[func]
     fn part_of(&self, body: Option<Gd<Node>>) -> StringName {
         let index =

@@ -330,10 +330,21 @@ impl PunchController {
     /// frame, the striking fist's peak `speed` so far (m/s), where the fist was (`position`, global), what was hit
     /// (`body`: a CollisionObject3D, or null if it is gone), and `push`, the impulse vector (N s, global
     /// axes) for bodies that physics does not push, such as a CharacterBody3D:
-    /// `enemy.velocity += push / enemy_mass_kg` knocks it back; and the `hand` that struck (`&"left"` or
-    /// `&"right"`: the punching one, or the guard hand).
+    /// `enemy.velocity += push / enemy_mass_kg` knocks it back; the `hand` that struck (`&"left"` or
+    /// `&"right"`: the punching one, or the guard hand); the `part` of a character struck (`&"head"`, `&"torso"`,
+    /// `&"left_arm"` or `&"right_arm"`, as its `hit_taken` names it; empty when `body` is no character's), and
+    /// whether the hit was `blocked`: it struck an arm, a guard in the way.
     #[signal]
-    fn hit(impulse: f32, speed: f32, position: Vector3, body: Option<Gd<Node3D>>, push: Vector3, hand: StringName);
+    fn hit(
+        impulse: f32,
+        speed: f32,
+        position: Vector3,
+        body: Option<Gd<Node3D>>,
+        push: Vector3,
+        hand: StringName,
+        part: StringName,
+        blocked: bool,
+    );
 
     /// Emitted when a punch is over, however it ended, with `move` and `hand` (as `punch_started` gave them),
     /// `frames`, `peak_fist_speed_mps` (the punching fist's; m/s), `peak_off_fist_speed_mps` (the guard hand's,
@@ -1095,6 +1106,7 @@ fn emit(mut signals: Signals<'_>, event: Event, from: InstanceId) {
         Event::OutOfReach { offset, nearest } => signals.target_out_of_reach().emit(vector3(offset), vector3(nearest)),
         Event::Hit(hit) => {
             let body = Gd::<Node3D>::try_from_instance_id(InstanceId::from_i64(hit.collider as i64)).ok();
+            let part = body.as_ref().and_then(PunchCharacter::part_of_body);
             signals.hit().emit(
                 hit.impulse_ns(),
                 hit.speed_mps,
@@ -1102,6 +1114,8 @@ fn emit(mut signals: Signals<'_>, event: Event, from: InstanceId) {
                 body.as_ref(),
                 vector3(hit.impulse),
                 &StringName::from(hit.hand.name()),
+                &StringName::from(part.map_or("", |part| part.name())),
+                part.is_some_and(|part| part.is_arm()),
             );
             // A body of another character: it is told, and its controller reacts.
             if let Some(body) = body {

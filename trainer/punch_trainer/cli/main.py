@@ -20,7 +20,7 @@ from punch_trainer.errors import PunchError
 from punch_trainer.learn.checkpoint import read_config
 from punch_trainer.learn.pretrain import PretrainArgs
 from punch_trainer.learn.search import SearchArgs
-from punch_trainer.pipelines.bench import BenchEnvArgs, BenchInferenceArgs, BenchSearchArgs
+from punch_trainer.pipelines.bench import BenchEnvArgs, BenchInferenceArgs, BenchSearchArgs, BenchSoakArgs
 from punch_trainer.pipelines.evaluation import EvalArgs, parse_scales, parse_sigmas, parse_sizes
 from punch_trainer.pipelines.experiments import AfterPunchArgs, Fig6Args
 from punch_trainer.pipelines.render import RenderArgs, parse_bags
@@ -117,6 +117,20 @@ def _search(args: argparse.Namespace) -> int:
           f"peak fist speed {report['peak_fist_speed_mps']:.2f} m/s")
     print(f"run directory: {out} (report: {out / 'report.md'})")
     return 0
+
+
+def _bench_soak(args: argparse.Namespace) -> int:
+    from punch_trainer.pipelines.bench import bench_soak, soak_body, write_section
+
+    soak_args = dataclass_from_arguments(BenchSoakArgs, args)
+    report = bench_soak(soak_args)
+    body = soak_body(soak_args, report)
+    print(body)
+    if not args.no_write:
+        command = "punch bench soak" + ("" if soak_args == BenchSoakArgs() else
+                                        f" --pairs {soak_args.pairs} --seconds {soak_args.seconds:g} --seed {soak_args.seed}")
+        print(f"written to {write_section('Soak', command, body)}")
+    return 0 if report["problem_count"] == 0 else 1
 
 
 def _bench_search(args: argparse.Namespace) -> int:
@@ -474,6 +488,10 @@ def build_parser() -> argparse.ArgumentParser:
     add_dataclass_arguments(search_bench, BenchSearchArgs)
     add_no_write_option(search_bench)
     search_bench.set_defaults(run=_bench_search)
+    soak = bench_targets.add_parser("soak", help="pairs trading punches, blocks and hits for minutes: promises, memory, frame cost")
+    add_dataclass_arguments(soak, BenchSoakArgs)
+    add_no_write_option(soak)
+    soak.set_defaults(run=_bench_soak)
     return parser
 
 

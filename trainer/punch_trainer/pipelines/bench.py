@@ -425,6 +425,75 @@ def bench_skeleton(policy: Path, characters: int, glb: Path | None, punches: int
                         controller_usec_per_character_frame=report["controller_usec_per_character_frame"])
 
 
+@dataclass(frozen=True)
+class BenchSoakArgs:
+    """The options of `punch bench soak`."""
+
+    pairs: int = field(default=20, metadata=bounds(1, 64))
+    """pairs of characters trading punches"""
+    seconds: float = field(default=600.0, metadata=bounds(10.0, 7200.0))
+    """how long they fight, s of game time"""
+    seed: int = 1
+    """the random commands' and hits' seed"""
+
+
+def bench_soak(args: BenchSoakArgs) -> dict[str, Any]:
+    """A long bout (tests/godot/bout_chaos.gd): `pairs` pairs trading random punches and combinations at each other's
+    heads and torsos, cancelling and recovering at random, struck by the game up to knock-downs, for `seconds`; its
+    report, with the process's memory, the engine's objects and the frame's cost twenty times over the run (at most
+    every 30 s)."""
+    sample_s = min(30.0, args.seconds / 20.0)
+    script = PROJECT_ROOT / "tests" / "godot" / "bout_chaos.gd"
+    wall_s = 60.0 + 0.5 * args.pairs * args.seconds  # about 0.1 s of wall time per pair and second on 2 cores: margin
+    run = run_godot(["--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), "--script", str(script), "--",
+                     f"--pairs={args.pairs}", f"--seconds={args.seconds}", f"--seed={args.seed}", f"--sample-s={sample_s}"],
+                    check=False, timeout_s=wall_s)
+    line = next((line for line in run.log.splitlines() if line.startswith("BOUT_CHAOS ")), None)
+    if run.returncode != 0 or run.fatal_lines() or line is None:
+        raise GodotRunError(f"the soak failed (exit code {run.returncode}):\n{run.log[-3000:]}", run.log)
+    return dict(json.loads(line[len("BOUT_CHAOS "):]))
+
+
+def soak_body(args: BenchSoakArgs, report: dict[str, Any]) -> str:
+    """The soak's note and tables: what was promised and what held, and the samples over the run."""
+    fighters = report["fighters"]
+    started, finished = sum(f["started"] for f in fighters), sum(f["finished"] for f in fighters)
+    outcomes: dict[str, int] = {}
+    for fighter in fighters:
+        for outcome, count in fighter["outcomes"].items():
+            outcomes[outcome] = outcomes.get(outcome, 0) + count
+    samples = report["samples"]
+    if not samples:
+        raise PunchError("the soak took no samples: run it longer")
+    first, last = samples[0], samples[-1]
+    note = (f"{args.pairs} pairs of the addon's characters facing each other in one headless Godot, each controller "
+            f"punching its opponent's head or torso with random moves and combinations at random times, random cancels "
+            f"and recoveries (some inside the signal handlers), and the game striking random parts up to knock-downs "
+            f"(`recover()` some time later), for {args.seconds:.0f} s of game time at 120 Hz (`tests/godot/bout_chaos.gd`, "
+            f"seed {args.seed}), then 5 s of quiet. Every promise is checked as the signals come and every second on the "
+            f"bodies (finite, near their character, above the floor). The frame's cost is the wall time between two physics "
+            f"frames (headless, frames back to back: the whole frame), the controllers' part `PunchProbe.take_frame_cost_usec`.")
+    promises = ["| checked | result |", "|---|---|",
+                f"| punches started / finished | {started} / {finished} |",
+                f"| outcomes (landed / blocked / whiffed) | {outcomes.get('landed', 0)} / {outcomes.get('blocked', 0)} / "
+                f"{outcomes.get('whiffed', 0)} |",
+                f"| hits taken, knock-downs, game hits | {sum(f['hits_taken'] for f in fighters)}, "
+                f"{sum(f['knocked_down'] for f in fighters)}, {report['game_hits']} |",
+                f"| broken promises (a start without one finish, a NaN or lost body, an unknown ending, ...) | "
+                f"{report['problem_count']} |",
+                f"| Godot's memory, first sample to last | {first['memory_mb']:.1f} MB to {last['memory_mb']:.1f} MB "
+                f"(largest {max(s['memory_mb'] for s in samples):.1f}) |",
+                f"| the process's resident memory, first sample to last | {first['rss_mb']:.1f} MB to "
+                f"{last['rss_mb']:.1f} MB (largest {max(s['rss_mb'] for s in samples):.1f}) |",
+                f"| engine objects, nodes, first sample to last | {first['objects']} to {last['objects']}, "
+                f"{first['nodes']} to {last['nodes']} |"]
+    rows = ["| game time (s) | Godot's memory (MB) | resident (MB) | objects | nodes | frame (µs, mean since the sample "
+            "before) | controllers (µs) |", "|---|---|---|---|---|---|---|"]
+    rows += [f"| {s['s']:.0f} | {s['memory_mb']:.1f} | {s['rss_mb']:.1f} | {s['objects']} | {s['nodes']} | "
+             f"{s['frame_usec']:.0f} | {s['controllers_usec']:.0f} |" for s in samples]
+    return "\n".join([note, "", *promises, "", *rows])
+
+
 def bench_inference(args: BenchInferenceArgs, sigma: float = 0.3) -> list[InferenceCost]:
     """PunchController's cost in Godot, from `batches` punches of every controller at once for each count:
     ONNX Runtime time per call and per character-decision (all controllers share the policy, so one call per
