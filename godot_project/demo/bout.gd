@@ -63,26 +63,14 @@ func _ready() -> void:
 		me.next_think_at = _frame + _think_frames()
 
 
-## A fighter as own_character.gd adds one, with the counts and the AI's state the bout keeps.
+## A fighter as own_character.gd adds one (`_add_rigged`), with the counts and the AI's state the bout keeps.
 func _add_boxer(file: String, rig: Node3D, place: Transform3D, index: int) -> Dictionary:
-	rig.name = file
-	rig.transform = place
-	add_child(rig)
-	var skeleton: Skeleton3D = rig.find_children("*", "Skeleton3D", true, false)[0]
-	var character := add_character(self, place)  # anywhere: the modifier puts it on the rig
-	var controller := add_controller(character, null, 0.0, index + 1)
-	controller.stance = PunchController.ORTHODOX if index == 0 else PunchController.SOUTHPAW
-	controller.stance_pose = true  # the addon's stance moveset, boxing_stance.tres
-	var modifier := PunchSkeletonModifier.new()
-	modifier.controller = controller
-	modifier.blend_in_s = 0.05
-	modifier.blend_out_s = 0.25
-	skeleton.add_child(modifier)
-	_add_idle(rig, skeleton, modifier.bone_map, 1.1 + 0.15 * index)
-	var fighter := {"name": file, "stance": "orthodox" if index == 0 else "southpaw", "rig": rig,
-		"character": character, "controller": controller, "modifier": modifier, "busy": false, "block_at": -1,
-		"get_up_at": -1, "next_think_at": 0, "strings": 0, "punches": 0, "landed": 0, "blocked": 0, "whiffed": 0,
-		"struck": {}, "blocks": 0, "hits_taken": 0, "knocked_down": 0}
+	var fighter := _add_rigged(file, rig, place, index)
+	var controller: PunchController = fighter.controller
+	var character: Node3D = fighter.character
+	fighter.merge({"stance": "orthodox" if index == 0 else "southpaw", "busy": false, "block_at": -1, "get_up_at": -1,
+		"next_think_at": 0, "strings": 0, "punches": 0, "landed": 0, "blocked": 0, "whiffed": 0, "struck": {},
+		"blocks": 0, "hits_taken": 0, "knocked_down": 0})
 	controller.punch_started.connect(func(_move, _hand, _combo_index): fighter.busy = true)
 	controller.punch_finished.connect(func(metrics: Dictionary):
 		fighter.punches += 1

@@ -101,9 +101,21 @@ func _load_character(file: String) -> Node3D:
 	return document.generate_scene(state)
 
 
-## The skinned rig at `place`, its idle, and a hidden simulated character driven by a controller whose pose a
-## PunchSkeletonModifier under the rig's Skeleton3D shows.
+## A fighter of this demo (`_add_rigged`) with its counts.
 func _add_fighter(file: String, rig: Node3D, place: Transform3D, index: int) -> Dictionary:
+	var fighter := _add_rigged(file, rig, place, index)
+	fighter.merge({"punches": 0, "hits_on_bag": 0, "hits_on_opponent": 0})
+	var controller: PunchController = fighter.controller
+	controller.hit.connect(func(_impulse, _speed, _position, body, _push, _hand, _part, _blocked): _on_hit(fighter, body))
+	controller.punch_finished.connect(func(_metrics): _on_punch_finished(fighter))
+	controller.recovered.connect(func(): _timer.start(PAUSE_S))
+	return fighter
+
+
+## The skinned rig at `place`, its idle, and a hidden simulated character driven by a controller whose pose a
+## PunchSkeletonModifier under the rig's Skeleton3D shows (the first orthodox, the second southpaw, each in its
+## stance): {name, rig, character, controller, modifier}.
+func _add_rigged(file: String, rig: Node3D, place: Transform3D, index: int) -> Dictionary:
 	rig.name = file
 	rig.transform = place
 	add_child(rig)
@@ -118,12 +130,7 @@ func _add_fighter(file: String, rig: Node3D, place: Transform3D, index: int) -> 
 	modifier.blend_out_s = 0.25
 	skeleton.add_child(modifier)  # maps the bones (bone_map) as it enters the tree
 	_add_idle(rig, skeleton, modifier.bone_map, 1.1 + 0.15 * index)
-	var fighter := {"name": file, "rig": rig, "character": character, "controller": controller,
-		"modifier": modifier, "punches": 0, "hits_on_bag": 0, "hits_on_opponent": 0}
-	controller.hit.connect(func(_impulse, _speed, _position, body, _push, _hand, _part, _blocked): _on_hit(fighter, body))
-	controller.punch_finished.connect(func(_metrics): _on_punch_finished(fighter))
-	controller.recovered.connect(func(): _timer.start(PAUSE_S))
-	return fighter
+	return {"name": file, "rig": rig, "character": character, "controller": controller, "modifier": modifier}
 
 
 func _on_hit(fighter: Dictionary, body: Node3D) -> void:
