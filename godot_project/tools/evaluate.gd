@@ -77,6 +77,8 @@ const PunchPair := preload("res://tools/punch_pair.gd")
 const ADDON_MOVESET := "res://addons/punch_controller/policies/boxing.tres"
 const STANCE_MOVESET := "res://addons/punch_controller/policies/boxing_stance.tres"
 const MOVES: Array[StringName] = [&"jab", &"cross", &"lead_hook", &"rear_hook", &"lead_uppercut", &"rear_uppercut"]
+## Seconds after a hit a struck character is watched at most.
+const STRUCK_WATCH_S := 4.0
 ## A struck character's bodies, and how near its guard each must be to be back (degrees).
 const STRUCK_BODIES := ["Torso", "UpperArmR", "ForearmR", "UpperArmL", "ForearmL", "Head"]
 const BACK_IN_GUARD_DEG := 10.0
@@ -163,6 +165,9 @@ class Slot:
 	var guard_rotations := {}
 	var head_at := Vector3.ZERO
 	var back_at := -1
+	## Measured until `recovered` has come and every body is back in guard (the head swings on its neck after the
+	## driven joints are back), or `STRUCK_WATCH_S` after the hit.
+	var struck_open := true
 
 
 const KINDS := ["features", "observations", "mean_actions", "actions"]
@@ -227,7 +232,7 @@ func _physics_process(_delta: float) -> bool:
 	_frame += 1
 	var waiting := false
 	for slot in _slots:
-		if not slot.struck.is_empty() and slot.lead_frames < 0 and slot.row[9].recovered_s < 0.0:
+		if not slot.struck.is_empty() and slot.lead_frames < 0 and slot.struck_open:
 			_measure_struck(slot)
 	for slot in _slots:
 		if slot.lead_frames > 0:
@@ -504,7 +509,8 @@ func _punch(slot: Slot) -> bool:
 	return true
 
 
-## A struck character's episode: its figures as its controller reacts, ending at `recovered`.
+## A struck character's episode: its figures as its controller reacts, ending once `recovered` has come and every body
+## is back within `BACK_IN_GUARD_DEG` of its guard (`_measure_struck`).
 func _listen_struck(slot: Slot, controller: Node, character: Node3D) -> void:
 	var figures: Dictionary = slot.row[9]
 	figures.merge({"peak_deg": 0.0, "head_moved_m": 0.0, "back_s": -1.0, "recovered_s": -1.0, "staggered": false,
@@ -514,12 +520,8 @@ func _listen_struck(slot: Slot, controller: Node, character: Node3D) -> void:
 		figures.knocked_down = true
 		create_timer(1.0, true, true).timeout.connect(func(): controller.call("recover")))
 	controller.connect("recovered", func():
-		figures.recovered_s = float(_frame - slot.commanded_at) / Engine.physics_ticks_per_second
-		if slot.back_at >= 0:
-			figures.back_s = float(slot.back_at - slot.commanded_at) / Engine.physics_ticks_per_second
-		elif figures.peak_deg <= BACK_IN_GUARD_DEG:
-			figures.back_s = 0.0
-		_pending -= 1)
+		if figures.recovered_s < 0.0:
+			figures.recovered_s = float(_frame - slot.commanded_at) / Engine.physics_ticks_per_second)
 	slot.character = character
 
 
@@ -556,6 +558,15 @@ func _measure_struck(slot: Slot) -> void:
 		slot.back_at = -1
 	elif slot.back_at < 0 and figures.peak_deg > BACK_IN_GUARD_DEG:
 		slot.back_at = _frame
+	var back: bool = slot.back_at >= 0 or figures.peak_deg <= BACK_IN_GUARD_DEG
+	var watched_s: float = float(_frame - slot.commanded_at) / Engine.physics_ticks_per_second
+	if (figures.recovered_s >= 0.0 and back) or watched_s >= STRUCK_WATCH_S:
+		if slot.back_at >= 0:
+			figures.back_s = float(slot.back_at - slot.commanded_at) / Engine.physics_ticks_per_second
+		elif back:
+			figures.back_s = 0.0
+		slot.struck_open = false
+		_pending -= 1
 
 
 ## A body's rotation in its character's frame.
