@@ -53,7 +53,7 @@ class RenderArgs:
     bags: str = ""
     """each character's bag placement, `distance,height,side;...` in metres, cycled (default: the spec's)"""
     scene: str = ""
-    """film a demo scene instead (godot_project/demo/SCENE.tscn: own_character, duel, moving_duel, crowd, moves, pads, combos, hits); --policy, --sigmas,
+    """film a demo scene instead (godot_project/demo/SCENE.tscn: own_character, duel, moving_duel, crowd, moves, pads, combos, hits, bout); --policy, --sigmas,
     --noise-decisions, --seed and --bags are then not used"""
 
 
