@@ -5,6 +5,9 @@
 //! Signals are emitted with no borrow of the controller held (`#[func(gd_self)]`, and the frame pass), so a
 //! handler may do anything: free this or another controller, its character or its target, punch again.
 
+// The `hit` signal's generated emitter takes its eight arguments one by one, as a handler receives them.
+#![allow(clippy::too_many_arguments)]
+
 use std::rc::Rc;
 use std::time::Instant;
 
