@@ -73,6 +73,14 @@ func _initialize() -> void:
 			watched.character.rotate_y(deg_to_rad(130.0))
 		_watched.append(watched)
 		x += 3.0
+	# And 30 N s on the side of the head of a turned and of a walking character: the neck's snap is in its frame too.
+	for variant in ["turned", "walking"]:
+		var watched := _standing(Vector3(x, 0, 0), {"impulse_ns": 30.0, "from": "right", "push": Vector3.RIGHT * 30.0,
+			"variant": variant, "part": "head"})
+		if variant == "turned":
+			watched.character.rotate_y(deg_to_rad(130.0))
+		_watched.append(watched)
+		x += 3.0
 	for armour in [false, true]:
 		_watched.append(_punching(Vector3(x, 0, 0), armour))
 		x += 3.0

@@ -210,16 +210,16 @@ impl INode3D for PunchCharacter {
 impl PunchCharacter {
     /// Emitted when the character is struck: by another `PunchController`'s fist (`from` is that controller; the
     /// physics pushed the body already) or by the game's `take_hit` (`from` is null). `part` is `&"head"`, `&"torso"`,
-    /// `&"left_arm"` or `&"right_arm"` (a fist strikes the torso and the arms: the head is welded to the chest and
-    /// has no collider yet), `impulse` the push (N s, global axes) and `point` where it struck (global). The
+    /// `&"left_arm"` or `&"right_arm"` (the part whose body was struck: the head hangs on its own neck),
+    /// `impulse` the push (N s, global axes) and `point` where it struck (global). The
     /// controller that drives the character has reacted already (`PunchController.react_to_hits`), so a handler
     /// may punch back at once.
     #[signal]
     fn hit_taken(part: StringName, impulse: Vector3, point: Vector3, from: Option<Gd<Node>>);
 
     /// Strikes the character as the game's own hit (a kick, a thrown chair, a bullet): `impulse` (N s, global axes;
-    /// at most 1,000) pushes `part` (`&"head"`, `&"torso"`, `&"left_arm"` or `&"right_arm"`; the head's push turns
-    /// the chest it is welded to) at `point` (global; the arm's body nearest it takes an arm's push), then
+    /// at most 1,000) pushes `part` (`&"head"`, `&"torso"`, `&"left_arm"` or `&"right_arm"`; the head snaps on its
+    /// neck) at `point` (global; the arm's body nearest it takes an arm's push), then
     /// `hit_taken` is emitted and the controller that drives it reacts (`PunchController.react_to_hits`). For scale:
     /// the addon's punches strike a sandbag with 5-10 N s. Returns false, with an error and nothing pushed, for an
     /// unknown part, a vector that is not finite, a larger impulse, or a character that is not ready.
