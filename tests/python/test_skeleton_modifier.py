@@ -203,3 +203,32 @@ def test_the_own_character_demo_punches_the_bag_and_spars():
     assert fighters[0]["hits_on_bag"] >= 1 and fighters[1]["hits_on_opponent"] >= 1, fighters
     rate = json.loads(next(line for line in run.log.splitlines() if line.startswith("HIT_RATE "))[len("HIT_RATE "):])
     assert rate["punches"] == 6 and rate["hits"] >= 5, rate  # counted, not a float at the bar
+
+
+def test_a_knocked_down_rig_is_handed_to_the_games_ragdoll_and_taken_back_on_recover():
+    """Issue 53's hand-off (tests/godot/knockdown_ragdoll.gd): a CC0 character wired by the editor plugin's action,
+    with a PhysicalBoneSimulator3D of the game's own under its skeleton, struck at 400 N s: `knocked_down`, the
+    skeleton handed to the simulator (`handed_off_to`), the head bone starting with the simulated head's velocity
+    along the push, the ragdoll falling where the limp simulated body would hang; after `recover()` the simulation
+    stops, the modifier poses it again and the head is back where it stood. Its twin without a ragdoll shows the simulated body hanging limp."""
+    make_characters(DEFAULT_OUT)
+    script = PROJECT_ROOT / "tests" / "godot" / "knockdown_ragdoll.gd"
+    run = run_godot(["--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), "--script", str(script), "--",
+                     f"--glb={DEFAULT_OUT / 'mixamo_190.glb'}"], check=False, timeout_s=120)
+    line = next((line for line in run.log.splitlines() if line.startswith("KNOCKDOWN_RAGDOLL ")), None)
+    assert run.returncode == 0 and line is not None and run.fatal_lines() == [], run.log[-3000:]
+    assert "ERROR" not in run.log, run.log[-3000:]
+    report = json.loads(line[len("KNOCKDOWN_RAGDOLL "):])
+    ragdoll, limp = report["with_ragdoll"], report["without"]
+    for fighter in (ragdoll, limp):
+        assert fighter["knocked_down"] == [400.0], fighter
+    assert ragdoll["handed_off"] and ragdoll["simulating"] and ragdoll["still_handed_off"], ragdoll
+    # Started with the simulated head's velocity, then held back by the ragdoll's own joints.
+    assert ragdoll["head_bone_speed_mps"] > 0.4 * ragdoll["simulated_head_speed_mps"] > 1.0, ragdoll
+    assert ragdoll["head_bone_along_push"] > 0.5, ragdoll
+    assert ragdoll["head_fell_m"] > 1.0 > limp["head_fell_m"], (ragdoll, limp)
+    assert not limp["handed_off"] and not limp["simulating"] and limp["limp_blend_weight"] == 1.0, limp
+    for fighter in (ragdoll, limp):
+        assert not fighter["after_recover_handed_off"] and not fighter["after_recover_simulating"], fighter
+        assert fighter["after_recover_blend_weight"] > 0.0 and fighter["recovered"], fighter
+        assert abs(fighter["head_back_m"]) < 0.05, fighter

@@ -363,7 +363,7 @@ impl PunchController {
     fn punch_finished(metrics: VarDictionary);
 
     /// Emitted when the character is back in its guard pose after `recover()` (or a punch with
-    /// `auto_recover`), or when the recovery's time is up.
+    /// `auto_recover`), or when the recovery's time is up. After a hit it waits for the head to rest on its neck too.
     #[signal]
     fn recovered();
 

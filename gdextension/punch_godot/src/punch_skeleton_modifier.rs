@@ -39,7 +39,10 @@ use std::time::Instant;
 use glam::{Quat, Vec3};
 use godot::builtin::{Basis, GString, PackedStringArray, PackedVector3Array, StringName, Transform3D, VarDictionary};
 use godot::classes::skeleton_3d::ModifierCallbackModeProcess;
-use godot::classes::{Engine, ISkeletonModifier3D, Node3D, Skeleton3D, SkeletonModifier3D};
+use godot::classes::{
+    Engine, ISkeletonModifier3D, Node3D, PhysicalBone3D, PhysicalBoneSimulator3D, PhysicsBody3D, Skeleton3D,
+    SkeletonModifier3D,
+};
 use godot::global::{godot_error, godot_warn};
 use godot::meta::ToGodot;
 use godot::obj::{Base, Gd, InstanceId, Singleton, WithBaseField};
@@ -60,6 +63,11 @@ use crate::punch_controller::PunchController;
 thread_local! {
     /// Time all modifiers spent writing poses (µs) and the character-frames they wrote, for benchmarks.
     static COST: Cell<(f64, u64)> = const { Cell::new((0.0, 0)) };
+}
+
+/// The physical bones of a ragdoll.
+fn physical_bones(simulator: &Gd<PhysicalBoneSimulator3D>) -> Vec<Gd<PhysicalBone3D>> {
+    simulator.get_children().iter_shared().filter_map(|child| child.try_cast::<PhysicalBone3D>().ok()).collect()
 }
 
 /// Where the guard pose between punches comes from.
@@ -152,6 +160,9 @@ pub struct PunchSkeletonModifier {
     /// The character read from the controller when its punch (or recovery) began: a punch keeps its character,
     /// so frames within one need not ask again (asking is a tenth of the pass).
     punching_character: Option<Gd<PunchCharacter>>,
+    /// The skeleton's ragdoll while its character is knocked down (`handed_off_to`), and whether its bones were given
+    /// the simulated bodies' velocities yet.
+    handed_off: Option<(Gd<PhysicalBoneSimulator3D>, bool)>,
     base: Base<SkeletonModifier3D>,
 }
 
@@ -159,6 +170,7 @@ struct Names {
     character: StringName,
     is_punching: StringName,
     is_recovering: StringName,
+    is_knocked_down: StringName,
 }
 
 impl Default for Names {
@@ -167,6 +179,7 @@ impl Default for Names {
             character: StringName::from("character"),
             is_punching: StringName::from("is_punching"),
             is_recovering: StringName::from("is_recovering"),
+            is_knocked_down: StringName::from("is_knocked_down"),
         }
     }
 }
@@ -320,6 +333,14 @@ impl PunchSkeletonModifier {
     #[func]
     fn mapping_problem(&self) -> GString {
         GString::from(self.problem.as_deref().unwrap_or_default())
+    }
+
+    /// The `PhysicalBoneSimulator3D` the skeleton is handed to while its character is knocked down (null when it is
+    /// not, or when the skeleton has no simulator with physical bones: then it shows the simulated body hanging limp).
+    /// From the first pass after `knocked_down` until `recover()` or the next punch.
+    #[func]
+    fn handed_off_to(&self) -> Option<Gd<PhysicalBoneSimulator3D>> {
+        self.handed_off.as_ref().map(|(simulator, _)| simulator.clone()).filter(|s| s.is_instance_valid())
     }
 }
 
@@ -533,7 +554,10 @@ impl PunchSkeletonModifier {
         // Called, not bound: a pass may run while the controller is bound (a signal handler moving a node).
         let mut controller = controller.upcast::<godot::classes::Object>();
         let punching = controller.call(&self.names.is_punching, &[]).try_to::<bool>().unwrap_or(false);
-        let busy = punching || controller.call(&self.names.is_recovering, &[]).try_to::<bool>().unwrap_or(false);
+        let knocked_down = controller.call(&self.names.is_knocked_down, &[]).try_to::<bool>().unwrap_or(false);
+        let busy = punching
+            || knocked_down
+            || controller.call(&self.names.is_recovering, &[]).try_to::<bool>().unwrap_or(false);
         let cached = self.punching_character.clone().filter(|c| busy && c.is_instance_valid());
         let Some(character) = cached.or_else(|| self.character()) else {
             self.blend.set(false);
@@ -549,6 +573,9 @@ impl PunchSkeletonModifier {
                 self.problem = Some(problem);
                 self.base_mut().update_configuration_warnings();
             }
+            return false;
+        }
+        if self.hand_off(&skeleton, &character, knocked_down) {
             return false;
         }
         let active = busy || self.guard_source == GUARD_FROM_CONTROLLER;
@@ -602,6 +629,66 @@ impl PunchSkeletonModifier {
             skeleton.set_bone_pose_position(first, position);
         }
         true
+    }
+
+    /// The knock-down hand-off: while the character is knocked down, a `PhysicalBoneSimulator3D` child of the skeleton
+    /// (the game's ragdoll, if it set one up) simulates the skeleton, each physical bone started with the velocity of
+    /// the simulated body it moves with (`BoneMap::body_of`) and no collision with the simulated bodies it stands in,
+    /// and this modifier writes nothing; when the character
+    /// is brought back (`recover()`, a punch) the simulation stops and the modifier poses the skeleton again.
+    /// Returns whether the skeleton is the ragdoll's this pass. Without a simulator the skeleton shows the simulated
+    /// body hanging limp in its joints.
+    fn hand_off(&mut self, skeleton: &Gd<Skeleton3D>, character: &Gd<PunchCharacter>, knocked_down: bool) -> bool {
+        if !knocked_down {
+            if let Some((mut simulator, _)) = self.handed_off.take()
+                && simulator.is_instance_valid()
+            {
+                simulator.physical_bones_stop_simulation();
+            }
+            return false;
+        }
+        if let Some((simulator, moving)) = &mut self.handed_off
+            && simulator.is_instance_valid()
+        {
+            // The bones turn dynamic with the step after the simulation starts: a velocity given before is lost.
+            if !*moving {
+                *moving = true;
+                Self::start_moving(simulator, character, self.mapped.as_ref());
+            }
+            return true;
+        }
+        let Some(mut simulator) =
+            skeleton.get_children().iter_shared().find_map(|child| child.try_cast::<PhysicalBoneSimulator3D>().ok())
+        else {
+            return false;
+        };
+        let bones = physical_bones(&simulator);
+        if bones.is_empty() {
+            return false;
+        }
+        let bodies: Vec<Gd<PhysicsBody3D>> = character.bind().rig().map_or_else(Vec::new, |rig| rig.bodies.clone());
+        for mut bone in bones {
+            // The ragdoll stands where the simulated body does: they would push each other apart.
+            for body in &bodies {
+                bone.add_collision_exception_with(body);
+            }
+        }
+        simulator.set_active(true);
+        simulator.physical_bones_start_simulation();
+        self.handed_off = Some((simulator, false));
+        true
+    }
+
+    /// Gives each physical bone the velocity of the simulated body it moves with.
+    fn start_moving(simulator: &Gd<PhysicalBoneSimulator3D>, character: &Gd<PunchCharacter>, mapped: Option<&Mapped>) {
+        let states = character.bind().rig().map(|rig| rig.read_bodies());
+        let (Some(mapped), Some(Ok(states))) = (mapped, states) else { return };
+        for mut bone in physical_bones(simulator) {
+            let Ok(index) = usize::try_from(bone.get_bone_id()) else { continue };
+            let state = &states[mapped.map.body_of(index, &mapped.parents).index()];
+            bone.set_linear_velocity(vector3(state.linear_velocity));
+            bone.set_angular_velocity(vector3(state.angular_velocity));
+        }
     }
 
     /// Reads what a pass poses from, checked (see `PoseInputs`); an error names what is degenerate and why.

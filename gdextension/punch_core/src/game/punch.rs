@@ -363,6 +363,8 @@ pub struct Recovery {
     settled: (f32, f32),
     /// It is not there before this frame, and ends at the other even if still moving.
     frames: (u32, u32),
+    /// Whether the head must be back on its neck too (`after_hit`).
+    neck_too: bool,
 }
 
 impl Recovery {
@@ -378,6 +380,11 @@ impl Recovery {
     pub const READY_ANGLE_RAD: f32 = 0.1;
     /// ... and slower than this (rad/s).
     pub const READY_SPEED_RAD_S: f32 = 1.0;
+    /// After a hit the head swings on its neck (springs, no motor) after the driven joints are back: it is back
+    /// within this angle of where it rests on the chest (rad; under its own weight it sags about 1.5 degrees) ...
+    pub const NECK_SETTLED_ANGLE_RAD: f32 = 0.1;
+    /// ... and turning slower than this against the chest (rad/s).
+    pub const NECK_SETTLED_SPEED_RAD_S: f32 = 1.0;
 
     /// A recovery to the guard whose joint targets are `guard` (rad, action order; all 0: the square guard).
     pub fn new(geometry: CharacterGeometry, guard: [f32; DOF_COUNT]) -> Self {
@@ -389,13 +396,17 @@ impl Recovery {
             frame: 0,
             settled: (Self::SETTLED_ANGLE_RAD, Self::SETTLED_SPEED_RAD_S),
             frames: (0, Self::MAX_FRAMES),
+            neck_too: false,
         }
     }
 
     /// The way back after a hit: the push shows in the bodies only after the physics step that follows it, so the
     /// body is not back in guard before `AFTER_HIT_FRAMES.0`, and a hard hit may take until `AFTER_HIT_FRAMES.1`.
+    /// The head is back too, not only the driven joints: a hit on the head leaves it swinging on its neck after the
+    /// arms and the trunk are back.
     pub fn after_hit(mut self) -> Self {
         self.frames = Self::AFTER_HIT_FRAMES;
+        self.neck_too = true;
         self
     }
 
@@ -421,11 +432,24 @@ impl Recovery {
             (features[columns::ANGLES + i] - self.guard[i]).abs() < angle_rad
                 && features[columns::SPEEDS + i].abs() < speed_rad_s
         });
+        let settled = settled && (!self.neck_too || self.neck_settled(reading));
         if (settled && self.frame >= self.frames.0) || self.frame >= self.frames.1 {
             return None;
         }
         self.frame += 1;
         Some(self.controller.motor_commands(reading))
+    }
+
+    /// Whether the head rests on the chest as in the rest pose, give or take `NECK_SETTLED_ANGLE_RAD`, and turns
+    /// against it slower than `NECK_SETTLED_SPEED_RAD_S`.
+    fn neck_settled(&self, reading: &FrameReading) -> bool {
+        let rest = &self.controller.geometry().rest_rotations;
+        let (torso, head) = (&reading.bodies[Body::Torso.index()], &reading.bodies[Body::Head.index()]);
+        let on_chest = torso.rotation.inverse() * head.rotation;
+        let at_rest = rest[Body::Torso.index()].inverse() * rest[Body::Head.index()];
+        let off_rad = (at_rest.inverse() * on_chest).normalize().angle_between(glam::Quat::IDENTITY);
+        off_rad < Self::NECK_SETTLED_ANGLE_RAD
+            && (head.angular_velocity - torso.angular_velocity).length() < Self::NECK_SETTLED_SPEED_RAD_S
     }
 }
 
@@ -435,6 +459,13 @@ mod tests {
 
     use super::*;
     use crate::fake_world::{FAKE_BAG_ID, FakeWorld, rest_geometry};
+
+    impl Recovery {
+        /// Whether it is still driving after `frames` steps on the same reading.
+        fn holding_back(mut self, reading: &FrameReading, frames: usize) -> bool {
+            (0..frames).all(|_| self.step(reading).is_some()) && self.step(reading).is_some()
+        }
+    }
 
     /// Plays one punch on a fake world with a policy given as a closure; returns the decisions' frame
     /// indices, the actions played, the hits and the end.
@@ -651,6 +682,31 @@ mod tests {
         assert!(commands[2].length() > 1.0, "the right elbow is driven back: {commands:?}");
         let steps = std::iter::from_fn(|| recovery.step(&reading)).take(1000).count();
         assert_eq!(steps + 1, Recovery::MAX_FRAMES as usize, "a recovery that cannot settle ends on time");
+    }
+
+    #[test]
+    fn a_recovery_after_a_hit_waits_for_the_head_to_come_back_on_its_neck() {
+        let mut reading = FakeWorld::new(1).read_slot(0);
+        let frames_first = Recovery::AFTER_HIT_FRAMES.0 as usize;
+        let mut recovery = Recovery::new(rest_geometry(), [0.0; DOF_COUNT]).after_hit();
+        let steps = std::iter::from_fn(|| recovery.step(&reading)).take(1000).count();
+        assert_eq!(steps, frames_first, "in guard with the head at rest: back after the least time");
+        // The driven joints in guard, the head snapped 17 degrees to the side on the chest.
+        reading.bodies[Body::Head.index()].rotation =
+            Quat::from_rotation_z(0.3) * reading.bodies[Body::Head.index()].rotation;
+        let mut struck = Recovery::new(rest_geometry(), [0.0; DOF_COUNT]).after_hit();
+        let steps = std::iter::from_fn(|| struck.step(&reading)).take(1000).count();
+        assert_eq!(steps, Recovery::AFTER_HIT_FRAMES.1 as usize, "not back while the head is turned");
+        // Turned less than the threshold but still swinging: not yet; at rest there: back.
+        reading.bodies[Body::Head.index()].rotation =
+            Quat::from_rotation_z(0.05) * FakeWorld::new(1).read_slot(0).bodies[Body::Head.index()].rotation;
+        reading.bodies[Body::Head.index()].angular_velocity = Vec3::Z * 2.0;
+        assert!(Recovery::new(rest_geometry(), [0.0; DOF_COUNT]).after_hit().holding_back(&reading, frames_first));
+        reading.bodies[Body::Head.index()].angular_velocity = Vec3::ZERO;
+        assert!(!Recovery::new(rest_geometry(), [0.0; DOF_COUNT]).after_hit().holding_back(&reading, frames_first));
+        // A recovery after a punch looks at the driven joints alone.
+        reading.bodies[Body::Head.index()].rotation = Quat::from_rotation_z(0.3);
+        assert_eq!(Recovery::new(rest_geometry(), [0.0; DOF_COUNT]).step(&reading), None);
     }
 
     #[test]

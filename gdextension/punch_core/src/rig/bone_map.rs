@@ -43,6 +43,8 @@
 use std::collections::HashSet;
 use std::fmt;
 
+use crate::contract::character::Body;
+
 /// Which side of the body a bone is on (the character's own left and right).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Side {
@@ -214,6 +216,32 @@ impl BoneMap {
             Role::Forearm(side) => Some(self.arm(side).forearm),
             Role::Hand(side) => Some(self.arm(side).hand),
         }
+    }
+
+    /// The simulated body that `bone` moves with: its role's (the spine's bones the chest's, the clavicles the
+    /// chest's, the hands the forearms', the neck the head's), else its nearest ancestor's with one (a finger its
+    /// hand's); the hips, the legs and any bone outside the upper body move with the pelvis (the game's root). A
+    /// knocked-down rig handed to a ragdoll starts each physical bone with its body's velocity.
+    pub fn body_of(&self, bone: usize, parents: &[i32]) -> Body {
+        let mut current = Some(bone);
+        while let Some(b) = current {
+            if self.spine.contains(&b) {
+                return Body::Torso;
+            }
+            if let Some(role) = Role::ALL.into_iter().find(|&role| self.bone(role) == Some(b)) {
+                return match role {
+                    Role::Hips => Body::Pelvis,
+                    Role::Chest | Role::Shoulder(_) => Body::Torso,
+                    Role::Neck | Role::Head => Body::Head,
+                    Role::UpperArm(Side::Right) => Body::UpperArmR,
+                    Role::UpperArm(Side::Left) => Body::UpperArmL,
+                    Role::Forearm(Side::Right) | Role::Hand(Side::Right) => Body::ForearmR,
+                    Role::Forearm(Side::Left) | Role::Hand(Side::Left) => Body::ForearmL,
+                };
+            }
+            current = parents.get(b).and_then(|&parent| usize::try_from(parent).ok());
+        }
+        Body::Pelvis
     }
 
     /// The optional roles no bone was found for (for the node's configuration warnings).

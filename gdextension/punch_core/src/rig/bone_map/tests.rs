@@ -171,6 +171,26 @@ const MIXAMO_ROLES: [(&str, &str); 12] = [
 ];
 
 #[test]
+fn every_bone_moves_with_the_simulated_body_of_its_role_or_its_nearest_mapped_ancestor() {
+    let (names, parents) = skeleton(MIXAMO, "mixamorig:");
+    let map = map_bones(&names, &parents).expect("maps");
+    let body =
+        |name: &str| map.body_of(names.iter().position(|n| n == &format!("mixamorig:{name}")).expect(name), &parents);
+    assert_eq!(body("Hips"), Body::Pelvis);
+    assert_eq!(body("Spine"), Body::Torso);
+    assert_eq!(body("Spine2"), Body::Torso);
+    assert_eq!(body("RightShoulder"), Body::Torso);
+    assert_eq!(body("Neck"), Body::Head);
+    assert_eq!(body("Head"), Body::Head);
+    assert_eq!(body("LeftArm"), Body::UpperArmL);
+    assert_eq!(body("RightForeArm"), Body::ForearmR);
+    assert_eq!(body("RightHand"), Body::ForearmR);
+    assert_eq!(body("LeftHandIndex2"), Body::ForearmL, "a finger moves with its hand");
+    assert_eq!(body("LeftUpLeg"), Body::Pelvis, "a leg with the game's root");
+    assert_eq!(body("RightFoot"), Body::Pelvis);
+}
+
+#[test]
 fn mixamo_with_any_prefix() {
     for prefix in ["mixamorig:", "mixamorig1:", "", "Armature|mixamorig:", "mixamorig_", "Character1_"] {
         let map = check(MIXAMO, prefix, &MIXAMO_ROLES, &["Spine", "Spine1", "Spine2"]);
