@@ -80,7 +80,7 @@ func _add_boxer(file: String, rig: Node3D, place: Transform3D, index: int) -> Di
 	controller.hit.connect(func(_impulse, _speed, _position, _body, _push, _hand, part: StringName, _blocked):
 		if part != &"":
 			fighter.struck[part] = fighter.struck.get(part, 0) + 1)
-	character.hit_taken.connect(func(_part, _impulse, _point, _from): fighter.hits_taken += 1)
+	character.hit_taken.connect(func(_part, _impulse, _point, _from, _bone): fighter.hits_taken += 1)
 	controller.knocked_down.connect(func(_impulse_ns):
 		fighter.knocked_down += 1
 		fighter.get_up_at = _frame + roundi(GET_UP_S * Engine.physics_ticks_per_second))

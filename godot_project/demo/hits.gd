@@ -29,7 +29,7 @@ func _ready() -> void:
 		var row := {"character": character, "controller": controller, "impulse_ns": IMPULSES_NS[index],
 			"label": add_label_above(where.origin, true), "said": "",
 			"counts": {"hit_taken": 0, "staggered": 0, "knocked_down": 0, "recovered": 0}}
-		character.hit_taken.connect(func(part, impulse: Vector3, _point, _from):
+		character.hit_taken.connect(func(part, impulse: Vector3, _point, _from, _bone):
 			row.counts.hit_taken += 1
 			row.said = "%s, %d N s" % [part, roundi(impulse.length())]
 			_show(row))

@@ -95,7 +95,7 @@ func _add_fighter(where: Transform3D, index: int) -> Fighter:
 		fighter.outcomes[metrics.outcome] = fighter.outcomes.get(metrics.outcome, 0) + 1
 		if _rng.randf() < 0.1 and not fighter.controller.is_knocked_down():
 			_command(fighter))  # a game that answers inside the handler
-	fighter.character.hit_taken.connect(func(part, impulse: Vector3, point: Vector3, from):
+	fighter.character.hit_taken.connect(func(part, impulse: Vector3, point: Vector3, from, _bone):
 		fighter.hits_taken += 1
 		if not part in PARTS or not impulse.is_finite() or not point.is_finite():
 			_problem(fighter, "hit_taken says %s %s %s" % [part, impulse, point])

@@ -2,7 +2,7 @@
 ## plugin's action (`own_character_setup.gd`), with a ragdoll of the game's own under its skeleton (a
 ## PhysicalBoneSimulator3D whose PhysicalBone3D capsules sit on the spine, neck, head and arm bones, as Godot's
 ## "Create Physical Skeleton" makes them), is struck hard enough to be knocked down. Its twin has no ragdoll.
-## Recorded: when `knocked_down` came, whether the modifier handed the skeleton to the simulator
+## Recorded: the part and the rig's bone `hit_taken` names (and the rig's chest bone), when `knocked_down` came, whether the modifier handed the skeleton to the simulator
 ## (`handed_off_to`) and the simulator simulates, the head bone's physical velocity at the hand-off against the
 ## simulated head's, how far the head bone fell while handed off (no floor: the ragdoll, not the simulated body
 ## hanging on its pelvis, holds the skeleton then), and after
@@ -113,6 +113,9 @@ func _fighter(glb: String, at: Vector3, ragdoll: bool) -> Dictionary:
 	controller.set("target", null)
 	controller.knocked_down.connect(func(impulse_ns: float): fighter.knocked.append(impulse_ns))
 	controller.recovered.connect(func(): fighter.recovered = true)
+	fighter.character.hit_taken.connect(func(part, _impulse, _point, _from, bone):
+		fighter.report.hit_taken = [part, bone]
+		fighter.report.chest_bone = modifier.get("bone_map")["chest"])
 	if ragdoll:
 		fighter.simulator = _ragdoll(skeleton, modifier.get("bone_map"))
 	return fighter

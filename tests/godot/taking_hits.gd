@@ -115,9 +115,9 @@ func _add(origin: Vector3) -> Watched:
 	watched.controller.character = watched.character
 	watched.controller.policy = load(POLICY)
 	root.add_child(watched.controller)
-	watched.character.hit_taken.connect(func(part, impulse, point, from):
+	watched.character.hit_taken.connect(func(part, impulse, point, from, bone):
 		watched.hits_taken.append({"part": part, "impulse_ns": snappedf(impulse.length(), 0.01), "from": from != null,
-			"at": _frame, "point": [point.x, point.y, point.z]}))
+			"at": _frame, "point": [point.x, point.y, point.z], "bone": bone}))
 	watched.controller.hit.connect(func(_impulse, _speed, _position, _body, _push, _hand, part, blocked):
 		watched.hits.append([part, blocked]))
 	watched.controller.punch_finished.connect(func(metrics): watched.finished.append({"ended": metrics.ended,

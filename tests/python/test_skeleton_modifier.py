@@ -207,7 +207,8 @@ def test_the_own_character_demo_punches_the_bag_and_spars():
 
 def test_a_knocked_down_rig_is_handed_to_the_games_ragdoll_and_taken_back_on_recover():
     """Issue 53's hand-off (tests/godot/knockdown_ragdoll.gd): a CC0 character wired by the editor plugin's action,
-    with a PhysicalBoneSimulator3D of the game's own under its skeleton, struck at 400 N s: `knocked_down`, the
+    with a PhysicalBoneSimulator3D of the game's own under its skeleton, struck at 400 N s on the torso: `hit_taken`
+    names the rig's chest bone, `knocked_down`, the
     skeleton handed to the simulator (`handed_off_to`), the head bone starting with the simulated head's velocity
     along the push, the ragdoll falling where the limp simulated body would hang; after `recover()` the simulation
     stops, the modifier poses it again and the head is back where it stood. Its twin without a ragdoll shows the simulated body hanging limp."""
@@ -222,6 +223,7 @@ def test_a_knocked_down_rig_is_handed_to_the_games_ragdoll_and_taken_back_on_rec
     ragdoll, limp = report["with_ragdoll"], report["without"]
     for fighter in (ragdoll, limp):
         assert fighter["knocked_down"] == [400.0], fighter
+        assert fighter["hit_taken"] == ["torso", fighter["chest_bone"]] and fighter["chest_bone"], fighter  # the rig's bone
     assert ragdoll["handed_off"] and ragdoll["simulating"] and ragdoll["still_handed_off"], ragdoll
     # Started with the simulated head's velocity, then held back by the ragdoll's own joints.
     assert ragdoll["head_bone_speed_mps"] > 0.4 * ragdoll["simulated_head_speed_mps"] > 1.0, ragdoll

@@ -73,6 +73,9 @@ pub struct PunchCharacter {
     set_up_later: bool,
     /// What was said about the node's transform (each cause once).
     said: SaidOnce,
+    /// The bone of a game's own rig that shows each body (`Body::ALL` order; empty for none), told by the
+    /// `PunchSkeletonModifier` that poses the rig from this character: `hit_taken` names it.
+    rig_bones: [StringName; BODY_COUNT],
     base: Base<Node3D>,
 }
 
@@ -211,11 +214,13 @@ impl PunchCharacter {
     /// Emitted when the character is struck: by another `PunchController`'s fist (`from` is that controller; the
     /// physics pushed the body already) or by the game's `take_hit` (`from` is null). `part` is `&"head"`, `&"torso"`,
     /// `&"left_arm"` or `&"right_arm"` (the part whose body was struck: the head hangs on its own neck),
-    /// `impulse` the push (N s, global axes) and `point` where it struck (global). The
+    /// `impulse` the push (N s, global axes) and `point` where it struck (global). On a game's own rig (a
+    /// `PunchSkeletonModifier` poses it from this character) `bone` names the rig's bone that shows the struck body
+    /// (its head, chest, upper arm or forearm bone); empty on the mannequin. The
     /// controller that drives the character has reacted already (`PunchController.react_to_hits`), so a handler
     /// may punch back at once.
     #[signal]
-    fn hit_taken(part: StringName, impulse: Vector3, point: Vector3, from: Option<Gd<Node>>);
+    fn hit_taken(part: StringName, impulse: Vector3, point: Vector3, from: Option<Gd<Node>>, bone: StringName);
 
     /// Strikes the character as the game's own hit (a kick, a thrown chair, a bullet): `impulse` (N s, global axes;
     /// at most 1,000) pushes `part` (`&"head"`, `&"torso"`, `&"left_arm"` or `&"right_arm"`; the head snaps on its
@@ -227,8 +232,8 @@ impl PunchCharacter {
     fn take_hit(mut this: Gd<Self>, part: StringName, impulse: Vector3, point: Vector3) -> bool {
         let pushed = this.bind_mut().push(&part.to_string(), impulse, point);
         match pushed {
-            Ok(part) => {
-                Self::tell_struck(this, part, impulse, point, None);
+            Ok(body) => {
+                Self::tell_struck(this, body, impulse, point, None);
                 true
             }
             Err(error) => {
@@ -379,12 +384,18 @@ impl PunchCharacter {
     /// character, the character is told (`hit_taken`) and its controller reacts.
     pub fn struck_by_fist(body: Gd<Node3D>, impulse: Vector3, point: Vector3, from: InstanceId) {
         if let Some((character, struck)) = Self::owner_of(&body) {
-            Self::tell_struck(character, struck.part(), impulse, point, Some(from));
+            Self::tell_struck(character, struck, impulse, point, Some(from));
         }
     }
 
+    /// A `PunchSkeletonModifier` poses a game's own rig from this character: the rig's bone that shows each body
+    /// (`Body::ALL` order; empty for none), for `hit_taken`.
+    pub fn set_rig_bones(&mut self, bones: [StringName; BODY_COUNT]) {
+        self.rig_bones = bones;
+    }
+
     /// The reaction first (so that a `hit_taken` handler may punch back), then the signal.
-    fn tell_struck(this: Gd<Self>, part: BodyPart, impulse: Vector3, point: Vector3, from: Option<InstanceId>) {
+    fn tell_struck(this: Gd<Self>, struck: Body, impulse: Vector3, point: Vector3, from: Option<InstanceId>) {
         if !this.is_instance_valid() {
             return;
         }
@@ -393,11 +404,12 @@ impl PunchCharacter {
             return;
         }
         let from = from.and_then(|id| Gd::<Node>::try_from_instance_id(id).ok());
-        this.signals().hit_taken().emit(&StringName::from(part.name()), impulse, point, from.as_ref());
+        let bone = this.bind().rig_bones[struck.index()].clone();
+        this.signals().hit_taken().emit(&StringName::from(struck.part().name()), impulse, point, from.as_ref(), &bone);
     }
 
     /// `take_hit`'s push: the part's body nearest `point` takes `impulse` there.
-    fn push(&mut self, part: &str, impulse: Vector3, point: Vector3) -> Result<BodyPart, String> {
+    fn push(&mut self, part: &str, impulse: Vector3, point: Vector3) -> Result<Body, String> {
         let part = BodyPart::named(part).ok_or_else(|| {
             let names: Vec<&str> = BodyPart::ALL.iter().map(|p| p.name()).collect();
             format!("'{part}' is no part (the parts: {})", names.join(", "))
@@ -414,7 +426,7 @@ impl PunchCharacter {
         let mut rigid_body = rig.rigid[nearest.index()].clone().ok_or("the part's body is not a RigidBody3D")?;
         let offset = point - rigid_body.get_global_position();
         rigid_body.apply_impulse_ex(impulse).position(offset).done();
-        Ok(part)
+        Ok(*nearest)
     }
 
     /// Where the character last stood with a usable transform (its root without the scale; none before it was set

@@ -527,6 +527,14 @@ impl PunchSkeletonModifier {
         let poser = SkeletonPoser::new(&mapped.map, &mapped.parents, &mapped.rest, mapped.fists, frames)
             .map_err(|e| e.to_string())?;
         self.poser = Some((character.instance_id(), poser, bodies));
+        let bones = Body::ALL.map(|body| {
+            mapped.map.bone_showing(body).map_or_else(StringName::default, |bone| {
+                self.base()
+                    .get_skeleton()
+                    .map_or_else(StringName::default, |s| StringName::from(&s.get_bone_name(bone as i32)))
+            })
+        });
+        character.clone().bind_mut().set_rig_bones(bones);
         Ok(())
     }
 

@@ -244,6 +244,20 @@ impl BoneMap {
         Body::Pelvis
     }
 
+    /// The bone that shows the simulated `body` (the hips the pelvis, the chest the torso, the head, each upper arm
+    /// and forearm its own): the rig's bone a hit on that body strikes.
+    pub fn bone_showing(&self, body: Body) -> Option<usize> {
+        self.bone(match body {
+            Body::Pelvis => Role::Hips,
+            Body::Torso => Role::Chest,
+            Body::Head => Role::Head,
+            Body::UpperArmR => Role::UpperArm(Side::Right),
+            Body::ForearmR => Role::Forearm(Side::Right),
+            Body::UpperArmL => Role::UpperArm(Side::Left),
+            Body::ForearmL => Role::Forearm(Side::Left),
+        })
+    }
+
     /// The optional roles no bone was found for (for the node's configuration warnings).
     pub fn unmapped(&self) -> Vec<Role> {
         Role::ALL.into_iter().filter(|&role| self.bone(role).is_none()).collect()

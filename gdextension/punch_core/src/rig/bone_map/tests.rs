@@ -188,6 +188,10 @@ fn every_bone_moves_with_the_simulated_body_of_its_role_or_its_nearest_mapped_an
     assert_eq!(body("LeftHandIndex2"), Body::ForearmL, "a finger moves with its hand");
     assert_eq!(body("LeftUpLeg"), Body::Pelvis, "a leg with the game's root");
     assert_eq!(body("RightFoot"), Body::Pelvis);
+    for simulated in Body::ALL {
+        let bone = map.bone_showing(simulated).expect("every body has its bone");
+        assert_eq!(map.body_of(bone, &parents), simulated, "{simulated:?} is shown by {}", names[bone]);
+    }
 }
 
 #[test]
