@@ -59,7 +59,8 @@ def test_unknown_command_is_a_usage_error() -> None:
 
 @pytest.mark.godot  # `punch eval` starts its training server before it reads the policy's reward
 def test_a_policy_whose_metadata_names_code_never_runs_it(tmp_path) -> None:
-    """A model file is data: `punch_reward` naming a .py file or a module is refused, and the code is not run."""
+    """A model file is data: `punch_reward` naming a .py file or a module is refused, and the code is not run; `punch eval
+    --reward` names the reward to score with instead."""
     import onnx
 
     marker = tmp_path / "ran"
@@ -76,6 +77,12 @@ def test_a_policy_whose_metadata_names_code_never_runs_it(tmp_path) -> None:
             result = subprocess.run([PUNCH, *command], capture_output=True, text=True, cwd=tmp_path, timeout=120)
             assert result.returncode != 0 and "not a built-in preset" in result.stderr, result.stderr[-2000:]
             assert "Traceback" not in result.stderr and not marker.exists()
+    # Told which reward to score with (`--reward`, as the refusal says), it measures the policy; the code never runs.
+    result = subprocess.run([PUNCH, "eval", "--policy", str(policy), "--reward", "straight", "--placements", "4", "--sigmas", "0",
+                             "--search-iterations", "0", "--out", str(tmp_path / "told")], capture_output=True, text=True, cwd=tmp_path,
+                            timeout=300)
+    assert result.returncode == 0 and (tmp_path / "told" / "report.md").exists(), result.stderr[-2000:]
+    assert "reward `straight`" in (tmp_path / "told" / "report.md").read_text() and not marker.exists()
 
 
 @pytest.mark.godot

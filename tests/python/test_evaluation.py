@@ -103,6 +103,26 @@ def test_a_lead_hands_move_from_the_stance_punches_at_the_placements_moved_forwa
     assert [e["placement"]["distance_m"] for e in episodes[64:]] == [b.distance_m for b in many]
 
 
+def test_a_move_whose_reach_is_nearer_than_its_hands_is_measured_over_its_own_distances():
+    """A hook trained over 0.70-0.85 m (its reach nearer than the lead hand's 0.70-0.95) plays the lead hand's
+    placements drawn into its own distances, in order; a policy whose reach is its hand's, or lies outside it (a
+    square guard's policy thrown by the lead hand), plays them as before, and so does a combination."""
+    scenario = scenario_of(EvalArgs(policy=POLICY, scenario="stance", placements=64, sigmas=[0.0]))
+    still, swinging = draw_placements(scenario, REACH)
+    episodes, groups = episodes_of(scenario, still, swinging, 0.1, REACH.distance_m, (0.70, 0.85))
+    for group in groups:
+        distances = [e["placement"]["distance_m"] for e in episodes[group.start:group.start + group.count]]
+        if group.condition.move == "jab":
+            assert min(distances) >= 0.70 and max(distances) <= 0.85, group.condition.name
+            assert sorted(range(64), key=distances.__getitem__) == sorted(range(64), key=lambda i: still[i].distance_m)
+        else:  # the rear hand's 0.60-0.85 holds 0.70-0.85 too
+            assert distances == pytest.approx([0.70 + (b.distance_m - 0.60) * 0.6 for b in still]), group.condition.name
+    for own in [(0.60, 0.85), (0.70, 0.95), None]:
+        as_before, _ = episodes_of(scenario, still, swinging, 0.1, REACH.distance_m, own)
+        plain, _ = episodes_of(scenario, still, swinging, 0.1, REACH.distance_m)
+        assert as_before == plain, own
+
+
 def test_a_punch_from_recovery_draws_its_delay_from_its_own_seed_within_the_band():
     """`from_recovery`: every episode its own cancel delay, the same for the same seed, spread over the band; the
     arms not sent back to guard first and the bag hung again for the second punch."""

@@ -127,8 +127,7 @@ def test_the_shoulder_turns_with_the_waist_as_the_scene_has_it():
     shoulder forward, leaned 90° forward brings it down to the waist's height, in front."""
     import re
 
-    from punch_trainer.report.naturalness import shoulder_positions
-    from punch_trainer.scene import SCENE_SHOULDER_HEIGHT_M, SCENE_WAIST_HEIGHT_M
+    from punch_trainer.scene import SCENE_SHOULDER_HEIGHT_M, SCENE_WAIST_HEIGHT_M, shoulder_positions
 
     scene = (PROJECT_ROOT / "addons" / "punch_controller" / "scenes" / "punch_character.tscn").read_text()
 

@@ -86,6 +86,8 @@ def test_results_measure_a_recipes_policy_and_rewrite_the_docs(tmp_path, monkeyp
     assert "| standing | 0.00 | 2 |" in text and "![" not in text
     # The moveset's combos and frame data, with when each punch landed.
     assert text.count(f"## {results.COMBOS_SECTION}") == 1 and "| 1-2-3, southpaw | 0.00 | 2 |" in text
+    combo_row = next(line for line in text.splitlines() if line.startswith("| 1-2-3, southpaw | 0.00 | 2 |"))
+    assert "touched the target, each punch" in text and combo_row.rstrip(" |").count("%") >= 3 + 2, combo_row  # and which punch touched
     assert "| 1 jab | 0.00 | 2 |" in text and "contact to back in guard (s, median)" in text
     assert "| jab, then jab | 0.00 | 2 |" in text
     # The struck character, in its own section: both episodes back in guard, both staggered at 60 N s.

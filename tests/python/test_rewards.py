@@ -26,6 +26,31 @@ def test_presets_match_table_2():
     assert total(evaluate(load_reward("straight"), features(0.35, 0, 8.0), NAMES))[0, 0] == 0.0  # too far
 
 
+HOOK_NAMES = ["fist_r_bag_distance", "fist_r_vel_x", "fist_r_vel_y", "fist_r_vel_z", "fist_r_impulse_x", "fist_r_impulse_z",
+              "bag_pos_x", "bag_pos_z", "angle_waist_flexion", "angle_waist_rotation", "angle_elbow_r_extension", "exploit_flags"]
+
+
+def hook_frame(vx, vz, jx, jz, elbow_bend_deg):
+    """One frame of a right fist near a bag straight ahead of its shoulder (the scene's: 0.18 m right of the middle)."""
+    return np.array([[[0.1, vx, 0.0, vz, jx, jz, -0.18, 0.8, 0.0, 0.0, np.radians(120.0 - elbow_bend_deg), 0.0]]], dtype=np.float32)
+
+
+def test_the_bent_hook_earns_most_from_the_side_and_lands_only_with_the_elbow_bent():
+    """`hook_bent`: along and 1.5 times across the shoulder-to-bag line (across: toward the body's middle, +x for the
+    right fist), near the bag; the landing impulse counts none of it at 50 degrees of elbow bend or less, all from 80."""
+    reward = load_reward("hook_bent")
+    near = (0.3 - 0.1) ** 2
+    terms = evaluate(reward, hook_frame(3.0, 4.0, 0.0, 0.0, 90.0), HOOK_NAMES)
+    assert terms["sweep"][0, 0] == pytest.approx(near * 10 * (4.0 + 1.5 * 3.0), rel=1e-4)
+    speed = 5.0
+    straight, from_side = (total(evaluate(reward, hook_frame(speed * np.sin(a), speed * np.cos(a), 0, 0, 90), HOOK_NAMES))[0, 0]
+                           for a in (0.0, np.radians(56.0)))
+    assert from_side > 1.5 * straight
+    landing = [evaluate(reward, hook_frame(0.0, 0.0, 0.5, 1.0, bend), HOOK_NAMES)["landing"][0, 0] for bend in (40, 65, 85, 110)]
+    assert landing[0] == 0.0 and landing[1] == pytest.approx(0.5 * landing[2], rel=1e-4)
+    assert landing[2] == landing[3] == pytest.approx(5.0 * (1.0 + 1.5 * 0.5), rel=1e-4)
+
+
 def test_terms_are_separate_and_guarded_frames_earn_nothing():
     terms = evaluate(load_reward("hook"), features(0.1, 2.0, 5.0), NAMES)
     assert set(terms) == {"forward", "sideways"}

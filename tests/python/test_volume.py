@@ -149,6 +149,26 @@ def test_a_policy_for_one_guard_starts_every_episode_there(tmp_path):
     assert not (tmp_path / "refused").exists()
 
 
+def test_a_nearer_reach_replaces_the_volumes_distances_and_is_refused_when_it_makes_no_sense(tmp_path):
+    """`punch train --reach-distance NEAR FAR` (a hook's nearer targets): the policy's reach is the server's volume with
+    those distances, for a lead hand's move too (not moved forward again); reversed, one distance, or at a spot, it is
+    refused before a simulator starts."""
+    from types import SimpleNamespace
+
+    from punch_trainer.pipelines.train import policy_reach
+
+    info = SimpleNamespace(reach_volume=ReachVolume((0.6, 0.85), (1.15, 1.55), (-0.25, 0.25), 1.0, True).to_json(),
+                           stance_lead_forward_m=0.1)
+    lead = policy_reach(TrainArgs(guard="southpaw"), info)
+    assert lead.distance_m == pytest.approx((0.7, 0.95)) and lead.height_m == (1.15, 1.55)
+    hook = policy_reach(TrainArgs(guard="southpaw", reach_distance=[0.7, 0.85]), info)
+    assert hook.distance_m == (0.7, 0.85) and hook.side_m == (-0.25, 0.25)
+    for wrong in (dict(reach_distance=[0.85, 0.7]), dict(reach_distance=[0.7]), dict(reach="spot", reach_distance=[0.7, 0.85])):
+        with pytest.raises(ValueError, match="--reach-distance"):
+            run_train(TrainArgs(out=tmp_path / "refused", **{**BUDGET, **wrong}), progress=False)
+    assert not (tmp_path / "refused").exists()
+
+
 def test_lead_ins_start_where_an_earlier_punch_is_mid_way_at_its_end_or_on_the_way_back():
     """`lead_in_every`: every k-th update's characters play a lead-in: a punch played up to a random decision of its
     second half, a whole punch and 1 to 4 decisions of the guard, or the guard alone; all end together."""

@@ -147,6 +147,9 @@ class EvalArgs:
     """a shipped scenario's name (held_out, moving, sizes, hands) or a scenario file (.toml; docs/evaluation.md)"""
     baseline: Path | None = None
     """a second policy measured on the same placements and conditions, side by side"""
+    reward: str | None = None
+    """the reward to score the punches with, a preset or FILE.py:FUNCTION (default: the one the policy's metadata
+    names, which must be a preset: a model file never chooses code to run)"""
     placements: int | None = None
     """held-out placements drawn from the reach volume (default: the scenario's)"""
     seed: int | None = None
@@ -216,33 +219,42 @@ def draw_placements(scenario: Scenario, reach: ReachVolume) -> tuple[list[Episod
 
 
 def condition_placements(condition: Condition, still: list[EpisodeConditions], swinging: list[EpisodeConditions],
-                         lead_forward_m: float, distance_m: tuple[float, float] = (0.0, 0.0)) -> list[EpisodeConditions]:
+                         lead_forward_m: float, distance_m: tuple[float, float] = (0.0, 0.0),
+                         own_distance_m: tuple[float, float] | None = None) -> list[EpisodeConditions]:
     """The placements a condition plays: the swinging twins or the still ones; for a lead hand's move from the
     stance's guard the same moved `lead_forward_m` further ahead (the lead hand's volume: its guard holds the fist that
     much nearer the target; docs/moves.md); for a combination from there with a lead hand's move, drawn into the
-    distances both hands reach (the volume's `distance_m` with its near end moved `lead_forward_m` forward)."""
+    distances both hands reach (the volume's `distance_m` with its near end moved `lead_forward_m` forward). A single
+    move whose policy covers nearer distances than its hand's (`own_distance_m`, its reach: a hook) is measured over its
+    own: the distances drawn into that range."""
     places = swinging if condition.swinging else still
-    if not (condition.stance_pose and lead_forward_m):
-        return places
-    if condition.move in LEAD_MOVES:
-        return [dataclasses.replace(bag, distance_m=round(bag.distance_m + lead_forward_m, 6)) for bag in places]
     near, far = distance_m
-    if any(move in LEAD_MOVES for move in condition.combo) and far - near > lead_forward_m:
+    if condition.stance_pose and lead_forward_m and condition.move in LEAD_MOVES:
+        places = [dataclasses.replace(bag, distance_m=round(bag.distance_m + lead_forward_m, 6)) for bag in places]
+        near, far = near + lead_forward_m, far + lead_forward_m
+    elif condition.stance_pose and lead_forward_m and any(move in LEAD_MOVES for move in condition.combo) and far - near > lead_forward_m:
         narrowed = (far - near - lead_forward_m) / (far - near)
         return [dataclasses.replace(bag, distance_m=round(near + lead_forward_m + (bag.distance_m - near) * narrowed, 6))
                 for bag in places]
-    return places
+    if condition.combo or own_distance_m is None or far <= near:
+        return places
+    own_near, own_far = own_distance_m
+    if (own_near, own_far) == (near, far) or not near - 1e-6 <= own_near <= own_far <= far + 1e-6:
+        return places
+    scale = (own_far - own_near) / (far - near)
+    return [dataclasses.replace(bag, distance_m=round(own_near + (bag.distance_m - near) * scale, 6)) for bag in places]
 
 
 def episodes_of(scenario: Scenario, still: list[EpisodeConditions], swinging: list[EpisodeConditions],
-                lead_forward_m: float = 0.0, distance_m: tuple[float, float] = (0.0, 0.0)) -> tuple[list[dict[str, Any]], list[Group]]:
+                lead_forward_m: float = 0.0, distance_m: tuple[float, float] = (0.0, 0.0),
+                own_distance_m: tuple[float, float] | None = None) -> tuple[list[dict[str, Any]], list[Group]]:
     """evaluate.gd's episodes of a scenario, and the report rows they make. Episode e of sigma index s of a
     condition plays placement e modulo their count with noise seed noise_seed * 1000003 + s * 100003 + e; a lead
     hand's move from the stance's guard plays it `lead_forward_m` further ahead (`condition_placements`)."""
     episodes: list[dict[str, Any]] = []
     groups = []
     for condition in scenario.conditions:
-        places = condition_placements(condition, still, swinging, lead_forward_m, distance_m)
+        places = condition_placements(condition, still, swinging, lead_forward_m, distance_m, own_distance_m)
         for index, sigma in enumerate(condition.sigmas):
             count = len(places) * (1 if sigma == 0 else scenario.noisy_punches)
             groups.append(Group(condition, sigma, len(episodes), count))
@@ -376,6 +388,9 @@ class Row:
     the punches that made one (s; a single punch's is its startup)"""
     last_contact_max_s: float | None = None
     """the longest time from the command to the last punch's contact, over the successes (s)"""
+    touched_each: list[float] | None = None
+    """a combo's: per punch, in order, the share of its combos in which that punch touched the target (which one
+    misses where the combo does)"""
     recovery_s: float | None = None
     """`until_recovered`: the median time from the last punch's contact to `recovered` (s)"""
     struck: dict[str, Any] | None = None
@@ -449,6 +464,8 @@ def timing_figures(group: Group, rows: list[list[Any]], won: np.ndarray, physics
     figures: dict[str, Any] = {
         "contact_s": [round(float(np.median(c)) / physics_hz, 4) if c else None for c in contacts],
         "last_contact_max_s": round(max(last) / physics_hz, 4) if last else None}
+    if group.condition.combo:
+        figures["touched_each"] = [round(len(c) / max(1, len(timings)), 4) for c in contacts]
     if group.condition.until_recovered:
         back = [t[-1] - t[-2][1] for t in timings if len(t) > punches and t[-1] >= 0 and t[-2][1] >= 0]
         figures["recovery_s"] = round(float(np.median(back)) / physics_hz, 4) if back else None
@@ -464,7 +481,7 @@ def run_eval(args: EvalArgs, progress: bool = True, *, backend: Backend = LOCAL)
     metadata = [read_policy_metadata(policy) for policy in policies]
     reward = None
     if scenario.success == "return":
-        rewards = [metadata_reward(m.entries, str(p)) for m, p in zip(metadata, policies, strict=True)]
+        rewards = [metadata_reward(m.entries, str(p), args.reward) for m, p in zip(metadata, policies, strict=True)]
         if any(r.name != rewards[0].name for r in rewards):
             raise EvalError("--baseline must be trained for the same reward as --policy")
         reward = rewards[0]
@@ -484,7 +501,8 @@ def run_eval(args: EvalArgs, progress: bool = True, *, backend: Backend = LOCAL)
     if scenario.side_m is not None:
         reach = dataclasses.replace(reach, side_m=scenario.side_m)
     still, swinging = draw_placements(scenario, reach)
-    episodes, groups = episodes_of(scenario, still, swinging, lead_forward_m, reach.distance_m)
+    own_distance_m = ReachVolume.from_json(metadata[0].reach_volume).distance_m
+    episodes, groups = episodes_of(scenario, still, swinging, lead_forward_m, reach.distance_m, own_distance_m)
     out = Path(args.out or Path(args.policy).parent / f"eval_{scenario.name}_{int(time.time())}")
     out.mkdir(parents=True, exist_ok=True)
     calls: list[dict[str, Any]] = [{"episodes": episodes, "groups": groups, "reward": reward, "naturalness": scenario.naturalness,
@@ -504,7 +522,7 @@ def run_eval(args: EvalArgs, progress: bool = True, *, backend: Backend = LOCAL)
     if reward is not None and scenario.search_iterations > 0:
         if progress:
             print("searching the best punch at every placement ...", flush=True)
-        searched = condition_placements(groups[0].condition, still, [], lead_forward_m, reach.distance_m)
+        searched = condition_placements(groups[0].condition, still, [], lead_forward_m, reach.distance_m, own_distance_m)
         best = search_bests(runs[0]["groups"][0]["actions"], searched, reward, metadata[0].smoothing_window,
                             scenario.search_iterations, scenario.seed, backend)
         best = np.max([best, *[run["groups"][0]["returns"] for run in runs]], axis=0)  # a policy may beat the short search
@@ -517,6 +535,9 @@ def run_eval(args: EvalArgs, progress: bool = True, *, backend: Backend = LOCAL)
     report = {"scenario": scenario.to_json(), "seed": scenario.seed, "placements": [bag.to_wire() for bag in still],
               "swinging_placements": [bag.to_wire() for bag in swinging], "reach": json.loads(reach.to_json()),
               "lead_forward_m": lead_forward_m,
+              "own_distance_m": list(own_distance_m) if any(
+                  condition_placements(c, still, swinging, lead_forward_m, reach.distance_m, own_distance_m)
+                  != condition_placements(c, still, swinging, lead_forward_m, reach.distance_m) for c in scenario.conditions) else None,
               "arm_scale_range": runs[0]["arm_scale_range"], "search_best": best.tolist() if best is not None else None,
               "evaluations": evaluations,
               "captured_naturalness": [punch.to_json() for punch in capture] if capture else None,
@@ -557,6 +578,8 @@ def markdown_rows(scenario: Scenario, rows: list[dict[str, Any]]) -> list[str]:
     header += ["moved (m)"] if moves else []
     header += ["out of reach at the start (successes in reach)"] if reach else []
     header += ["contact after the command, each punch (s, median)", "last contact, longest (s)"] if timed else []
+    combos = any(c.combo for c in scenario.conditions)
+    header += ["touched the target, each punch"] if combos else []
     header += ["contact to back in guard (s, median)"] if recovering else []
     struck = any(c.struck for c in scenario.conditions)
     header += ["largest turn of a body (°, median)", "head moved (cm, median)", "back within 10° of guard (s, median / longest)",
@@ -580,6 +603,8 @@ def markdown_rows(scenario: Scenario, rows: list[dict[str, Any]]) -> list[str]:
                          if row["out_of_reach"] else "-")
         if timed:
             cells += [" / ".join(_seconds(v) for v in row.get("contact_s") or []) or "-", _seconds(row.get("last_contact_max_s"))]
+        if combos:
+            cells.append(" / ".join(f"{100 * share:.0f}%" for share in row.get("touched_each") or []) or "-")
         if recovering:
             cells.append(f"{row['recovery_s']:.2f}" if row.get("recovery_s") is not None else "-")
         if struck:
@@ -630,6 +655,8 @@ def write_report(out: Path, args: EvalArgs, scenario: Scenario, report: dict[str
                 "the fist that much nearer; a combination from there with a lead hand's move: at the distances both "
                 "hands reach)" if lead_forward_m and any(c.stance_pose and (c.move in LEAD_MOVES or c.combo)
                                                          for c in scenario.conditions) else "")
+             + (f" (the policy's own reach is nearer than its hand's: its targets drawn into {own[0]:g}-{own[1]:g} m ahead)"
+                if (own := report.get("own_distance_m")) else "")
              + " with seed "
              f"{scenario.seed} (a seed no training stage uses); one punch per placement and condition at "
              f"sigma 0, {scenario.noisy_punches} at each sigma above it; every punch through PunchController in headless "

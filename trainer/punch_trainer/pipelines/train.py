@@ -146,6 +146,10 @@ class TrainArgs:
     stance (docs/moves.md). The volume search, its datasets, A2C's episodes and its validation all start there, after
     a lead-in holding it: one start, so that pretraining keeps what the search found there (experiments/notebook.md,
     "A policy for each hand's guard")"""
+    reach_distance: list[float] | None = field(default=None, metadata=bounds(0.3, 1.5, max_items=2))
+    """volume: NEAR FAR, how far ahead of the root the targets' centres lie (m), instead of the volume's (which `--guard
+    southpaw` moves forward): a move thrown closer than a straight, as a hook with its elbow bent (recipes/rear_hook.toml);
+    the policy's reach says so (a game aims at a target up to 0.3 m beyond it, and at that far point beyond)"""
     lead_in_every: int = VolumeArgs.lead_in_every
     """volume: every k-th A2C update's episodes start where an earlier punch of this run's search left the arms (at its
     contact, drawing back, or on the way back to guard) instead of in a guard: a policy for punches started wherever
@@ -236,6 +240,15 @@ def lead_forward_m(args: TrainArgs, info: ServerInfo) -> float:
     return info.stance_lead_forward_m if args.guard == "southpaw" else 0.0
 
 
+def policy_reach(args: TrainArgs, info: ServerInfo) -> ReachVolume:
+    """The target placements the policy covers: the server's volume, moved forward for a lead hand's move
+    (`lead_forward_m`), its distances replaced by `--reach-distance` when given."""
+    reach = ReachVolume.from_json(info.reach_volume).moved_forward(lead_forward_m(args, info))
+    if args.reach_distance is None:
+        return reach
+    return dataclasses.replace(reach, distance_m=(args.reach_distance[0], args.reach_distance[1]))
+
+
 def search_volume(args: TrainArgs, volume: VolumeArgs, reward: Reward, centre: SearchResult, progress: bool,
                   resume: bool, backend: Backend) -> tuple[list[Path], ReachVolume, list[float], np.ndarray]:
     """The search over the reach volume's grid, warm-started from the default placement's best (`centre`),
@@ -247,7 +260,7 @@ def search_volume(args: TrainArgs, volume: VolumeArgs, reward: Reward, centre: S
     paths: list[Path] = []
     square: list[SearchResult] = []
     with RolloutPool(args.processes, 64, backend=backend) as pool:
-        reach = ReachVolume.from_json(pool.info.reach_volume).moved_forward(lead_forward_m(args, pool.info))
+        reach = policy_reach(args, pool.info)
         placements = reach.grid(volume.grid)
         for start in starts:
             out = args.run_dir() / ("volume_search" if start == "square" else f"volume_search_{start}")
@@ -287,6 +300,9 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
     if args.guard != "square" and (not over_volume or args.search_stances or args.stance_share > 0):
         raise ValueError(f"--guard {args.guard} trains from that guard alone, over the reach volume: it goes without "
                          "--reach spot, --search-stances and --stance-share")
+    if args.reach_distance is not None and (not over_volume or len(args.reach_distance) != 2
+                                            or args.reach_distance[0] > args.reach_distance[1]):
+        raise ValueError(f"--reach-distance is two distances over the volume, the nearer first (e.g. 0.70 0.85), not {args.reach_distance}")
     defaults = REACH_DEFAULTS[args.reach]
     reward = load_reward(args.reward, args.frames, style_named(args.style, args.style_weight))
     out = args.run_dir()
@@ -325,7 +341,10 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
         if args.lead_in_policies and reach is not None:
             punches = np.concatenate([punches, other_moves_punches(args.lead_in_policies, reach, punches.shape[1],
                                                                    env.info.mirror.actions, args.seed)])
-        default_bag = dataclasses.replace(env.info.default_bag, distance_m=env.info.default_bag.distance_m + lead_forward_m(args, env.info))
+        default_distance_m = env.info.default_bag.distance_m + lead_forward_m(args, env.info)
+        if reach is not None:  # the default placement inside the policy's own reach
+            default_distance_m = float(np.clip(default_distance_m, *reach.distance_m))
+        default_bag = dataclasses.replace(env.info.default_bag, distance_m=default_distance_m)
         conditions = (ConditionSampler(reach, punches, volume, seed=args.seed + 1, default_bag=default_bag,
                                        stance_guards=stance_guards)
                       if reach is not None else None)

@@ -20,7 +20,7 @@ from punch_trainer.capture.bvh import DEFAULT_BVH
 from punch_trainer.capture.punches import CapturedPunch, angle_between, captured_punches, speeds_from_positions
 from punch_trainer.reward.rewards import first_right_contact
 from punch_trainer.reward.style import chain_speeds
-from punch_trainer.scene import GUARD_ELBOW_BEND_DEG, SCENE_ARM_LENGTHS_M, SCENE_SHOULDER_HEIGHT_M, SCENE_WAIST_HEIGHT_M
+from punch_trainer.scene import GUARD_ELBOW_BEND_DEG, shoulder_positions
 
 
 @dataclass(frozen=True)
@@ -120,21 +120,6 @@ def in_proximal_to_distal_order(waist: np.ndarray, shoulder: np.ndarray, elbow: 
 
 
 # --- a simulated punch ----------------------------------------------------------------------------------------
-
-def shoulder_positions(f: np.ndarray, col: Any, side: str = "r") -> np.ndarray:
-    """The shoulder's position per frame in the character's frame: the scene's shoulder (its joint's offset from the
-    waist joint, the arm's own shoulder width) carried by the waist's flexion and rotation (rotation vector
-    (flexion, rotation, 0): +X the character's left, +Y up, +Z toward the target)."""
-    half_width = 0.5 * SCENE_ARM_LENGTHS_M[2] * (1.0 if side == "l" else -1.0)
-    offset = np.array([half_width, SCENE_SHOULDER_HEIGHT_M - SCENE_WAIST_HEIGHT_M, 0.0])
-    vectors = np.stack([f[:, col("angle_waist_flexion")], f[:, col("angle_waist_rotation")], np.zeros(len(f))], axis=1)
-    angles = np.linalg.norm(vectors, axis=1, keepdims=True)
-    axes = np.divide(vectors, angles, out=np.zeros_like(vectors), where=angles > 0)
-    cos, sin = np.cos(angles), np.sin(angles)
-    # Rodrigues: v cos + (k x v) sin + k (k.v)(1 - cos)
-    turned = offset * cos + np.cross(axes, offset) * sin + axes * (axes @ offset)[:, None] * (1 - cos)
-    return np.asarray(turned + np.array([0.0, SCENE_WAIST_HEIGHT_M, 0.0]), dtype=np.float64)
-
 
 def horizontal_angle_deg(a: np.ndarray, b: np.ndarray) -> float:
     """The angle between the horizontal (x, z) parts of two vectors, degrees (0 when either has none)."""
