@@ -642,10 +642,9 @@ impl PunchSkeletonModifier {
     /// The knock-down hand-off: while the character is knocked down, a `PhysicalBoneSimulator3D` child of the skeleton
     /// (the game's ragdoll, if it set one up) simulates the skeleton, each physical bone started with the velocity of
     /// the simulated body it moves with (`BoneMap::body_of`) and no collision with the simulated bodies it stands in,
-    /// and this modifier writes nothing; when the character
-    /// is brought back (`recover()`, a punch) the simulation stops and the modifier poses the skeleton again.
-    /// Returns whether the skeleton is the ragdoll's this pass. Without a simulator the skeleton shows the simulated
-    /// body hanging limp in its joints.
+    /// and this modifier writes nothing; when the character is brought back (`recover()`, a punch) the simulation
+    /// stops and the modifier poses the skeleton again. Returns whether the skeleton is the ragdoll's this pass.
+    /// Without a simulator the skeleton shows the simulated body hanging limp in its joints.
     fn hand_off(&mut self, skeleton: &Gd<Skeleton3D>, character: &Gd<PunchCharacter>, knocked_down: bool) -> bool {
         if !knocked_down {
             if let Some((mut simulator, _)) = self.handed_off.take()
