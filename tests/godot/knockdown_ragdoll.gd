@@ -1,7 +1,8 @@
 ## The knock-down hand-off on a game's own character: a converted CC0 character (--glb=PATH) wired by the editor
 ## plugin's action (`own_character_setup.gd`), with a ragdoll of the game's own under its skeleton (a
 ## PhysicalBoneSimulator3D whose PhysicalBone3D capsules sit on the spine, neck, head and arm bones, as Godot's
-## "Create Physical Skeleton" makes them), is struck hard enough to be knocked down. Its twin has no ragdoll.
+## "Create Physical Skeleton" makes them), turned 130 degrees, is struck hard enough to be knocked down. Its twin, facing
+## ahead, has no ragdoll.
 ## Recorded: the part and the rig's bone `hit_taken` names (and the rig's chest bone), when `knocked_down` came, whether the modifier handed the skeleton to the simulator
 ## (`handed_off_to`) and the simulator simulates, the head bone's physical velocity at the hand-off against the
 ## simulated head's, how far the head bone fell while handed off (no floor: the ragdoll, not the simulated body
@@ -30,8 +31,8 @@ func _initialize() -> void:
 
 
 func _run(glb: String) -> void:
-	var with_ragdoll := _fighter(glb, Vector3(0, 0, 0), true)
-	var without := _fighter(glb, Vector3(6, 0, 0), false)
+	var with_ragdoll := _fighter(glb, Vector3(0, 0, 0), 130.0, true)
+	var without := _fighter(glb, Vector3(6, 0, 0), 0.0, false)
 	if with_ragdoll.is_empty() or without.is_empty():
 		print("KNOCKDOWN_RAGDOLL_SETUP_FAILED ", glb)
 		quit(1)
@@ -83,9 +84,9 @@ func _run(glb: String) -> void:
 	quit(0)
 
 
-## A level with the model at `at`, wired by the plugin's action; with `ragdoll`, a PhysicalBoneSimulator3D of
+## A level with the model at `at`, turned `yaw_deg` about the vertical, wired by the plugin's action; with `ragdoll`, a PhysicalBoneSimulator3D of
 ## capsules on the mapped upper-body bones under its skeleton.
-func _fighter(glb: String, at: Vector3, ragdoll: bool) -> Dictionary:
+func _fighter(glb: String, at: Vector3, yaw_deg: float, ragdoll: bool) -> Dictionary:
 	var level := Node3D.new()
 	level.position = at
 	root.add_child(level)
@@ -94,6 +95,7 @@ func _fighter(glb: String, at: Vector3, ragdoll: bool) -> Dictionary:
 	if document.append_from_file(glb, state) != OK:
 		return {}
 	var model: Node3D = document.generate_scene(state)
+	model.rotation_degrees.y = yaw_deg
 	level.add_child(model)
 	var skeleton := Setup.find_skeleton(level, [])
 	var undo := UndoRedo.new()

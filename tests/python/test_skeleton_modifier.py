@@ -205,9 +205,11 @@ def test_the_own_character_demo_punches_the_bag_and_spars():
     assert rate["punches"] == 6 and rate["hits"] >= 5, rate  # counted, not a float at the bar
 
 
-def test_a_knocked_down_rig_is_handed_to_the_games_ragdoll_and_taken_back_on_recover():
+@pytest.mark.parametrize("character", ["mixamo_190", "unreal_160"])
+def test_a_knocked_down_rig_is_handed_to_the_games_ragdoll_and_taken_back_on_recover(character):
     """Issue 53's hand-off (tests/godot/knockdown_ragdoll.gd): a CC0 character wired by the editor plugin's action,
-    with a PhysicalBoneSimulator3D of the game's own under its skeleton, struck at 400 N s on the torso: `hit_taken`
+    turned 130 degrees, with a PhysicalBoneSimulator3D of the game's own under its skeleton (two rigs, 1.90 and 1.60 m,
+    Mixamo and Unreal namings), struck at 400 N s on the torso: `hit_taken`
     names the rig's chest bone, `knocked_down`, the
     skeleton handed to the simulator (`handed_off_to`), the head bone starting with the simulated head's velocity
     along the push, the ragdoll falling where the limp simulated body would hang; after `recover()` the simulation
@@ -215,7 +217,7 @@ def test_a_knocked_down_rig_is_handed_to_the_games_ragdoll_and_taken_back_on_rec
     make_characters(DEFAULT_OUT)
     script = PROJECT_ROOT / "tests" / "godot" / "knockdown_ragdoll.gd"
     run = run_godot(["--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), "--script", str(script), "--",
-                     f"--glb={DEFAULT_OUT / 'mixamo_190.glb'}"], check=False, timeout_s=120)
+                     f"--glb={DEFAULT_OUT / (character + '.glb')}"], check=False, timeout_s=120)
     line = next((line for line in run.log.splitlines() if line.startswith("KNOCKDOWN_RAGDOLL ")), None)
     assert run.returncode == 0 and line is not None and run.fatal_lines() == [], run.log[-3000:]
     assert "ERROR" not in run.log, run.log[-3000:]

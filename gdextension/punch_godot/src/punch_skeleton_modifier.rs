@@ -160,9 +160,9 @@ pub struct PunchSkeletonModifier {
     /// The character read from the controller when its punch (or recovery) began: a punch keeps its character,
     /// so frames within one need not ask again (asking is a tenth of the pass).
     punching_character: Option<Gd<PunchCharacter>>,
-    /// The skeleton's ragdoll while its character is knocked down (`handed_off_to`), and whether its bones were given
-    /// the simulated bodies' velocities yet.
-    handed_off: Option<(Gd<PhysicalBoneSimulator3D>, bool)>,
+    /// While its character is knocked down: the skeleton's ragdoll (`handed_off_to`) and whether its bones were given
+    /// the simulated bodies' velocities yet, or `None` when the skeleton has none (looked for once a knock-down).
+    handed_off: Option<Option<(Gd<PhysicalBoneSimulator3D>, bool)>>,
     base: Base<SkeletonModifier3D>,
 }
 
@@ -340,7 +340,7 @@ impl PunchSkeletonModifier {
     /// From the first pass after `knocked_down` until `recover()` or the next punch.
     #[func]
     fn handed_off_to(&self) -> Option<Gd<PhysicalBoneSimulator3D>> {
-        self.handed_off.as_ref().map(|(simulator, _)| simulator.clone()).filter(|s| s.is_instance_valid())
+        self.handed_off.clone().flatten().map(|(simulator, _)| simulator).filter(|s| s.is_instance_valid())
     }
 }
 
@@ -647,32 +647,35 @@ impl PunchSkeletonModifier {
     /// Without a simulator the skeleton shows the simulated body hanging limp in its joints.
     fn hand_off(&mut self, skeleton: &Gd<Skeleton3D>, character: &Gd<PunchCharacter>, knocked_down: bool) -> bool {
         if !knocked_down {
-            if let Some((mut simulator, _)) = self.handed_off.take()
+            if let Some(Some((mut simulator, _))) = self.handed_off.take()
                 && simulator.is_instance_valid()
             {
                 simulator.physical_bones_stop_simulation();
             }
             return false;
         }
-        if let Some((simulator, moving)) = &mut self.handed_off
-            && simulator.is_instance_valid()
-        {
-            // The bones turn dynamic with the step after the simulation starts: a velocity given before is lost.
-            if !*moving {
-                *moving = true;
-                Self::start_moving(simulator, character, self.mapped.as_ref());
+        match &mut self.handed_off {
+            Some(None) => return false,
+            Some(Some((simulator, moving))) if simulator.is_instance_valid() => {
+                // The bones turn dynamic with the step after the simulation starts: a velocity given before is lost.
+                if !*moving {
+                    *moving = true;
+                    Self::start_moving(simulator, character, self.mapped.as_ref());
+                }
+                return true;
             }
-            return true;
+            _ => {}
         }
-        let Some(mut simulator) =
-            skeleton.get_children().iter_shared().find_map(|child| child.try_cast::<PhysicalBoneSimulator3D>().ok())
-        else {
+        let ragdoll = skeleton
+            .get_children()
+            .iter_shared()
+            .find_map(|child| child.try_cast::<PhysicalBoneSimulator3D>().ok())
+            .map(|simulator| (physical_bones(&simulator), simulator))
+            .filter(|(bones, _)| !bones.is_empty());
+        let Some((bones, mut simulator)) = ragdoll else {
+            self.handed_off = Some(None);
             return false;
         };
-        let bones = physical_bones(&simulator);
-        if bones.is_empty() {
-            return false;
-        }
         let bodies: Vec<Gd<PhysicsBody3D>> = character.bind().rig().map_or_else(Vec::new, |rig| rig.bodies.clone());
         for mut bone in bones {
             // The ragdoll stands where the simulated body does: they would push each other apart.
@@ -682,7 +685,7 @@ impl PunchSkeletonModifier {
         }
         simulator.set_active(true);
         simulator.physical_bones_start_simulation();
-        self.handed_off = Some((simulator, false));
+        self.handed_off = Some(Some((simulator, false)));
         true
     }
 

@@ -218,6 +218,22 @@ def draw_placements(scenario: Scenario, reach: ReachVolume) -> tuple[list[Episod
     return still, swinging
 
 
+def own_range(condition: Condition, lead_forward_m: float, distance_m: tuple[float, float],
+              own_distance_m: tuple[float, float] | None) -> tuple[float, float] | None:
+    """The distances a single move is measured over when its policy's reach (`own_distance_m`: a hook's) lies nearer
+    than its hand's range and within it; None when the hand's range holds (a combo, a reach that is the hand's or
+    lies outside it)."""
+    near, far = distance_m
+    if condition.stance_pose and lead_forward_m and condition.move in LEAD_MOVES:
+        near, far = near + lead_forward_m, far + lead_forward_m
+    if condition.combo or own_distance_m is None or far <= near:
+        return None
+    own_near, own_far = own_distance_m
+    if (own_near, own_far) == (near, far) or not near - 1e-6 <= own_near <= own_far <= far + 1e-6:
+        return None
+    return own_near, own_far
+
+
 def condition_placements(condition: Condition, still: list[EpisodeConditions], swinging: list[EpisodeConditions],
                          lead_forward_m: float, distance_m: tuple[float, float] = (0.0, 0.0),
                          own_distance_m: tuple[float, float] | None = None) -> list[EpisodeConditions]:
@@ -225,8 +241,8 @@ def condition_placements(condition: Condition, still: list[EpisodeConditions], s
     stance's guard the same moved `lead_forward_m` further ahead (the lead hand's volume: its guard holds the fist that
     much nearer the target; docs/moves.md); for a combination from there with a lead hand's move, drawn into the
     distances both hands reach (the volume's `distance_m` with its near end moved `lead_forward_m` forward). A single
-    move whose policy covers nearer distances than its hand's (`own_distance_m`, its reach: a hook) is measured over its
-    own: the distances drawn into that range."""
+    move whose policy covers nearer distances than its hand's (`own_range`: a hook) is measured over its own: the
+    distances drawn into that range."""
     places = swinging if condition.swinging else still
     near, far = distance_m
     if condition.stance_pose and lead_forward_m and condition.move in LEAD_MOVES:
@@ -236,13 +252,11 @@ def condition_placements(condition: Condition, still: list[EpisodeConditions], s
         narrowed = (far - near - lead_forward_m) / (far - near)
         return [dataclasses.replace(bag, distance_m=round(near + lead_forward_m + (bag.distance_m - near) * narrowed, 6))
                 for bag in places]
-    if condition.combo or own_distance_m is None or far <= near:
+    own = own_range(condition, lead_forward_m, distance_m, own_distance_m)
+    if own is None:
         return places
-    own_near, own_far = own_distance_m
-    if (own_near, own_far) == (near, far) or not near - 1e-6 <= own_near <= own_far <= far + 1e-6:
-        return places
-    scale = (own_far - own_near) / (far - near)
-    return [dataclasses.replace(bag, distance_m=round(own_near + (bag.distance_m - near) * scale, 6)) for bag in places]
+    scale = (own[1] - own[0]) / (far - near)
+    return [dataclasses.replace(bag, distance_m=round(own[0] + (bag.distance_m - near) * scale, 6)) for bag in places]
 
 
 def episodes_of(scenario: Scenario, still: list[EpisodeConditions], swinging: list[EpisodeConditions],
@@ -535,9 +549,8 @@ def run_eval(args: EvalArgs, progress: bool = True, *, backend: Backend = LOCAL)
     report = {"scenario": scenario.to_json(), "seed": scenario.seed, "placements": [bag.to_wire() for bag in still],
               "swinging_placements": [bag.to_wire() for bag in swinging], "reach": json.loads(reach.to_json()),
               "lead_forward_m": lead_forward_m,
-              "own_distance_m": list(own_distance_m) if any(
-                  condition_placements(c, still, swinging, lead_forward_m, reach.distance_m, own_distance_m)
-                  != condition_placements(c, still, swinging, lead_forward_m, reach.distance_m) for c in scenario.conditions) else None,
+              "own_distance_m": list(own_distance_m) if any(own_range(c, lead_forward_m, reach.distance_m, own_distance_m)
+                                                            for c in scenario.conditions) else None,
               "arm_scale_range": runs[0]["arm_scale_range"], "search_best": best.tolist() if best is not None else None,
               "evaluations": evaluations,
               "captured_naturalness": [punch.to_json() for punch in capture] if capture else None,
