@@ -37,13 +37,13 @@
 ##   `recover()` is called 1 s on);
 ## - `reset_target`: each later punch of a combo starts with the bag hanging as placed again (its start, not where
 ##   the punches before swung it);
-## - `defender`: {`blocks`}: a second character of the addon's scene stands facing the first instead of the bag,
-##   its root at the placement's distance and side (the height is its own), and the punch aims at its head (the
-##   `Head` body, on its neck); with `blocks`, its own
-##   controller calls `block()` as the episode starts (`lead_s` later comes the punch: the warning). The row's
-##   struck entry is then {`outcome`, `head_impulse_ns`}: the punch's `punch_finished` outcome ("landed": on the
-##   head or the body, "blocked": on an arm first, "whiffed") and the impulse of the fist's first frame on the head
-##   (N s; absent when it never reached it);
+## - `defender`: {`blocks`, `part`}: a second character of the addon's scene stands facing the first instead of the
+##   bag, its root at the placement's distance and side (the height is its own), and the punch aims at its `part`:
+##   "head" (the `Head` body, on its neck) or "torso"; with `blocks`, its own controller calls `block()` as the
+##   episode starts (`lead_s` later comes the punch: the warning). The row's struck entry is then {`outcome`,
+##   `head_impulse_ns`}: the punch's `punch_finished` outcome ("landed": on the head or the body, "blocked": on an
+##   arm first, "whiffed") and the impulse of the fist's first frame on the part aimed at (N s; absent when it never
+##   reached it);
 ## - `cancel_delay_s`: a combo's moveset with this cancel delay for every move (the next punch starts that long
 ##   after the one before landed, or ended without landing).
 ## A motion (the moving node's own frame at the start: +Z ahead, +X its left, +Y up): `velocity_mps` [left, up,
@@ -358,7 +358,7 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 		if body_motion != null or target_motion != null or not combo.is_empty() or episode.get("start", "guard") != "guard":
 			_fail("episode %d: a defender stands: no body or target motion, no combo, a start from guard" % index)
 			return null
-		target = _add_defender(controller, bag, layer_slot, offset, bool(episode.defender.get("blocks", false)))
+		target = _add_defender(controller, bag, layer_slot, offset, episode.defender)
 		bag = null
 	slot.controller = controller
 	slot.row = [0, 0, 0.0, "", 0.0, sized.x, sized.y, sized.z, [], {}, index]
@@ -456,8 +456,8 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 
 ## A defending character in place of `bag` (freed), facing the puncher of `controller`, its root `offset`'s distance
 ## and side from the puncher's, on the bag's collision layers, with a controller of its own (blocking from the start
-## with `blocks`); returns its head, which the punch now aims at.
-func _add_defender(controller: Node, bag: RigidBody3D, layer_slot: int, offset: Vector3, blocks: bool) -> CollisionObject3D:
+## with `defender.blocks`); returns its head or torso (`defender.part`), which the punch now aims at.
+func _add_defender(controller: Node, bag: RigidBody3D, layer_slot: int, offset: Vector3, defender_spec: Dictionary) -> CollisionObject3D:
 	var sandbag := bag.get_parent()
 	var parent := sandbag.get_parent()
 	parent.remove_child(sandbag)
@@ -468,15 +468,15 @@ func _add_defender(controller: Node, bag: RigidBody3D, layer_slot: int, offset: 
 	var layer := 1 << (2 * layer_slot)
 	PunchPair.set_layers(defender, layer << 1, layer)
 	parent.add_child(defender)
-	var head: RigidBody3D = defender.get_node("Head")
-	controller.set("target", head)
+	var aimed_at: RigidBody3D = defender.get_node("Torso" if defender_spec.get("part", "head") == "torso" else "Head")
+	controller.set("target", aimed_at)
 	var guard: Node = ClassDB.instantiate("PunchController")
 	guard.set("character", defender)
 	guard.set("target", puncher.get_node("Torso"))
 	parent.add_child(guard)
-	if blocks:
+	if bool(defender_spec.get("blocks", false)):
 		guard.call_deferred("block")
-	return head
+	return aimed_at
 
 
 ## Hangs the bag as it was placed again: [transform, linear velocity, angular velocity].

@@ -39,7 +39,7 @@ def test_a_block_raises_both_fists_before_the_face_for_its_time_and_a_punch_ends
     assert min(frame for _, frame in report["signals"]) >= 530, report["signals"]
 
 
-def test_a_block_stops_jabs_and_crosses_that_land_on_a_guard(tmp_path):
+def test_a_block_stops_jabs_and_crosses_at_the_head_and_the_body(tmp_path):
     from punch_trainer.pipelines.evaluation import EvalArgs, run_eval
 
     args = EvalArgs(policy=PROJECT_ROOT / "addons" / "punch_controller" / "policies" / "straight.onnx",
@@ -54,3 +54,6 @@ def test_a_block_stops_jabs_and_crosses_that_land_on_a_guard(tmp_path):
             # The bar: at least 90% blocked (its fist's first contact an arm).
             assert row["successes"] >= 0.9 * row["punches"], row
             assert row["defended"]["head_impulse_ns_mean"] < open_guard["head_impulse_ns_mean"], (row, open_guard)
+    # A cross at the body meets the high guard's elbows and forearms too.
+    body = rows["cross at the body, blocking 0.15 s before"]
+    assert body["successes"] >= 0.9 * body["punches"], body

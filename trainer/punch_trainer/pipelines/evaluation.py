@@ -290,7 +290,7 @@ def episodes_of(scenario: Scenario, still: list[EpisodeConditions], swinging: li
                     episode["struck"] = {"part": struck.part, "impulse_ns": struck.impulse_ns,
                                          "direction": struck.direction(np.random.default_rng(episode["seed"]))}
                 if condition.defender is not None:
-                    episode["defender"] = {"blocks": condition.defender.blocks}
+                    episode["defender"] = {"blocks": condition.defender.blocks, "part": condition.defender.part}
                 if condition.cancel_delay_s != (0.0, 0.0):
                     low, high = condition.cancel_delay_s
                     episode["cancel_delay_s"] = round(float(np.random.default_rng(episode["seed"]).uniform(low, high)), 4)
@@ -443,8 +443,9 @@ def make_row(group: Group, result: dict[str, Any], placements: int, best: np.nda
 
 def defended_figures(rows: list[list[Any]]) -> dict[str, Any]:
     """A defender's figures over its episodes (evaluate.gd's per-episode entry): how many punches `landed`, were
-    `blocked` and `whiffed` (`punch_finished`'s outcome), how many reached the head at all (first or after an arm), and
-    the mean impulse of the fist's first frame on the head over all the punches (N s; 0 for one that never reached it)."""
+    `blocked` and `whiffed` (`punch_finished`'s outcome), how many reached the part aimed at (head or torso) at all
+    (first or after an arm), and the mean impulse of the fist's first frame on it over all the punches (N s; 0 for one
+    that never reached it)."""
     entries = [row[9] for row in rows]
     outcomes = [entry.get("outcome", "") for entry in entries]
     head = [float(entry.get("head_impulse_ns", 0.0)) for entry in entries]
@@ -598,7 +599,7 @@ def markdown_rows(scenario: Scenario, rows: list[dict[str, Any]]) -> list[str]:
     header += ["largest turn of a body (°, median)", "head moved (cm, median)", "back within 10° of guard (s, median / longest)",
                "recovered (s, median)", "staggered / knocked down"] if struck else []
     defended = any(c.defender for c in scenario.conditions)
-    header += ["landed / blocked / whiffed", "fist reached the head", "on the head, first frame (N s, mean)"] if defended else []
+    header += ["landed / blocked / whiffed", "fist reached the part aimed at", "on it, first frame (N s, mean)"] if defended else []
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for row in rows:
         low, high = row["success_interval"]
@@ -656,7 +657,7 @@ def write_report(out: Path, args: EvalArgs, scenario: Scenario, report: dict[str
                      "`recovered`)")
     if any(c.defender for c in scenario.conditions):
         measured = ("at a defender (a second character standing in the bag's place, its root at the placement, the punch "
-                    "aimed at its head): the punch's `punch_finished` outcome `blocked`, its fist's first "
+                    "aimed at its head or torso): the punch's `punch_finished` outcome `blocked`, its fist's first "
                     "contact on the defender's arm")
     lead_forward_m = report.get("lead_forward_m", 0.0)
     lines = [f"# punch eval: {args.policy}", "",

@@ -384,8 +384,8 @@ def write_results(recipes: list[Recipe], reports: dict[str, list[dict[str, Any]]
                 "(`PunchCharacter.take_hit`) and reacting with its controller's defaults (`react_to_hits`, "
                 "`stagger_impulse_ns` 60, `knockdown_impulse_ns` 320; docs/hits.md). No punch is thrown; the `--policy` "
                 "only places a sandbag nobody punches. Then blocking (`PunchController.block()`): the moveset's jab and "
-                "cross at the head of a second character of the addon's scene that blocks or stands in guard "
-                "(docs/hits.md).", ""]
+                "cross at the head, and its cross at the body, of a second character of the addon's scene that blocks "
+                "or stands in guard (docs/hits.md).", ""]
         for run in reports[MOVESET_KEY]:
             part = hits if run["measurement"].scenario in (HITS_SCENARIO, BLOCKS_SCENARIO) else body
             part += [f"### `{run['command']}`", "", *benchmarks_body(_repository_paths(run["markdown"]), depth=1), ""]

@@ -78,11 +78,13 @@ class Struck:
 @dataclass(frozen=True)
 class Defender:
     """A second character of the addon's scene standing in the bag's place, facing the puncher: its root at the
-    placement's distance and side, and the punch aimed at its head (its `Head` body). The rows count what the punch became
-    (`punch_finished`'s outcome) and how often, and how hard, the fist reached the head."""
+    placement's distance and side, and the punch aimed at its head (its `Head` body) or its torso. The rows count what
+    the punch became (`punch_finished`'s outcome) and how often, and how hard, the fist reached the part aimed at."""
 
     blocks: bool = False
     """its controller calls `block()` as the episode starts; the punch comes `lead_s` later (the warning)"""
+    part: Literal["head", "torso"] = "head"
+    """the body the punch aims at: the head, or the torso (a body shot)"""
 
 
 @dataclass(frozen=True)
@@ -349,14 +351,17 @@ def _condition(index: int, table: Any, defaults: Mapping[str, Any], scenario_sig
 
 
 def _defender(where: str, table: Any) -> Defender:
-    """A `defender = { blocks = true }` table, checked."""
+    """A `defender = { blocks = true, part = "torso" }` table, checked."""
     if not isinstance(table, Mapping):
         raise ScenarioError(f"{where}: a table ({{ blocks = true }})")
-    _unknown(where, table, ("blocks",))
+    _unknown(where, table, ("blocks", "part"))
     blocks = table.get("blocks", False)
     if not isinstance(blocks, bool):
         raise ScenarioError(f"{where}.blocks: true or false, not {blocks!r}")
-    return Defender(blocks=blocks)
+    part = table.get("part", "head")
+    if part not in ("head", "torso"):
+        raise ScenarioError(f"{where}.part: \"head\" or \"torso\", not {part!r}")
+    return Defender(blocks=blocks, part=part)
 
 
 def _struck(where: str, table: Any) -> Struck:
