@@ -94,7 +94,7 @@ def test_the_shipped_policies_read_with_every_entry(policy: Path):
     rewards = {stage.args["reward"] for stage in recipe.stages if isinstance(stage, TrainStage)}
     assert rewards == {metadata.reward} and metadata.training_summary is not None and metadata.noise_scale is not None
     # Its reach: the spec's (the straight's, trained from every start), a lead hand's moved forward 0.10 m
-    # (punch_core's LEAD_REACH_FORWARD_M), a close move's (a hook's) distances its recipe's `reach_distance`.
+    # (punch_core's LEAD_REACH_FORWARD_M), a close move's (a hook's) distances its recipe's `reach_distance`, a move's heights its `reach_height`.
     square = ReachVolume.from_json(read_policy_metadata(SHIPPED_STRAIGHT).reach_volume)
     expected = square.moved_forward(0.10 if recipe.guard == "southpaw" else 0.0)
     distances = {tuple(stage.args["reach_distance"]) for stage in recipe.stages
@@ -102,6 +102,11 @@ def test_the_shipped_policies_read_with_every_entry(policy: Path):
     if distances:
         [(near, far)] = distances
         expected = dataclasses.replace(expected, distance_m=(near, far))
+    heights = {tuple(stage.args["reach_height"]) for stage in recipe.stages
+               if isinstance(stage, TrainStage) and stage.args.get("reach_height")}
+    if heights:
+        [(low, high)] = heights
+        expected = dataclasses.replace(expected, height_m=(low, high))
     assert ReachVolume.from_json(metadata.reach_volume) == expected, recipe.name
     assert set(metadata.entries) == set(CONTRACT_KEYS) | set(TRAINER_KEYS)
     assert metadata.contract() == {key: value for key, value in read_entries(policy).items() if key in CONTRACT_KEYS}

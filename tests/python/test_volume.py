@@ -149,10 +149,10 @@ def test_a_policy_for_one_guard_starts_every_episode_there(tmp_path):
     assert not (tmp_path / "refused").exists()
 
 
-def test_a_nearer_reach_replaces_the_volumes_distances_and_is_refused_when_it_makes_no_sense(tmp_path):
+def test_a_nearer_reach_or_other_heights_replace_the_volumes_and_are_refused_when_they_make_no_sense(tmp_path):
     """`punch train --reach-distance NEAR FAR` (a hook's nearer targets): the policy's reach is the server's volume with
-    those distances, for a lead hand's move too (not moved forward again); reversed, one distance, or at a spot, it is
-    refused before a simulator starts."""
+    those distances, for a lead hand's move too (not moved forward again); `--reach-height LOW HIGH` (an uppercut's head
+    and body) its heights; reversed, one distance, or at a spot, either is refused before a simulator starts."""
     from types import SimpleNamespace
 
     from punch_trainer.pipelines.train import policy_reach
@@ -163,8 +163,13 @@ def test_a_nearer_reach_replaces_the_volumes_distances_and_is_refused_when_it_ma
     assert lead.distance_m == pytest.approx((0.7, 0.95)) and lead.height_m == (1.15, 1.55)
     hook = policy_reach(TrainArgs(guard="southpaw", reach_distance=[0.7, 0.85]), info)
     assert hook.distance_m == (0.7, 0.85) and hook.side_m == (-0.25, 0.25)
+    uppercut = policy_reach(TrainArgs(guard="orthodox", reach_distance=[0.55, 0.7], reach_height=[1.0, 1.55]), info)
+    assert (uppercut.distance_m, uppercut.height_m, uppercut.side_m) == ((0.55, 0.7), (1.0, 1.55), (-0.25, 0.25))
     for wrong in (dict(reach_distance=[0.85, 0.7]), dict(reach_distance=[0.7]), dict(reach="spot", reach_distance=[0.7, 0.85])):
         with pytest.raises(ValueError, match="--reach-distance"):
+            run_train(TrainArgs(out=tmp_path / "refused", **{**BUDGET, **wrong}), progress=False)
+    for wrong in (dict(reach_height=[1.55, 1.0]), dict(reach="spot", reach_height=[1.0, 1.55])):
+        with pytest.raises(ValueError, match="--reach-height"):
             run_train(TrainArgs(out=tmp_path / "refused", **{**BUDGET, **wrong}), progress=False)
     assert not (tmp_path / "refused").exists()
 

@@ -150,6 +150,9 @@ class TrainArgs:
     """volume: NEAR FAR, how far ahead of the root the targets' centres lie (m), instead of the volume's (which `--guard
     southpaw` moves forward): a move thrown closer than a straight, as a hook with its elbow bent (recipes/rear_hook.toml);
     the policy's reach says so (a game aims at a target up to 0.3 m beyond it, and at that far point beyond)"""
+    reach_height: list[float] | None = field(default=None, metadata=bounds(0.5, 2.0, max_items=2))
+    """volume: LOW HIGH, how high the targets' centres lie (m), instead of the volume's 1.15-1.55: a move thrown at
+    the head and the body alike, as an uppercut (recipes/rear_uppercut.toml; the body band is 1.00-1.20 m)"""
     lead_in_every: int = VolumeArgs.lead_in_every
     """volume: every k-th A2C update's episodes start where an earlier punch of this run's search left the arms (at its
     contact, drawing back, or on the way back to guard) instead of in a guard: a policy for punches started wherever
@@ -242,11 +245,13 @@ def lead_forward_m(args: TrainArgs, info: ServerInfo) -> float:
 
 def policy_reach(args: TrainArgs, info: ServerInfo) -> ReachVolume:
     """The target placements the policy covers: the server's volume, moved forward for a lead hand's move
-    (`lead_forward_m`), its distances replaced by `--reach-distance` when given."""
+    (`lead_forward_m`), its distances and heights replaced by `--reach-distance` and `--reach-height` when given."""
     reach = ReachVolume.from_json(info.reach_volume).moved_forward(lead_forward_m(args, info))
-    if args.reach_distance is None:
-        return reach
-    return dataclasses.replace(reach, distance_m=(args.reach_distance[0], args.reach_distance[1]))
+    if args.reach_distance is not None:
+        reach = dataclasses.replace(reach, distance_m=(args.reach_distance[0], args.reach_distance[1]))
+    if args.reach_height is not None:
+        reach = dataclasses.replace(reach, height_m=(args.reach_height[0], args.reach_height[1]))
+    return reach
 
 
 def search_volume(args: TrainArgs, volume: VolumeArgs, reward: Reward, centre: SearchResult, progress: bool,
@@ -303,6 +308,9 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
     if args.reach_distance is not None and (not over_volume or len(args.reach_distance) != 2
                                             or args.reach_distance[0] > args.reach_distance[1]):
         raise ValueError(f"--reach-distance is two distances over the volume, the nearer first (e.g. 0.70 0.85), not {args.reach_distance}")
+    if args.reach_height is not None and (not over_volume or len(args.reach_height) != 2
+                                          or args.reach_height[0] > args.reach_height[1]):
+        raise ValueError(f"--reach-height is two heights over the volume, the lower first (e.g. 1.00 1.55), not {args.reach_height}")
     defaults = REACH_DEFAULTS[args.reach]
     reward = load_reward(args.reward, args.frames, style_named(args.style, args.style_weight))
     out = args.run_dir()
