@@ -8,11 +8,14 @@ notebook.md, "Moves from the stance's guard": it brings the hook in from the sid
 
 hook_level, hook_outside: `hook_bent` with a level swing asked for, or its landing counted only from outside the line:
 tried for the lead hook (notebook.md, "A hook that sweeps with the elbow bent").
+
+uppercut_soft: `uppercut_bent` with a quarter of its landing counted however the fist comes: tried for the lead
+uppercut (notebook.md, "An uppercut that rises with the elbow bent").
 """
 
 import numpy as np
 
-from punch_trainer.reward.rewards import hook_bent
+from punch_trainer.reward.rewards import hook_bent, uppercut_bent
 from punch_trainer.scene import shoulder_positions
 
 
@@ -58,3 +61,11 @@ def hook_outside(f):
     angle_deg = np.degrees(np.arctan2(vx * uz - vz * ux, vx * ux + vz * uz))
     outside = np.clip((angle_deg - 20.0) / 15.0, 0.0, 1.0)
     return {**terms, "landing": terms["landing"] * outside}
+
+
+
+def uppercut_soft(f):
+    """`uppercut_bent` (the preset) whose landing counts a quarter even flat or with the arm long, all of it rising with
+    the elbow bent: the lead uppercut learned from the preset landed on few targets (notebook.md, "An uppercut that
+    rises with the elbow bent")."""
+    return uppercut_bent(f, flat_landing=0.25)

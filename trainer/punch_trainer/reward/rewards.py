@@ -122,14 +122,15 @@ def uppercut(f: Frames) -> Terms:
             "lift": 5.0 * f["fist_r_impulse_y"]}
 
 
-def uppercut_bent(f: Frames) -> Terms:
+def uppercut_bent(f: Frames, flat_landing: float = 0.0) -> Terms:
     """The boxer's uppercut (not the paper's): the fist rises into the target with the elbow bent. With a the right
     fist's horizontal velocity along the line from its shoulder to the bag, max(0, 0.3 - d)^2 * 10 * (a + 1.5 v_y), plus
     5 times the impulse it lands with along the same a + 1.5 y, which counts only with the elbow bent (none at 40
     degrees, all from 70) and the fist rising (the upward share of its velocity the frame before, as the naturalness
     report reads it at contact: none at 0.35, all from 0.6). docs/moves.md asks an uppercut's fist to rise at least half
     its speed with the elbow bent 60-120; the `uppercut` reward's rose 0.39-0.46 with the elbow at 30-52 degrees
-    (experiments/notebook.md, "An uppercut that rises with the elbow bent")."""
+    (experiments/notebook.md, "An uppercut that rises with the elbow bent"). `flat_landing`: the share of the landing
+    that counts whatever the elbow and the fist's direction (0 for the preset)."""
     ux, uz = _along_target(f)
     vx, vy, vz = f["fist_r_vel_x"], f["fist_r_vel_y"], f["fist_r_vel_z"]
     share = vy / np.maximum(np.sqrt(vx ** 2 + vy ** 2 + vz ** 2), 0.5)
@@ -137,7 +138,7 @@ def uppercut_bent(f: Frames) -> Terms:
     rising = np.clip((share_before - 0.35) / 0.25, 0.0, 1.0)
     landing = f["fist_r_impulse_x"] * ux + f["fist_r_impulse_z"] * uz + 1.5 * f["fist_r_impulse_y"]
     return {"rise": _near(f) * 10.0 * (vx * ux + vz * uz + 1.5 * vy),
-            "landing": 5.0 * _elbow_bent(f, 40.0, 70.0) * rising * landing}
+            "landing": 5.0 * (flat_landing + (1.0 - flat_landing) * _elbow_bent(f, 40.0, 70.0) * rising) * landing}
 
 
 @dataclass(frozen=True)
