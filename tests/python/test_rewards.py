@@ -63,13 +63,14 @@ def uppercut_frames(vy, vz, jy, jz, elbow_bend_deg):
 
 
 def test_the_bent_uppercut_earns_most_rising_and_lands_only_rising_with_the_elbow_bent():
-    """`uppercut_bent`: along the shoulder-to-bag line and 1.5 times up, near the bag; the landing impulse (along and
+    """`uppercut_bent`: along the shoulder-to-bag line and 1.5 times up, near the bag, never below 0; the landing impulse (along and
     1.5 times up) counts none of it at 40 degrees of elbow bend or less, all from 70, and none with the fist's upward
     share of its speed the frame before at 0.35 or less, all from 0.6."""
     reward = load_reward("uppercut_bent")
     near = (0.3 - 0.1) ** 2
     terms = evaluate(reward, uppercut_frames(3.0, 4.0, 0.0, 0.0, 90.0), UPPERCUT_NAMES)
     assert terms["rise"][0, 0] == pytest.approx(near * 10 * (4.0 + 1.5 * 3.0), rel=1e-4)
+    assert evaluate(reward, uppercut_frames(-4.0, 1.0, 0.0, 0.0, 90.0), UPPERCUT_NAMES)["rise"][0, 0] == 0.0  # dropping
 
     def landing(rise_share, bend_deg):
         speed = 5.0

@@ -124,7 +124,9 @@ def uppercut(f: Frames) -> Terms:
 
 def uppercut_bent(f: Frames, flat_landing: float = 0.0) -> Terms:
     """The boxer's uppercut (not the paper's): the fist rises into the target with the elbow bent. With a the right
-    fist's horizontal velocity along the line from its shoulder to the bag, max(0, 0.3 - d)^2 * 10 * (a + 1.5 v_y), plus
+    fist's horizontal velocity along the line from its shoulder to the bag, max(0, 0.3 - d)^2 * 10 * max(0, a + 1.5 v_y)
+    (never less than 0: the fist drops near the bag before it rises, and A2C learned to keep it away from a bag that
+    charged for that), plus
     5 times the impulse it lands with along the same a + 1.5 y, which counts only with the elbow bent (none at 40
     degrees, all from 70) and the fist rising (the upward share of its velocity the frame before, as the naturalness
     report reads it at contact: none at 0.35, all from 0.6). docs/moves.md asks an uppercut's fist to rise at least half
@@ -137,7 +139,7 @@ def uppercut_bent(f: Frames, flat_landing: float = 0.0) -> Terms:
     share_before = np.concatenate([share[..., :1], share[..., :-1]], axis=-1)
     rising = np.clip((share_before - 0.35) / 0.25, 0.0, 1.0)
     landing = f["fist_r_impulse_x"] * ux + f["fist_r_impulse_z"] * uz + 1.5 * f["fist_r_impulse_y"]
-    return {"rise": _near(f) * 10.0 * (vx * ux + vz * uz + 1.5 * vy),
+    return {"rise": _near(f) * 10.0 * np.maximum(0.0, vx * ux + vz * uz + 1.5 * vy),
             "landing": 5.0 * (flat_landing + (1.0 - flat_landing) * _elbow_bent(f, 40.0, 70.0) * rising) * landing}
 
 
