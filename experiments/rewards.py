@@ -9,13 +9,14 @@ notebook.md, "Moves from the stance's guard": it brings the hook in from the sid
 hook_level, hook_outside: `hook_bent` with a level swing asked for, or its landing counted only from outside the line:
 tried for the lead hook (notebook.md, "A hook that sweeps with the elbow bent").
 
-uppercut_soft: `uppercut_bent` with a quarter of its landing counted however the fist comes: tried for the lead
-uppercut (notebook.md, "An uppercut that rises with the elbow bent").
+uppercut_bent, uppercut_gated: the fist rising into the target with the elbow bent, its landing counted a quarter
+however the fist comes (gated: none of it) and the rest only rising with the elbow bent: tried for both uppercuts; A2C
+kept the fist away (notebook.md, "An uppercut that rises with the elbow bent").
 """
 
 import numpy as np
 
-from punch_trainer.reward.rewards import hook_bent, uppercut_bent
+from punch_trainer.reward.rewards import along_target, elbow_bent, hook_bent
 from punch_trainer.scene import shoulder_positions
 
 
@@ -31,16 +32,6 @@ def hook_sweep(f):
     return {"along": near * 10.0 * (vx * ux + vz * uz), "across": near * 10.0 * 1.5 * (vx * uz - vz * ux)}
 
 
-def _sweep_axes(f):
-    """The horizontal unit vector from the right shoulder to the bag (ux, uz), as `hook_sweep` reads it."""
-    names = f.names
-    frames = f.features.reshape(-1, len(names))
-    shoulder = shoulder_positions(frames, names.index).reshape(*f.features.shape[:-1], 3)
-    dx, dz = f["bag_pos_x"] - shoulder[..., 0], f["bag_pos_z"] - shoulder[..., 2]
-    length = np.maximum(np.hypot(dx, dz), 1e-6)
-    return dx / length, dz / length
-
-
 def hook_level(f):
     """`hook_bent` (the preset) less the fist's vertical speed near the bag (10 max(0, 0.3 - d)^2 |v_y|): a hook
     swings level, neither down from above nor up from below."""
@@ -54,7 +45,7 @@ def hook_outside(f):
     shoulder to the bag: none at 20 degrees off it or less, all of it from 35 (the fist's horizontal velocity the frame
     before, as the naturalness report reads the approach: the contact itself turns the fist)."""
     terms = hook_bent(f)
-    ux, uz = _sweep_axes(f)
+    ux, uz = along_target(f)
     vx, vz = f["fist_r_vel_x"], f["fist_r_vel_z"]
     vx = np.concatenate([vx[..., :1], vx[..., :-1]], axis=-1)
     vz = np.concatenate([vz[..., :1], vz[..., :-1]], axis=-1)
@@ -64,8 +55,22 @@ def hook_outside(f):
 
 
 
-def uppercut_soft(f):
-    """`uppercut_bent` (the preset) whose landing counts a quarter even flat or with the arm long, all of it rising with
-    the elbow bent: the lead uppercut learned from the preset landed on few targets (notebook.md, "An uppercut that
-    rises with the elbow bent")."""
-    return uppercut_bent(f, flat_landing=0.25)
+def uppercut_bent(f, flat_landing=0.25):
+    """max(0, 0.3 - d)^2 * 10 * max(0, a + 1.5 v_y), a the right fist's horizontal velocity along the line from its
+    shoulder to the bag, plus 5 times the impulse it lands with along the same a + 1.5 y: `flat_landing` of it however
+    the fist comes, the rest only with the elbow bent (none at 40 degrees, all from 70) and the fist rising (the upward
+    share of its velocity the frame before: none at 0.35, all from 0.6)."""
+    ux, uz = along_target(f)
+    vx, vy, vz = f["fist_r_vel_x"], f["fist_r_vel_y"], f["fist_r_vel_z"]
+    share = vy / np.maximum(np.sqrt(vx ** 2 + vy ** 2 + vz ** 2), 0.5)
+    share_before = np.concatenate([share[..., :1], share[..., :-1]], axis=-1)
+    rising = np.clip((share_before - 0.35) / 0.25, 0.0, 1.0)
+    near = np.maximum(0.0, 0.3 - f["fist_r_bag_distance"]) ** 2
+    landing = f["fist_r_impulse_x"] * ux + f["fist_r_impulse_z"] * uz + 1.5 * f["fist_r_impulse_y"]
+    return {"rise": near * 10.0 * np.maximum(0.0, vx * ux + vz * uz + 1.5 * vy),
+            "landing": 5.0 * (flat_landing + (1.0 - flat_landing) * elbow_bent(f, 40.0, 70.0) * rising) * landing}
+
+
+def uppercut_gated(f):
+    """`uppercut_bent` with none of its landing counted unless the fist rises with the elbow bent."""
+    return uppercut_bent(f, flat_landing=0.0)

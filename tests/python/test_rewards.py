@@ -51,39 +51,6 @@ def test_the_bent_hook_earns_most_from_the_side_and_lands_only_with_the_elbow_be
     assert landing[2] == landing[3] == pytest.approx(5.0 * (1.0 + 1.5 * 0.5), rel=1e-4)
 
 
-UPPERCUT_NAMES = [*HOOK_NAMES[:5], "fist_r_impulse_y", *HOOK_NAMES[5:]]
-
-
-def uppercut_frames(vy, vz, jy, jz, elbow_bend_deg):
-    """Two frames of a right fist near a bag straight ahead of its shoulder, moving (0, vy, vz) in both, landing the
-    impulse (0, jy, jz) in the second."""
-    frame = [0.1, 0.0, vy, vz, 0.0, 0.0, 0.0, -0.18, 0.8, 0.0, 0.0, np.radians(120.0 - elbow_bend_deg), 0.0]
-    landing = [*frame[:5], jy, jz, *frame[7:]]
-    return np.array([[frame, landing]], dtype=np.float32)
-
-
-def test_the_bent_uppercut_earns_most_rising_and_lands_only_rising_with_the_elbow_bent():
-    """`uppercut_bent`: along the shoulder-to-bag line and 1.5 times up, near the bag, never below 0; the landing impulse (along and
-    1.5 times up) counts none of it at 40 degrees of elbow bend or less, all from 70, and none with the fist's upward
-    share of its speed the frame before at 0.35 or less, all from 0.6."""
-    reward = load_reward("uppercut_bent")
-    near = (0.3 - 0.1) ** 2
-    terms = evaluate(reward, uppercut_frames(3.0, 4.0, 0.0, 0.0, 90.0), UPPERCUT_NAMES)
-    assert terms["rise"][0, 0] == pytest.approx(near * 10 * (4.0 + 1.5 * 3.0), rel=1e-4)
-    assert evaluate(reward, uppercut_frames(-4.0, 1.0, 0.0, 0.0, 90.0), UPPERCUT_NAMES)["rise"][0, 0] == 0.0  # dropping
-
-    def landing(rise_share, bend_deg):
-        speed = 5.0
-        vy, vz = speed * rise_share, speed * np.sqrt(1 - rise_share ** 2)
-        return evaluate(reward, uppercut_frames(vy, vz, 0.5, 1.0, bend_deg), UPPERCUT_NAMES)["landing"][0, 1]
-
-    full = 5.0 * (1.0 + 1.5 * 0.5)
-    assert landing(0.8, 90) == landing(0.6, 120) == pytest.approx(full, rel=1e-4)
-    assert landing(0.3, 90) == landing(0.8, 35) == 0.0
-    assert landing(0.475, 90) == pytest.approx(0.5 * full, rel=1e-3)
-    assert landing(0.8, 55) == pytest.approx(0.5 * full, rel=1e-3)
-
-
 def test_terms_are_separate_and_guarded_frames_earn_nothing():
     terms = evaluate(load_reward("hook"), features(0.1, 2.0, 5.0), NAMES)
     assert set(terms) == {"forward", "sideways"}

@@ -152,7 +152,8 @@ class TrainArgs:
     the policy's reach says so (a game aims at a target up to 0.3 m beyond it, and at that far point beyond)"""
     reach_height: list[float] | None = field(default=None, metadata=bounds(0.5, 2.0, max_items=2))
     """volume: LOW HIGH, how high the targets' centres lie (m), instead of the volume's 1.15-1.55: a move thrown at
-    the head and the body alike, as an uppercut (recipes/rear_uppercut.toml; the body band is 1.00-1.20 m)"""
+    the head and the body alike, as an uppercut (experiments/notebook.md, "An uppercut that rises with the elbow
+    bent"; the body band is 1.00-1.20 m)"""
     lead_in_every: int = VolumeArgs.lead_in_every
     """volume: every k-th A2C update's episodes start where an earlier punch of this run's search left the arms (at its
     contact, drawing back, or on the way back to guard) instead of in a guard: a policy for punches started wherever

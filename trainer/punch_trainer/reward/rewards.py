@@ -74,7 +74,7 @@ def hook_landing(f: Frames) -> Terms:
     return {**terms, "landing": 5.0 * (f["fist_r_impulse_z"] + 0.75 * f["fist_r_impulse_x"])}
 
 
-def _along_target(f: Frames) -> tuple[np.ndarray, np.ndarray]:
+def along_target(f: Frames) -> tuple[np.ndarray, np.ndarray]:
     """The horizontal unit vector (x, z) from the right shoulder to the bag; the shoulder is the one the naturalness
     report reads (`scene.shoulder_positions`), so a reward and the measure read one geometry."""
     shoulder = shoulder_positions(f.features.reshape(-1, len(f.names)), f.names.index).reshape(*f.features.shape[:-1], 3)
@@ -83,7 +83,7 @@ def _along_target(f: Frames) -> tuple[np.ndarray, np.ndarray]:
     return dx / length, dz / length
 
 
-def _elbow_bent(f: Frames, none_deg: float, all_deg: float) -> np.ndarray:
+def elbow_bent(f: Frames, none_deg: float, all_deg: float) -> np.ndarray:
     """0 with the right elbow bent `none_deg` or less, 1 from `all_deg`, linear between."""
     bend_deg = GUARD_ELBOW_BEND_DEG - np.degrees(f["angle_elbow_r_extension"])
     return np.asarray(np.clip((bend_deg - none_deg) / (all_deg - none_deg), 0.0, 1.0))
@@ -97,13 +97,13 @@ def hook_bent(f: Frames) -> Terms:
     fist to arrive at least 35 degrees off that line with the elbow bent 70-120). At a given speed the best direction
     lies 56 degrees off the line. The `hook` reward's fist arrives 16 degrees off the line with the elbow at 56
     degrees from the lead hand's guard: a jab (experiments/notebook.md, "A hook that sweeps with the elbow bent")."""
-    ux, uz = _along_target(f)
+    ux, uz = along_target(f)
 
     def sweep(x: np.ndarray, z: np.ndarray) -> np.ndarray:
         return np.asarray((x * ux + z * uz) + 1.5 * (x * uz - z * ux))
 
     return {"sweep": _near(f) * 10.0 * sweep(f["fist_r_vel_x"], f["fist_r_vel_z"]),
-            "landing": 5.0 * _elbow_bent(f, 50.0, 80.0) * sweep(f["fist_r_impulse_x"], f["fist_r_impulse_z"])}
+            "landing": 5.0 * elbow_bent(f, 50.0, 80.0) * sweep(f["fist_r_impulse_x"], f["fist_r_impulse_z"])}
 
 
 def straight_landing(f: Frames) -> Terms:
@@ -120,27 +120,6 @@ def uppercut(f: Frames) -> Terms:
     near = _near(f)
     return {"forward": near * 10.0 * f["fist_r_vel_z"], "up": near * 10.0 * f["fist_r_vel_y"],
             "lift": 5.0 * f["fist_r_impulse_y"]}
-
-
-def uppercut_bent(f: Frames, flat_landing: float = 0.0) -> Terms:
-    """The boxer's uppercut (not the paper's): the fist rises into the target with the elbow bent. With a the right
-    fist's horizontal velocity along the line from its shoulder to the bag, max(0, 0.3 - d)^2 * 10 * max(0, a + 1.5 v_y)
-    (never less than 0: the fist drops near the bag before it rises, and A2C learned to keep it away from a bag that
-    charged for that), plus
-    5 times the impulse it lands with along the same a + 1.5 y, which counts only with the elbow bent (none at 40
-    degrees, all from 70) and the fist rising (the upward share of its velocity the frame before, as the naturalness
-    report reads it at contact: none at 0.35, all from 0.6). docs/moves.md asks an uppercut's fist to rise at least half
-    its speed with the elbow bent 60-120; the `uppercut` reward's rose 0.39-0.46 with the elbow at 30-52 degrees
-    (experiments/notebook.md, "An uppercut that rises with the elbow bent"). `flat_landing`: the share of the landing
-    that counts whatever the elbow and the fist's direction (0 for the preset)."""
-    ux, uz = _along_target(f)
-    vx, vy, vz = f["fist_r_vel_x"], f["fist_r_vel_y"], f["fist_r_vel_z"]
-    share = vy / np.maximum(np.sqrt(vx ** 2 + vy ** 2 + vz ** 2), 0.5)
-    share_before = np.concatenate([share[..., :1], share[..., :-1]], axis=-1)
-    rising = np.clip((share_before - 0.35) / 0.25, 0.0, 1.0)
-    landing = f["fist_r_impulse_x"] * ux + f["fist_r_impulse_z"] * uz + 1.5 * f["fist_r_impulse_y"]
-    return {"rise": _near(f) * 10.0 * np.maximum(0.0, vx * ux + vz * uz + 1.5 * vy),
-            "landing": 5.0 * (flat_landing + (1.0 - flat_landing) * _elbow_bent(f, 40.0, 70.0) * rising) * landing}
 
 
 @dataclass(frozen=True)
@@ -167,7 +146,6 @@ PRESETS = {
     "hook_landing": Reward("hook_landing", hook_landing, 50),
     "straight_landing": Reward("straight_landing", straight_landing, 50),
     "hook_bent": Reward("hook_bent", hook_bent, 50),
-    "uppercut_bent": Reward("uppercut_bent", uppercut_bent, 50),
 }
 
 
