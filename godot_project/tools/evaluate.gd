@@ -456,7 +456,7 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 
 ## A defending character in place of `bag` (freed), facing the puncher of `controller`, its root `offset`'s distance
 ## and side from the puncher's, on the bag's collision layers, with a controller of its own (blocking from the start
-## with `defender.blocks`); returns its head or torso (`defender.part`), which the punch now aims at.
+## with `defender_spec.blocks`); returns its head or torso (`defender_spec.part`), which the punch now aims at.
 func _add_defender(controller: Node, bag: RigidBody3D, layer_slot: int, offset: Vector3, defender_spec: Dictionary) -> CollisionObject3D:
 	var sandbag := bag.get_parent()
 	var parent := sandbag.get_parent()
