@@ -17,16 +17,16 @@ kept the fist away (notebook.md, "An uppercut that rises with the elbow bent").
 import numpy as np
 
 from punch_trainer.reward.rewards import along_target, elbow_bent, hook_bent
-from punch_trainer.scene import shoulder_positions
+
+
+def _frame_before(values):
+    """Each frame's value the frame before (the first frame's own): the naturalness report reads a fist's approach
+    and rise the frame before contact, since the contact itself turns the fist."""
+    return np.concatenate([values[..., :1], values[..., :-1]], axis=-1)
 
 
 def hook_sweep(f):
-    names = f.names
-    frames = f.features.reshape(-1, len(names))
-    shoulder = shoulder_positions(frames, names.index).reshape(*f.features.shape[:-1], 3)  # the naturalness report's
-    dx, dz = f["bag_pos_x"] - shoulder[..., 0], f["bag_pos_z"] - shoulder[..., 2]
-    length = np.maximum(np.hypot(dx, dz), 1e-6)
-    ux, uz = dx / length, dz / length
+    ux, uz = along_target(f)  # from the shoulder the naturalness report reads
     near = np.maximum(0.0, 0.3 - f["fist_r_bag_distance"]) ** 2
     vx, vz = f["fist_r_vel_x"], f["fist_r_vel_z"]
     return {"along": near * 10.0 * (vx * ux + vz * uz), "across": near * 10.0 * 1.5 * (vx * uz - vz * ux)}
@@ -46,13 +46,10 @@ def hook_outside(f):
     before, as the naturalness report reads the approach: the contact itself turns the fist)."""
     terms = hook_bent(f)
     ux, uz = along_target(f)
-    vx, vz = f["fist_r_vel_x"], f["fist_r_vel_z"]
-    vx = np.concatenate([vx[..., :1], vx[..., :-1]], axis=-1)
-    vz = np.concatenate([vz[..., :1], vz[..., :-1]], axis=-1)
+    vx, vz = _frame_before(f["fist_r_vel_x"]), _frame_before(f["fist_r_vel_z"])
     angle_deg = np.degrees(np.arctan2(vx * uz - vz * ux, vx * ux + vz * uz))
     outside = np.clip((angle_deg - 20.0) / 15.0, 0.0, 1.0)
     return {**terms, "landing": terms["landing"] * outside}
-
 
 
 def uppercut_bent(f, flat_landing=0.25):
@@ -63,8 +60,7 @@ def uppercut_bent(f, flat_landing=0.25):
     ux, uz = along_target(f)
     vx, vy, vz = f["fist_r_vel_x"], f["fist_r_vel_y"], f["fist_r_vel_z"]
     share = vy / np.maximum(np.sqrt(vx ** 2 + vy ** 2 + vz ** 2), 0.5)
-    share_before = np.concatenate([share[..., :1], share[..., :-1]], axis=-1)
-    rising = np.clip((share_before - 0.35) / 0.25, 0.0, 1.0)
+    rising = np.clip((_frame_before(share) - 0.35) / 0.25, 0.0, 1.0)
     near = np.maximum(0.0, 0.3 - f["fist_r_bag_distance"]) ** 2
     landing = f["fist_r_impulse_x"] * ux + f["fist_r_impulse_z"] * uz + 1.5 * f["fist_r_impulse_y"]
     return {"rise": near * 10.0 * np.maximum(0.0, vx * ux + vz * uz + 1.5 * vy),

@@ -218,14 +218,19 @@ def draw_placements(scenario: Scenario, reach: ReachVolume) -> tuple[list[Episod
     return still, swinging
 
 
+def lead_move_from_stance(condition: Condition, lead_forward_m: float) -> bool:
+    """Whether the condition throws a lead hand's move from the stance's guard: its targets lie `lead_forward_m`
+    further ahead (docs/moves.md)."""
+    return bool(condition.stance_pose and lead_forward_m and condition.move in LEAD_MOVES)
+
+
 def own_range(condition: Condition, lead_forward_m: float, distance_m: tuple[float, float],
               own_distance_m: tuple[float, float] | None) -> tuple[float, float] | None:
     """The distances a single move is measured over when its policy's reach (`own_distance_m`: a hook's) lies nearer
     than its hand's range and within it; None when the hand's range holds (a combo, a reach that is the hand's or
     lies outside it)."""
-    near, far = distance_m
-    if condition.stance_pose and lead_forward_m and condition.move in LEAD_MOVES:
-        near, far = near + lead_forward_m, far + lead_forward_m
+    shift = lead_forward_m if lead_move_from_stance(condition, lead_forward_m) else 0.0
+    near, far = distance_m[0] + shift, distance_m[1] + shift
     if condition.combo or own_distance_m is None or far <= near:
         return None
     own_near, own_far = own_distance_m
@@ -245,7 +250,7 @@ def condition_placements(condition: Condition, still: list[EpisodeConditions], s
     distances drawn into that range."""
     places = swinging if condition.swinging else still
     near, far = distance_m
-    if condition.stance_pose and lead_forward_m and condition.move in LEAD_MOVES:
+    if lead_move_from_stance(condition, lead_forward_m):
         places = [dataclasses.replace(bag, distance_m=round(bag.distance_m + lead_forward_m, 6)) for bag in places]
         near, far = near + lead_forward_m, far + lead_forward_m
     elif condition.stance_pose and lead_forward_m and any(move in LEAD_MOVES for move in condition.combo) and far - near > lead_forward_m:
