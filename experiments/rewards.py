@@ -9,20 +9,13 @@ notebook.md, "Moves from the stance's guard": it brings the hook in from the sid
 hook_level, hook_outside: `hook_bent` with a level swing asked for, or its landing counted only from outside the line:
 tried for the lead hook (notebook.md, "A hook that sweeps with the elbow bent").
 
-uppercut_bent, uppercut_gated: the fist rising into the target with the elbow bent, its landing counted a quarter
-however the fist comes (gated: none of it) and the rest only rising with the elbow bent: tried for both uppercuts; A2C
-kept the fist away (notebook.md, "An uppercut that rises with the elbow bent").
+The uppercuts' `uppercut_bent` and `uppercut_gated` presets were tried here first (notebook.md, "An uppercut that rises
+with the elbow bent"): from scratch A2C kept the fist away; from a trained uppercut they reshape it.
 """
 
 import numpy as np
 
-from punch_trainer.reward.rewards import along_target, elbow_bent, hook_bent
-
-
-def _frame_before(values):
-    """Each frame's value the frame before (the first frame's own): the naturalness report reads a fist's approach
-    and rise the frame before contact, since the contact itself turns the fist."""
-    return np.concatenate([values[..., :1], values[..., :-1]], axis=-1)
+from punch_trainer.reward.rewards import along_target, frame_before, hook_bent
 
 
 def hook_sweep(f):
@@ -46,27 +39,7 @@ def hook_outside(f):
     before, as the naturalness report reads the approach: the contact itself turns the fist)."""
     terms = hook_bent(f)
     ux, uz = along_target(f)
-    vx, vz = _frame_before(f["fist_r_vel_x"]), _frame_before(f["fist_r_vel_z"])
+    vx, vz = frame_before(f["fist_r_vel_x"]), frame_before(f["fist_r_vel_z"])
     angle_deg = np.degrees(np.arctan2(vx * uz - vz * ux, vx * ux + vz * uz))
     outside = np.clip((angle_deg - 20.0) / 15.0, 0.0, 1.0)
     return {**terms, "landing": terms["landing"] * outside}
-
-
-def uppercut_bent(f, flat_landing=0.25):
-    """max(0, 0.3 - d)^2 * 10 * max(0, a + 1.5 v_y), a the right fist's horizontal velocity along the line from its
-    shoulder to the bag, plus 5 times the impulse it lands with along the same a + 1.5 y: `flat_landing` of it however
-    the fist comes, the rest only with the elbow bent (none at 40 degrees, all from 70) and the fist rising (the upward
-    share of its velocity the frame before: none at 0.35, all from 0.6)."""
-    ux, uz = along_target(f)
-    vx, vy, vz = f["fist_r_vel_x"], f["fist_r_vel_y"], f["fist_r_vel_z"]
-    share = vy / np.maximum(np.sqrt(vx ** 2 + vy ** 2 + vz ** 2), 0.5)
-    rising = np.clip((_frame_before(share) - 0.35) / 0.25, 0.0, 1.0)
-    near = np.maximum(0.0, 0.3 - f["fist_r_bag_distance"]) ** 2
-    landing = f["fist_r_impulse_x"] * ux + f["fist_r_impulse_z"] * uz + 1.5 * f["fist_r_impulse_y"]
-    return {"rise": near * 10.0 * np.maximum(0.0, vx * ux + vz * uz + 1.5 * vy),
-            "landing": 5.0 * (flat_landing + (1.0 - flat_landing) * elbow_bent(f, 40.0, 70.0) * rising) * landing}
-
-
-def uppercut_gated(f):
-    """`uppercut_bent` with none of its landing counted unless the fist rises with the elbow bent."""
-    return uppercut_bent(f, flat_landing=0.0)

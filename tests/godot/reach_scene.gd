@@ -1,13 +1,15 @@
 ## The reach volume in the game (demo straight policy): four characters, each turned and moved, with a
 ## sandbag at the policy's default offset ("inside"), 0.4 m to its left (0.15 m beside the volume: "beside"),
-## 1.4 m ahead ("far") and 0.6 m above its head ("high").
+## 1.4 m ahead ("far") and 0.6 m above its head ("high"); a fifth with arms 0.75 times the body's, the sandbag at
+## 0.06 m beyond the default offset, inside the policy's volume ("short_arms").
 ## Records `target_out_of_reach` (offset and nearest point, turned back into the character's frame), whether
-## punch() started, and the punch's hits; prints `REACH <json>` with `reach_volume()` and quits.
+## punch() started, the punch's hits and each controller's `reach_volume()`; prints `REACH <json>` and quits.
 extends SceneTree
 
 const POLICY := "res://addons/punch_controller/policies/straight.onnx"
 const CASES := {"inside": Vector3.ZERO, "beside": Vector3(0.4, 0, 0), "far": Vector3(0, 0, 0.68),
-	"high": Vector3(0, 0.9, 0)}
+	"high": Vector3(0, 0.9, 0), "short_arms": Vector3(0, 0, 0.06)}
+const SHORT_ARM_SCALE := 0.75
 var _report := {}
 var _pending := 0
 
@@ -33,20 +35,28 @@ func _initialize() -> void:
 			_report[name].out_of_reach.append([offset.x, offset.y, offset.z, local.x, local.y, local.z]))
 		controller.connect("punch_finished", func(metrics: Dictionary):
 			_report[name].hits = metrics.hits
+			_report[name].reach_volume = _reach_of(controller)
 			_pending -= 1
 			if _pending == 0:
-				_finish(controller))
+				_finish())
 		root.add_child(controller)
-		controller.ready.connect(func(): _report[name].started = controller.call("punch"))
+		controller.ready.connect(func():
+			if name == "short_arms":
+				character.call("size_arms", 0.282 * SHORT_ARM_SCALE, 0.337 * SHORT_ARM_SCALE, 0.36)
+			_report[name].started = controller.call("punch"))
 		_pending += 1
 		index += 1
 
 
-func _finish(controller: Node) -> void:
+func _reach_of(controller: Node) -> Dictionary:
 	var reach: Dictionary = controller.call("reach_volume")
-	_report["reach_volume"] = {}
+	var result := {}
 	for key in reach:
 		var value = reach[key]
-		_report["reach_volume"][key] = [value.x, value.y] if value is Vector2 else value
+		result[key] = [value.x, value.y] if value is Vector2 else value
+	return result
+
+
+func _finish() -> void:
 	print("REACH ", JSON.stringify(_report))
 	quit()

@@ -337,11 +337,13 @@ def test_a_target_out_of_reach_is_said_and_one_a_little_out_is_still_hit():
     """The policy's reach volume (from its metadata) decides: a target inside gets the trained punch and no
     signal; one beside, too far or too high gets `target_out_of_reach` with its offset and the nearest point
     the policy covers (the offset clamped into the volume). The one 0.15 m beside the volume is punched where it
-    is, and hit (`AIM_BEYOND_REACH_M`). Characters turned and moved."""
+    is, and hit (`AIM_BEYOND_REACH_M`). Characters turned and moved. A character with arms 0.75 times the body's
+    reaches 0.155 m (a quarter of its 0.619 m arm) less far: a target 0.78 m ahead, inside the policy's volume, is out
+    of its reach, and the game is told."""
     run = run_script("reach_scene.gd")
     assert "ERROR" not in run.log, run.log[-3000:]
     report = printed(run, "REACH")
-    reach = report["reach_volume"]
+    reach = report["inside"]["reach_volume"]
     assert set(reach) == {"distance_m", "height_m", "side_m", "max_target_speed_mps", "any_start_pose"}
     inside = report["inside"]
     assert inside["started"] and inside["out_of_reach"] == [] and inside["hits"] == 1
@@ -354,6 +356,12 @@ def test_a_target_out_of_reach_is_said_and_one_a_little_out_is_still_hit():
         box = [reach["side_m"], reach["height_m"], reach["distance_m"]]
         clamped = [min(max(v, low), high) for v, (low, high) in zip(offset, box, strict=True)]
         np.testing.assert_allclose(nearest, clamped, atol=1e-4)
+    short = report["short_arms"]
+    assert short["reach_volume"]["distance_m"] == pytest.approx([reach["distance_m"][0], reach["distance_m"][1] - 0.155], abs=2e-3)
+    assert {key: value for key, value in short["reach_volume"].items() if key != "distance_m"} == \
+        {key: value for key, value in reach.items() if key != "distance_m"}
+    assert short["started"] and len(short["out_of_reach"]) == 1, short
+    np.testing.assert_allclose(short["out_of_reach"][0][3:], [0.0, 1.35, reach["distance_m"][1] - 0.155], atol=2e-3)
 
 
 def test_the_demo_with_the_bag_moved_about_keeps_hitting():

@@ -100,28 +100,32 @@ def test_results_measure_a_recipes_policy_and_rewrite_the_docs(tmp_path, monkeyp
 
 def test_the_moves_table_names_the_shape_each_move_misses():
     """`moves_table`: each move reads its policy's rows for its hand (the lead hand's move the lead row), and lists the
-    boxer's figures it misses: here a hook that comes in straight and slow, and a jab slower than a cross."""
+    boxer's figures it misses: here a hook that comes in straight and slow, and a jab slower than a cross. Where the
+    controller said targets lay beyond the character's reach, the success over those in reach is shown beside."""
     def medians(**changes):
         base = {"time_to_contact_s": 0.12, "path_over_chord": 1.1, "fist_peak_speed_mps": 7.0, "side_angle_at_contact_deg": 40.0,
                 "rise_share_at_contact": 0.6, "elbow_bend_at_contact_deg": 90.0, "off_fist_from_guard_m": 0.1, "trunk_flexion_deg": 10.0}
         return {**base, **changes}
 
-    def runs(lead, rear, rate=0.97):
+    def runs(lead, rear, rate=0.97, out_of_reach=0):
         rows, natural = [], []
         for stance in ("orthodox", "southpaw"):
             for move, figures in (("jab", lead), ("cross", rear)):
                 name = results.hand_row(move, stance)
-                rows += [{"condition": name, "sigma": sigma, "success_rate": rate} for sigma in (0.0, 0.3)]
+                rows += [{"condition": name, "sigma": sigma, "success_rate": rate, "punches": 100, "out_of_reach": 0}
+                         for sigma in (0.0, 0.3)]
                 natural.append({"condition": name, "sigma": 0.0, "medians": figures})
         report = {"evaluations": [{"rows": rows, "naturalness": natural}]}
-        around = [{"condition": f"{role} hand, {kind}: x", "sigma": 0.0, "success_rate": rate}
+        # Out of reach: 100 punches, `out_of_reach` of them beyond the reach, every one in reach landed.
+        around = [{"condition": f"{role} hand, {kind}: x", "sigma": 0.0, "success_rate": rate, "punches": 100,
+                   "out_of_reach": out_of_reach if kind == "arms" else 0, "in_reach_successes": 100 - out_of_reach}
                   for role in ("lead", "rear") for kind in ("moving", "arms")]
         return [{"measurement": Measurement(scenario), "report": report} for scenario in ("stance", "body")] + \
             [{"measurement": Measurement("stance_moving"), "report": {"evaluations": [{"rows": around}]}}]
 
     reports = {"straight": runs(medians(time_to_contact_s=0.2), medians(time_to_contact_s=0.15)),
                "hook": runs(medians(side_angle_at_contact_deg=17.0, fist_peak_speed_mps=6.0), medians(), rate=0.5),
-               "uppercut": runs(medians(), medians(rise_share_at_contact=0.48))}
+               "uppercut": runs(medians(), medians(rise_share_at_contact=0.48), rate=0.6, out_of_reach=40)}
     table = results.moves_table(reports, {"straight.onnx": "straight", "hook.onnx": "hook", "uppercut.onnx": "uppercut"},
                                 results.MOVESET)
     rows = {line.split("|")[1].strip(): line for line in table.splitlines()[2:]}
@@ -130,6 +134,7 @@ def test_the_moves_table_names_the_shape_each_move_misses():
     assert "side_angle_at_contact_deg >= 35, fist_peak_speed_mps >= the cross's" in rows["`lead_hook`"]
     assert "| 50.0% |" in rows["`rear_hook`"] and rows["`rear_hook`"].endswith("| none |")
     assert rows["`rear_uppercut`"].endswith("| rise_share_at_contact >= 0.5 |") and rows["`lead_uppercut`"].endswith("| none |")
+    assert "| 60.0% | 60.0% (100.0% in reach) |" in rows["`rear_uppercut`"] and "in reach" not in rows["`cross`"]
     assert results.moves_table({"straight": reports["straight"]}, {"straight.onnx": "straight"}, results.MOVESET) is None
 
 

@@ -361,6 +361,15 @@ impl PunchCharacter {
         Ok(())
     }
 
+    /// How much shorter the arm (shoulder to fist centre) is than the scene had it, m (0 before any `size_arms`;
+    /// negative: longer): a punch's reach shrinks by it (`ReachVolume::within_arm`).
+    pub fn arm_shortfall_m(&self) -> f32 {
+        match (&self.scene_arms, &self.rig) {
+            (Some(scene), Some(rig)) => scene.lengths.arm_m() - rig.arm_lengths.arm_m(),
+            _ => 0.0,
+        }
+    }
+
     pub fn rig(&self) -> Option<&Rig> {
         self.rig.as_ref()
     }

@@ -22,9 +22,10 @@ use godot::prelude::{Export, GodotClass, GodotConvert, ToGodot, Var, godot_api, 
 use punch_core::contract::character::{Body, DEFAULT_DECISION_PERIOD, DOF_COUNT};
 use punch_core::contract::mirror::mirror_point;
 use punch_core::contract::sensing::{CharacterGeometry, FrameReading};
-use punch_core::contract::stance::HIGH_GUARD_RAD;
+use punch_core::contract::spec::ReachVolume;
+use punch_core::contract::stance::{HIGH_GUARD_RAD, hand_far_m};
 use punch_core::game::lifecycle::{Drive, Ending, Event, FrameNeeds, Lifecycle, NoiseSettings, PunchStart};
-use punch_core::game::moves::{Hand, Move, Stance};
+use punch_core::game::moves::{Hand, Move, Side, Stance};
 use punch_core::game::policy_gate::{DecisionRequest, PunchingPolicy, decide_batched};
 use punch_core::game::punch::{Punch, PunchSummary};
 use punch_core::rig::transform::TransformError;
@@ -493,13 +494,21 @@ impl PunchController {
     /// character's frame: `distance_m`, `height_m` and `side_m` ranges of the target's centre (Vector2(low, high);
     /// +Z ahead, +Y up, +X the character's left; a left-hand move's is the mirror image of its policy's),
     /// `max_target_speed_mps` and `any_start_pose` (false: only from the settled guard). Targets up to 3 cm outside
-    /// still count. Empty (with the reason in the log) when the move or its policy cannot be had.
+    /// still count. For a character whose arms are shorter than the simulated body's (`PunchCharacter.size_arms`,
+    /// an own rig's) the far distance shrinks with the arm: no target beyond the farthest its hand reaches less the
+    /// shortfall. Empty (with the reason in the log) when the move or its policy cannot be had.
     #[func]
     fn reach_volume(&self, #[opt(default = "")] move_name: StringName) -> VarDictionary {
         let mut result = VarDictionary::new();
-        let reach = match self.throw_of(&move_name) {
-            Ok(throw) if throw.hand.is_mirrored() => throw.policy.reach.mirrored(),
-            Ok(throw) => throw.policy.reach,
+        let throw = self.throw_of(&move_name);
+        let character = live(&self.character);
+        let sized = |throw: &Throw| match &character {
+            Some(character) => self.sized_reach(throw, character),
+            None => throw.policy.reach,
+        };
+        let reach = match throw.as_ref().map(|throw| (throw, sized(throw))) {
+            Ok((throw, reach)) if throw.hand.is_mirrored() => reach.mirrored(),
+            Ok((_, reach)) => reach,
             Err(error) => {
                 if !error.is_empty() {
                     godot_error!("PunchController '{}': {error}", self.base().get_name());
@@ -691,6 +700,14 @@ impl PunchController {
         }
     }
 
+    /// The reach of `throw` for the controller's character: its policy's, shrunk for arms shorter than the
+    /// simulated body's (`ReachVolume::within_arm`; the lead hand's range from the stance's guard lies further ahead).
+    fn sized_reach(&self, throw: &Throw, character: &Gd<PunchCharacter>) -> ReachVolume {
+        let lead_from_stance = self.stance_pose && throw.punch_move.is_some_and(|m| m.side() == Side::Lead);
+        let hand_far_m = hand_far_m(lead_from_stance).max(throw.policy.reach.distance_m[1]);
+        throw.policy.reach.within_arm(hand_far_m, character.bind().arm_shortfall_m())
+    }
+
     /// What `punch(move_name)` would throw, and at which character and target, when it can be thrown now (the
     /// reason when not).
     fn checked(&self, move_name: &StringName) -> Result<Checked, String> {
@@ -712,19 +729,20 @@ impl PunchController {
     /// The start of `move_name`'s punch of the controller's character at its target (aimed at from now on).
     fn prepare(&mut self, move_name: &StringName) -> Result<Prepared, String> {
         let Checked { throw, character, mut target, mut geometry, target_position } = self.checked(move_name)?;
+        let reach = self.sized_reach(&throw, &character);
         let Throw { policy, hand, punch_move, cancel_delay_s } = throw;
         self.lifecycle.set_guard(self.guard_targets());
         let offset = geometry.root_rotation.inverse() * (target_position - geometry.root_position);
         // The reach volume is the right hand's: the left hand's is its mirror.
         let to_policy = |local: Vec3| if hand.is_mirrored() { mirror_point(local) } else { local };
-        let out_of_reach = (!policy.reach.contains(to_policy(offset))).then(|| {
+        let out_of_reach = (!reach.contains(to_policy(offset))).then(|| {
             let world = |local: Vec3| geometry.root_position + geometry.root_rotation * to_policy(local);
             // A little out, the policy sees the target itself; far out, the point of its margin nearest to it.
-            let aim = policy.reach.aim_point(to_policy(offset));
+            let aim = reach.aim_point(to_policy(offset));
             if aim != to_policy(offset) {
                 target.aim_at(world(aim));
             }
-            (offset, world(policy.reach.nearest(to_policy(offset))))
+            (offset, world(reach.nearest(to_policy(offset))))
         });
         target.describe(&mut geometry);
         self.aim = Some(target);

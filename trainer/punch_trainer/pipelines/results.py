@@ -303,7 +303,13 @@ def moves_table(reports: dict[str, list[dict[str, Any]]], policy_recipes: dict[s
     def lands(move: str, scenario: str, sigma: float, kinds: tuple[str, ...] = ("orthodox", "southpaw")) -> str:
         rows = [row for row in _rows(report(move, scenario)) if abs(row["sigma"] - sigma) < 1e-9
                 and row["condition"].startswith(tuple(hand_row(move, kind) for kind in kinds))]
-        return f"{100 * min(row['success_rate'] for row in rows):.1f}%"
+        cell = f"{100 * min(row['success_rate'] for row in rows):.1f}%"
+        if not any(row["out_of_reach"] for row in rows):
+            return cell
+        # The controller said some targets lay beyond the character's reach (`target_out_of_reach`): a game steps in.
+        in_reach = [row["in_reach_successes"] / (row["punches"] - row["out_of_reach"])
+                    for row in rows if row["punches"] > row["out_of_reach"]]
+        return cell + (f" ({100 * min(in_reach):.1f}% in reach)" if in_reach else " (none in reach)")
 
     def medians(move: str) -> dict[str, Any]:
         natural = report(move, "stance")["evaluations"][0]["naturalness"]
@@ -371,7 +377,8 @@ def write_results(recipes: list[Recipe], reports: dict[str, list[dict[str, Any]]
             "stance's guard, both stances: the "
             "lower of the two stances' success at the head (the `stance` scenario) and the body (`body`, targets 1.00-1.20 "
             "m high); the lowest walking 0.7 or 1.4 m/s or turning 90°/s either way, and with arms 0.75 or 1.25 times the "
-            "body's (`stance_moving`, orthodox: the southpaw's is its mirror image), then its naturalness medians (orthodox, sigma 0; docs/naturalness.md) and the figures of a boxer's "
+            "body's (`stance_moving`, orthodox: the southpaw's is its mirror image; in parentheses, where the controller said "
+            "some targets lay beyond the character's reach, `target_out_of_reach`, the lowest success over those in reach), then its naturalness medians (orthodox, sigma 0; docs/naturalness.md) and the figures of a boxer's "
             "move it misses (docs/moves.md). Moves that share a policy differ by hand: the lead hand's from its side.\n\n"
             + moves), oldest([r.name for r in recipes]))
     if MOVESET_KEY in reports:
