@@ -51,6 +51,32 @@ def test_the_bent_hook_earns_most_from_the_side_and_lands_only_with_the_elbow_be
     assert landing[2] == landing[3] == pytest.approx(5.0 * (1.0 + 1.5 * 0.5), rel=1e-4)
 
 
+UPPERCUT_NAMES = HOOK_NAMES + ["fist_r_impulse_y"]
+
+
+def uppercut_frames(vx, vy, vz, jy, jz, elbow_bend_deg):
+    """Two like frames of a right fist near a bag straight ahead of its shoulder (the rise is read the frame before)."""
+    frame = [0.1, vx, vy, vz, 0.0, jz, -0.18, 0.8, 0.0, 0.0, np.radians(120.0 - elbow_bend_deg), 0.0, jy]
+    return np.array([[frame, frame]], dtype=np.float32)
+
+
+def test_the_bent_uppercut_lands_in_full_only_rising_with_the_elbow_bent():
+    """`uppercut_bent`: along the shoulder-to-bag line and 1.5 times up, near the bag, never below 0; its landing
+    (along the line and 1.5 times up) counts in full with the fist rising (the upward share of its speed from 0.6) and
+    the elbow bent 70 degrees or more, a quarter of it otherwise; `uppercut_gated` none of it otherwise."""
+    bent, gated = load_reward("uppercut_bent"), load_reward("uppercut_gated")
+    near = (0.3 - 0.1) ** 2
+    rising = evaluate(bent, uppercut_frames(0.0, 4.0, 2.0, 0.4, 0.2, 90.0), UPPERCUT_NAMES)
+    assert rising["rise"][0, 1] == pytest.approx(near * 10 * (2.0 + 1.5 * 4.0), rel=1e-4)
+    assert rising["landing"][0, 1] == pytest.approx(5.0 * (0.2 + 1.5 * 0.4), rel=1e-4)
+    assert evaluate(bent, uppercut_frames(0.0, -4.0, 2.0, 0.0, 0.0, 90.0), UPPERCUT_NAMES)["rise"][0, 1] == 0.0
+    for frames in (uppercut_frames(0.0, 0.0, 5.0, 0.4, 0.2, 90.0), uppercut_frames(0.0, 4.0, 2.0, 0.4, 0.2, 30.0)):
+        assert evaluate(bent, frames, UPPERCUT_NAMES)["landing"][0, 1] == pytest.approx(0.25 * rising["landing"][0, 1], rel=1e-4)
+        assert evaluate(gated, frames, UPPERCUT_NAMES)["landing"][0, 1] == 0.0
+    assert evaluate(gated, uppercut_frames(0.0, 4.0, 2.0, 0.4, 0.2, 90.0), UPPERCUT_NAMES)["landing"][0, 1] == \
+        pytest.approx(rising["landing"][0, 1], rel=1e-4)
+
+
 def test_terms_are_separate_and_guarded_frames_earn_nothing():
     terms = evaluate(load_reward("hook"), features(0.1, 2.0, 5.0), NAMES)
     assert set(terms) == {"forward", "sideways"}
