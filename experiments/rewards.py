@@ -6,8 +6,8 @@ speed the best direction lies 56 degrees off that line (docs/moves.md asks a hoo
 notebook.md, "Moves from the stance's guard": it brings the hook in from the side and costs it accuracy. The
 `hook_bent` preset (the stance's rear hook) is it with the landing impulse counted only with the elbow bent.
 
-hook_level, hook_outside: `hook_bent` with a level swing asked for, or its landing counted only from outside the line:
-tried for the lead hook (notebook.md, "A hook that sweeps with the elbow bent").
+hook_level: `hook_bent` with a level swing asked for: tried for the lead hook (notebook.md, "A hook that sweeps with the
+elbow bent"); `hook_outside`, its landing counted only from outside the line, was tried here first and is a preset now.
 
 The uppercuts' `uppercut_bent` and `uppercut_gated` presets were tried here first (notebook.md, "An uppercut that rises
 with the elbow bent"): from scratch A2C kept the fist away; from a trained uppercut they reshape it.
@@ -15,7 +15,7 @@ with the elbow bent"): from scratch A2C kept the fist away; from a trained upper
 
 import numpy as np
 
-from punch_trainer.reward.rewards import along_target, frame_before, hook_bent
+from punch_trainer.reward.rewards import along_target, hook_bent
 
 
 def hook_sweep(f):
@@ -31,15 +31,3 @@ def hook_level(f):
     terms = hook_bent(f)
     near = np.maximum(0.0, 0.3 - f["fist_r_bag_distance"]) ** 2
     return {**terms, "level": -near * 10.0 * np.abs(f["fist_r_vel_y"])}
-
-
-def hook_outside(f):
-    """`hook_bent` (the preset) whose landing also counts only for a fist coming from outside the line from its
-    shoulder to the bag: none at 20 degrees off it or less, all of it from 35 (the fist's horizontal velocity the frame
-    before, as the naturalness report reads the approach: the contact itself turns the fist)."""
-    terms = hook_bent(f)
-    ux, uz = along_target(f)
-    vx, vz = frame_before(f["fist_r_vel_x"]), frame_before(f["fist_r_vel_z"])
-    angle_deg = np.degrees(np.arctan2(vx * uz - vz * ux, vx * ux + vz * uz))
-    outside = np.clip((angle_deg - 20.0) / 15.0, 0.0, 1.0)
-    return {**terms, "landing": terms["landing"] * outside}

@@ -51,6 +51,21 @@ def test_the_bent_hook_earns_most_from_the_side_and_lands_only_with_the_elbow_be
     assert landing[2] == landing[3] == pytest.approx(5.0 * (1.0 + 1.5 * 0.5), rel=1e-4)
 
 
+def test_the_outside_hook_lands_only_coming_from_outside_the_line():
+    """`hook_outside`: `hook_bent` whose landing counts none with the fist 20 degrees or less off the shoulder-to-bag
+    line, all of it from 35 (the right fist coming in toward the body's middle: +x)."""
+    bent, outside = load_reward("hook_bent"), load_reward("hook_outside")
+    speed = 5.0
+
+    def landing(reward, angle_deg):
+        a = np.radians(angle_deg)
+        return evaluate(reward, hook_frame(speed * np.sin(a), speed * np.cos(a), 0.5, 1.0, 90.0), HOOK_NAMES)["landing"][0, 0]
+
+    assert landing(outside, 10.0) == 0.0 and landing(bent, 10.0) > 0.0
+    assert landing(outside, 27.5) == pytest.approx(0.5 * landing(bent, 27.5), rel=1e-3)
+    assert landing(outside, 45.0) == pytest.approx(landing(bent, 45.0), rel=1e-5)
+
+
 UPPERCUT_NAMES = HOOK_NAMES + ["fist_r_impulse_y"]
 
 

@@ -89,6 +89,12 @@ def elbow_bent(f: Frames, none_deg: float, all_deg: float) -> np.ndarray:
     return np.asarray(np.clip((bend_deg - none_deg) / (all_deg - none_deg), 0.0, 1.0))
 
 
+def frame_before(values: np.ndarray) -> np.ndarray:
+    """Each frame's value the frame before (the first frame's own): the naturalness report reads a fist's approach
+    and rise the frame before contact, since the contact itself turns the fist."""
+    return np.concatenate([values[..., :1], values[..., :-1]], axis=-1)
+
+
 def hook_bent(f: Frames) -> Terms:
     """The boxer's hook (not the paper's): the fist sweeps in from the side with the elbow bent. With a and c the right
     fist's horizontal velocity along and across the line from its shoulder to the bag (across: toward the body's
@@ -106,6 +112,20 @@ def hook_bent(f: Frames) -> Terms:
             "landing": 5.0 * elbow_bent(f, 50.0, 80.0) * sweep(f["fist_r_impulse_x"], f["fist_r_impulse_z"])}
 
 
+def hook_outside(f: Frames) -> Terms:
+    """`hook_bent` whose landing also counts only for a fist coming from outside the line from its shoulder to the bag:
+    none at 20 degrees off it or less, all of it from 35 (the fist's horizontal velocity the frame before, as the
+    naturalness report reads the approach: the contact itself turns the fist). Asked of a trained lead hook, whose fist
+    stands near the bag's line in the stance's guard (experiments/notebook.md, "A hook that sweeps with the elbow
+    bent")."""
+    terms = hook_bent(f)
+    ux, uz = along_target(f)
+    vx, vz = frame_before(f["fist_r_vel_x"]), frame_before(f["fist_r_vel_z"])
+    angle_deg = np.degrees(np.arctan2(vx * uz - vz * ux, vx * ux + vz * uz))
+    outside = np.clip((angle_deg - 20.0) / 15.0, 0.0, 1.0)
+    return {**terms, "landing": terms["landing"] * outside}
+
+
 def straight_landing(f: Frames) -> Terms:
     """The straight that lands (not the paper's): the `straight` reward's term plus 5 times the forward impulse the
     fist lands with (N s), as `hook_landing`: the jab's, from the lead side's guard, where the `straight` reward alone
@@ -120,12 +140,6 @@ def uppercut(f: Frames) -> Terms:
     near = _near(f)
     return {"forward": near * 10.0 * f["fist_r_vel_z"], "up": near * 10.0 * f["fist_r_vel_y"],
             "lift": 5.0 * f["fist_r_impulse_y"]}
-
-
-def frame_before(values: np.ndarray) -> np.ndarray:
-    """Each frame's value the frame before (the first frame's own): the naturalness report reads a fist's approach
-    and rise the frame before contact, since the contact itself turns the fist."""
-    return np.concatenate([values[..., :1], values[..., :-1]], axis=-1)
 
 
 def uppercut_bent(f: Frames, flat_landing: float = 0.25) -> Terms:
@@ -175,6 +189,7 @@ PRESETS = {
     "hook_landing": Reward("hook_landing", hook_landing, 50),
     "straight_landing": Reward("straight_landing", straight_landing, 50),
     "hook_bent": Reward("hook_bent", hook_bent, 50),
+    "hook_outside": Reward("hook_outside", hook_outside, 50),
     "uppercut_bent": Reward("uppercut_bent", uppercut_bent, 50),
     "uppercut_gated": Reward("uppercut_gated", uppercut_gated, 50),
 }
