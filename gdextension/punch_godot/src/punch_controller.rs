@@ -500,15 +500,11 @@ impl PunchController {
     #[func]
     fn reach_volume(&self, #[opt(default = "")] move_name: StringName) -> VarDictionary {
         let mut result = VarDictionary::new();
-        let throw = self.throw_of(&move_name);
-        let character = live(&self.character);
-        let sized = |throw: &Throw| match &character {
-            Some(character) => self.sized_reach(throw, character),
-            None => throw.policy.reach,
-        };
-        let reach = match throw.as_ref().map(|throw| (throw, sized(throw))) {
-            Ok((throw, reach)) if throw.hand.is_mirrored() => reach.mirrored(),
-            Ok((_, reach)) => reach,
+        let reach = match self.throw_of(&move_name) {
+            Ok(throw) => {
+                let reach = live(&self.character).map_or(throw.policy.reach, |c| self.sized_reach(&throw, &c));
+                if throw.hand.is_mirrored() { reach.mirrored() } else { reach }
+            }
             Err(error) => {
                 if !error.is_empty() {
                     godot_error!("PunchController '{}': {error}", self.base().get_name());
