@@ -12,6 +12,7 @@ const CASES := {"inside": Vector3.ZERO, "beside": Vector3(0.4, 0, 0), "far": Vec
 const SHORT_ARM_SCALE := 0.75
 var _report := {}
 var _pending := 0
+var _short_armed: Node
 
 
 func _initialize() -> void:
@@ -43,13 +44,14 @@ func _initialize() -> void:
 		controller.ready.connect(func():
 			if name == "short_arms":
 				character.call("size_arms", 0.282 * SHORT_ARM_SCALE, 0.337 * SHORT_ARM_SCALE, 0.36)
+				_short_armed = controller
 			_report[name].started = controller.call("punch"))
 		_pending += 1
 		index += 1
 
 
-func _reach_of(controller: Node) -> Dictionary:
-	var reach: Dictionary = controller.call("reach_volume")
+func _reach_of(controller: Node, move := &"") -> Dictionary:
+	var reach: Dictionary = controller.call("reach_volume", move)
 	var result := {}
 	for key in reach:
 		var value = reach[key]
@@ -58,5 +60,10 @@ func _reach_of(controller: Node) -> Dictionary:
 
 
 func _finish() -> void:
+	# The short arms in the stance's guard: each hand's moves of the stance's moveset.
+	_short_armed.set("stance_pose", true)
+	_report["short_arms_stance"] = {}
+	for move in [&"jab", &"cross", &"lead_hook", &"rear_hook"]:
+		_report["short_arms_stance"][move] = _reach_of(_short_armed, move)
 	print("REACH ", JSON.stringify(_report))
 	quit()

@@ -362,6 +362,11 @@ def test_a_target_out_of_reach_is_said_and_one_a_little_out_is_still_hit():
         {key: value for key, value in reach.items() if key != "distance_m"}
     assert short["started"] and len(short["out_of_reach"]) == 1, short
     np.testing.assert_allclose(short["out_of_reach"][0][3:], [0.0, 1.35, reach["distance_m"][1] - 0.155], atol=2e-3)
+    # In the stance's guard the lead hand reaches 0.10 m further (0.95 m with the body's arms): the short arm 0.795 m;
+    # a close move's reach (the hooks') keeps what the short arm still reaches.
+    stance = {move: report["short_arms_stance"][move]["distance_m"] for move in ("jab", "cross", "lead_hook", "rear_hook")}
+    assert stance["jab"] == pytest.approx([0.70, 0.795], abs=2e-3) and stance["cross"] == pytest.approx([0.60, 0.695], abs=2e-3)
+    assert stance["lead_hook"] == pytest.approx([0.70, 0.795], abs=2e-3) and stance["rear_hook"] == pytest.approx([0.60, 0.695], abs=2e-3)
 
 
 def test_the_demo_with_the_bag_moved_about_keeps_hitting():
