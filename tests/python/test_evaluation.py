@@ -231,7 +231,9 @@ def test_eval_sizes_reports_every_scale_and_sigma_with_the_lengths_godot_sized(t
         # Upper arm and forearm times their scales, the shoulders as they are, as Godot measures them sized.
         assert row["arm_lengths_m"] == pytest.approx([upper * SCENE_ARM_LENGTHS_M[0], forearm * SCENE_ARM_LENGTHS_M[1],
                                                       SCENE_ARM_LENGTHS_M[2]], abs=0.002), row
-        assert row["punches"] == 4 and 0 <= row["successes"] <= 4 and row["out_of_reach"] == 0, row
+        assert row["punches"] == 4 and 0 <= row["successes"] <= 4, row
+        # Shorter arms reach less far: the controller says so of some targets (docs/env.md); the body's or longer never.
+        assert row["out_of_reach"] == 0 if row["condition"] in ("1", "1.25") else row["out_of_reach"] <= 4, row
         assert row["success_interval"][0] <= row["success_rate"] <= row["success_interval"][1]
     assert rows[2]["successes"] >= 3, rows[2]  # the shipped straight at its own arms hits most of them
     assert "| 1 | 0.00 | 4 |" in run.stdout and "0.197 / 0.286 / 0.360" in run.stdout, run.stdout

@@ -22,8 +22,8 @@ use godot::prelude::{Export, GodotClass, GodotConvert, ToGodot, Var, godot_api, 
 use punch_core::contract::character::{Body, DEFAULT_DECISION_PERIOD, DOF_COUNT};
 use punch_core::contract::mirror::mirror_point;
 use punch_core::contract::sensing::{CharacterGeometry, FrameReading};
-use punch_core::contract::spec::ReachVolume;
-use punch_core::contract::stance::{HIGH_GUARD_RAD, hand_far_m};
+use punch_core::contract::spec::{ReachVolume, hand_far_m};
+use punch_core::contract::stance::HIGH_GUARD_RAD;
 use punch_core::game::lifecycle::{Drive, Ending, Event, FrameNeeds, Lifecycle, NoiseSettings, PunchStart};
 use punch_core::game::moves::{Hand, Move, Side, Stance};
 use punch_core::game::policy_gate::{DecisionRequest, PunchingPolicy, decide_batched};

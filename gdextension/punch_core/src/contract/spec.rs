@@ -141,6 +141,12 @@ pub const REACH_VOLUME: ReachVolume = ReachVolume {
     any_start_pose: true,
 };
 
+/// The farthest a hand's moves reach with the simulated body's own arms (m): the spec volume's far end, moved
+/// `LEAD_REACH_FORWARD_M` forward for the lead hand's moves from the stance's guard (`ReachVolume::within_arm`).
+pub fn hand_far_m(lead_from_stance: bool) -> f32 {
+    REACH_VOLUME.distance_m[1] + if lead_from_stance { LEAD_REACH_FORWARD_M } else { 0.0 }
+}
+
 /// How far outside its policy's reach volume a target may be and still be punched (m): a hanging bag sways
 /// by millimetres, and a game places things to a centimetre.
 pub const REACH_TOLERANCE_M: f32 = 0.03;

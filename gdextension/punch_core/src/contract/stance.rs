@@ -36,12 +36,6 @@ pub const ORTHODOX_GUARD_RAD: [f32; DOF_COUNT] = [0.0, deg(-30.0), 0.0, 0.0, 0.0
 /// volume already touches the lead fist. The rear hand's volume is the square guard's.
 pub const LEAD_REACH_FORWARD_M: f32 = 0.10;
 
-/// The farthest a hand's moves reach with the simulated body's own arms (m): the spec volume's far end, moved
-/// `LEAD_REACH_FORWARD_M` forward for the lead hand's moves from the stance's guard (`ReachVolume::within_arm`).
-pub fn hand_far_m(lead_from_stance: bool) -> f32 {
-    crate::contract::spec::REACH_VOLUME.distance_m[1] + if lead_from_stance { LEAD_REACH_FORWARD_M } else { 0.0 }
-}
-
 /// The high guard a block raises (rad, from the square guard, action order): the trunk square, each upper arm 20°
 /// forward and 20° in toward the body, turned 30° across it, the elbows as bent as in the guard. It puts both fists
 /// in front of the face, 0.23 m ahead of the head's centre line, 8 cm either side of it and 3 cm above the head's
