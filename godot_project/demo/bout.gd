@@ -30,6 +30,8 @@ const BLOCK_S := 0.6
 const HEAD_SHARE := 0.6
 const GET_UP_S := 1.5
 const ROUND_S := 60.0
+## How far outside a move's reach a target still counts (m), as `reach_volume()` documents.
+const REACH_TOLERANCE_M := 0.03
 
 var _rng := RandomNumberGenerator.new()
 var _frame := 0
@@ -131,10 +133,11 @@ func _throw(fighter: Dictionary) -> void:
 		fighter.busy = true
 
 
-## Whether `move` covers a target `ahead_m` in front of the character (its reach's distances, 3 cm either way).
+## Whether `move` covers a target `ahead_m` in front of the character (its reach's distances, give or take
+## `REACH_TOLERANCE_M`).
 func _reaches(controller: PunchController, move: StringName, ahead_m: float) -> bool:
 	var distance: Vector2 = controller.reach_volume(move).get("distance_m", Vector2.ZERO)
-	return distance.x - 0.03 <= ahead_m and ahead_m <= distance.y + 0.03
+	return distance.x - REACH_TOLERANCE_M <= ahead_m and ahead_m <= distance.y + REACH_TOLERANCE_M
 
 
 func _show() -> void:

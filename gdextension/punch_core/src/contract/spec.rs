@@ -207,8 +207,8 @@ impl ReachVolume {
     /// body's: no target farther than `hand_far_m` (the farthest its hand's moves reach with the body's own arms)
     /// less the shortfall, the near end no farther than the far one. A straight's reach shrinks with the arm; a
     /// bent-arm move nearer than its hand's range keeps what the shorter arm still reaches. Longer arms keep the
-    /// volume: the policy was never shown farther targets. With arms 0.75 times the body's, the jab missed 181 of
-    /// 195 targets 0.85-0.95 m ahead and 4 of 200 nearer than 0.80 m (experiments/notebook.md, "Where the jab misses").
+    /// volume: the policy was never shown farther targets. Why: with short arms the jab missed almost only the
+    /// targets beyond the arm (experiments/notebook.md, "Where the jab misses").
     pub fn within_arm(&self, hand_far_m: f32, shortfall_m: f32) -> Self {
         if shortfall_m.is_nan() || shortfall_m <= 0.0 {
             return *self;
