@@ -91,6 +91,18 @@ def test_a_run_warm_started_from_the_addons_policy_file_punches_as_it_did(tmp_pa
     assert np.abs(after[0] - before[0]).mean() < 0.1 * np.abs(before[0]).mean()
 
 
+def test_a_warm_start_from_a_folder_with_no_run_is_refused_before_the_search(tmp_path):
+    import pytest
+
+    from punch_trainer.learn.warm_start import WarmStartError
+    from punch_trainer.pipelines.train import TrainArgs, run_train
+
+    args = TrainArgs(reward="hook", style="none", out=tmp_path / "run", reach="spot", init_from=tmp_path / "no_run")
+    with pytest.raises(WarmStartError, match="neither a finished"):
+        run_train(args, progress=False)
+    assert not (tmp_path / "run").exists()
+
+
 def test_fig6_experiment_runs_every_method_with_honest_axes(tmp_path):
     from punch_trainer.pipelines.experiments import METHODS, Fig6Args, fig6
 

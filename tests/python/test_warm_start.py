@@ -13,7 +13,7 @@ from punch_trainer.learn.checkpoint import save_checkpoint
 from punch_trainer.learn.export import export_policy
 from punch_trainer.learn.policy import ActorCritic
 from punch_trainer.learn.pretrain import fit_critic
-from punch_trainer.learn.warm_start import SNAPSHOT_KIND, WarmStartError, warm_start
+from punch_trainer.learn.warm_start import SNAPSHOT_KIND, WarmStartError, check_source, warm_start
 
 EARLIER = ["fist_x", "bag_x", "root_spin", "episode_phase"]
 NOW = ["fist_x", "bag_x", "root_spin", "arm_m", "forearm_m", "episode_phase"]
@@ -113,3 +113,13 @@ def test_a_policy_file_of_another_observation_spec_or_no_policy_at_all_is_refuse
     lying.write_bytes(b"not a policy")
     with pytest.raises(WarmStartError, match="not a readable policy file"):
         warm_start(ActorCritic(len(NOW), 10), lying, NOW, np.zeros((4, len(NOW))), SPEC)
+
+
+def test_a_source_with_nothing_to_start_from_is_refused_before_any_training(tmp_path: Path) -> None:
+    with pytest.raises(WarmStartError, match="no such policy file"):
+        check_source(tmp_path / "missing.onnx")
+    (tmp_path / "recipe_run" / "stage").mkdir(parents=True)
+    with pytest.raises(WarmStartError, match="neither a finished `punch train` run"):
+        check_source(tmp_path / "recipe_run")
+    earlier_run(tmp_path / "run")
+    check_source(tmp_path / "run")

@@ -32,6 +32,21 @@ class WarmStartError(PunchError):
     """An earlier run that a warm start cannot use: no A2C checkpoint, another network, or inputs this run lacks."""
 
 
+def check_source(source: Path) -> None:
+    """Refuses `--init-from source` before the search's minutes are spent when nothing there can be started from:
+    a policy file that is not there, or a folder that is neither a finished run (RUN/a2c/checkpoint.pt) nor one of
+    its snapshots. What the file or checkpoint holds is read, and checked, when A2C starts (`warm_start`)."""
+    if source.suffix == ".onnx":
+        if not source.is_file():
+            raise WarmStartError(f"cannot start from {source}: no such policy file")
+        return
+    is_snapshot = (source / CHECKPOINT_FILE).is_file() and source.parent.name == "snapshots"
+    if not is_snapshot and not (source / "a2c" / CHECKPOINT_FILE).is_file():
+        raise WarmStartError(f"cannot start from {source}: it is neither a finished `punch train` run (no "
+                             f"{source / 'a2c' / CHECKPOINT_FILE}) nor a snapshot (RUN/a2c/snapshots/update_<N>); a "
+                             "recipe's run keeps each stage's run in its own folder (DIR/<stage>)")
+
+
 def earlier_observation_names(run_dir: Path) -> list[str]:
     """The observation names of the earlier run `run_dir` (its search's dataset records them)."""
     dataset = run_dir / "search" / "dataset.npz"

@@ -38,7 +38,7 @@ from punch_trainer.learn.volume import (
     holding,
     validate,
 )
-from punch_trainer.learn.warm_start import SNAPSHOT_KIND, warm_start
+from punch_trainer.learn.warm_start import SNAPSHOT_KIND, check_source, warm_start
 from punch_trainer.options import bounds
 from punch_trainer.pipelines.search import run_search
 from punch_trainer.policy_file import SPEC_HASH
@@ -312,6 +312,8 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
     if args.reach_height is not None and (not over_volume or len(args.reach_height) != 2
                                           or args.reach_height[0] > args.reach_height[1]):
         raise ValueError(f"--reach-height is two heights over the volume, the lower first (e.g. 1.00 1.55), not {args.reach_height}")
+    if args.init_from is not None:
+        check_source(args.init_from)
     defaults = REACH_DEFAULTS[args.reach]
     reward = load_reward(args.reward, args.frames, style_named(args.style, args.style_weight))
     out = args.run_dir()
