@@ -4,7 +4,8 @@
 ##
 ## - every 0.5-1.4 s, when it is neither punching, blocking nor down, it throws one of `STRINGS` (boxing's numbers:
 ##   1-2, 1-2-3, 2-3-2, 1-1-2, 1-2-5-2, 3-6) with `combo()`, at the opponent's head (three times in five) or body,
-##   among those whose every move reaches that far (`reach_volume(move)`; a jab and a cross when none does);
+##   among those whose every move reaches it from where the fighter stands (`reaches(move, position)`; a jab and a
+##   cross when none does);
 ## - when a punch of the opponent's starts and it is not punching, every other time it raises its guard `REACTION_S`
 ##   later with `block(BLOCK_S)`;
 ## - knocked down (it is not, at these punches' strength), it gets up `GET_UP_S` later with `recover()`.
@@ -30,8 +31,6 @@ const BLOCK_S := 0.6
 const HEAD_SHARE := 0.6
 const GET_UP_S := 1.5
 const ROUND_S := 60.0
-## How far outside a move's reach a target still counts (m), as `reach_volume()` documents.
-const REACH_TOLERANCE_M := 0.03
 
 var _rng := RandomNumberGenerator.new()
 var _frame := 0
@@ -116,28 +115,20 @@ func _physics_process(delta: float) -> void:
 
 
 ## The AI's string: one of `STRINGS` whose every move reaches the target from where the fighter stands
-## (`reach_volume(move)`: a hook or an uppercut is a close punch, and a short-armed rig reaches less far), at the
-## opponent's head or body; a jab and a cross when none does.
+## (`reaches(move, position)`, the rule `punch()` checks: a hook or an uppercut is a close punch, and a short-armed
+## rig reaches less far), at the opponent's head or body; a jab and a cross when none does.
 func _throw(fighter: Dictionary) -> void:
 	var controller: PunchController = fighter.controller
 	var opponent: Node3D = fighter.opponent.character
 	var target: Node3D = opponent.get_node("Head" if _rng.randf() < HEAD_SHARE else "Torso")
 	controller.target = target
-	var character: Node3D = fighter.character
-	var ahead_m: float = (character.global_transform.orthonormalized().affine_inverse() * target.global_position).z
 	var fitting := STRINGS.filter(func(moves: Array) -> bool:
-		return moves.all(func(move: StringName) -> bool: return _reaches(controller, move, ahead_m)))
+		return moves.all(func(move: StringName) -> bool: return controller.reaches(move, target.global_position)))
 	var index := _rng.randi_range(0, maxi(fitting.size() - 1, 0))
 	if controller.combo(fitting[index] if not fitting.is_empty() else [&"jab", &"cross"]):
 		fighter.strings += 1
 		fighter.busy = true
 
-
-## Whether `move` covers a target `ahead_m` in front of the character (its reach's distances, give or take
-## `REACH_TOLERANCE_M`).
-func _reaches(controller: PunchController, move: StringName, ahead_m: float) -> bool:
-	var distance: Vector2 = controller.reach_volume(move).get("distance_m", Vector2.ZERO)
-	return distance.x - REACH_TOLERANCE_M <= ahead_m and ahead_m <= distance.y + REACH_TOLERANCE_M
 
 
 func _show() -> void:

@@ -2,8 +2,9 @@
 ## sandbag at the policy's default offset ("inside"), 0.4 m to its left (0.15 m beside the volume: "beside"),
 ## 1.4 m ahead ("far") and 0.6 m above its head ("high"); a fifth with arms 0.75 times the body's, the sandbag at
 ## 0.06 m beyond the default offset, inside the policy's volume ("short_arms").
-## Records `target_out_of_reach` (offset and nearest point, turned back into the character's frame), whether
-## punch() started, the punch's hits and each controller's `reach_volume()`; prints `REACH <json>` and quits.
+## Records `target_out_of_reach` (offset and nearest point, turned back into the character's frame), `reaches()`
+## at the sandbag, whether punch() started, the punch's hits and each controller's `reach_volume()`; prints
+## `REACH <json>` and quits.
 extends SceneTree
 
 const POLICY := "res://addons/punch_controller/policies/straight.onnx"
@@ -45,6 +46,7 @@ func _initialize() -> void:
 			if name == "short_arms":
 				character.call("size_arms", 0.282 * SHORT_ARM_SCALE, 0.337 * SHORT_ARM_SCALE, 0.36)
 				_short_armed = controller
+			_report[name].reaches = controller.call("reaches", &"", sandbag.get_node("Bag").global_position)
 			_report[name].started = controller.call("punch"))
 		_pending += 1
 		index += 1
@@ -63,7 +65,15 @@ func _finish() -> void:
 	# The short arms in the stance's guard: each hand's moves of the stance's moveset.
 	_short_armed.set("stance_pose", true)
 	_report["short_arms_stance"] = {}
+	var character: Node3D = _short_armed.get("character")
 	for move in [&"jab", &"cross", &"lead_hook", &"rear_hook"]:
-		_report["short_arms_stance"][move] = _reach_of(_short_armed, move)
+		var reach := _reach_of(_short_armed, move)
+		# `reaches()` at the far end of the move's volume (its middle height and side) and 5 cm beyond it.
+		var middle := Vector3((reach.side_m[0] + reach.side_m[1]) / 2, (reach.height_m[0] + reach.height_m[1]) / 2, 0)
+		reach["reaches_far_end"] = _short_armed.call("reaches", move,
+				character.global_transform * (middle + Vector3(0, 0, reach.distance_m[1] - 0.01)))
+		reach["reaches_beyond"] = _short_armed.call("reaches", move,
+				character.global_transform * (middle + Vector3(0, 0, reach.distance_m[1] + 0.05)))
+		_report["short_arms_stance"][move] = reach
 	print("REACH ", JSON.stringify(_report))
 	quit()

@@ -333,13 +333,17 @@ def test_the_duel_and_crowd_demos_land_their_punches(scene):
     assert result["punches"] == 40 and result["rate"] >= 0.9, result
 
 
+CASES_OF_REACH = ("inside", "beside", "far", "high", "short_arms")
+"""reach_scene.gd's characters, each with its sandbag"""
+
+
 def test_a_target_out_of_reach_is_said_and_one_a_little_out_is_still_hit():
     """The policy's reach volume (from its metadata) decides: a target inside gets the trained punch and no
     signal; one beside, too far or too high gets `target_out_of_reach` with its offset and the nearest point
     the policy covers (the offset clamped into the volume). The one 0.15 m beside the volume is punched where it
     is, and hit (`AIM_BEYOND_REACH_M`). Characters turned and moved. A character with arms 0.75 times the body's
     reaches 0.155 m (a quarter of its 0.619 m arm) less far: a target 0.78 m ahead, inside the policy's volume, is out
-    of its reach, and the game is told."""
+    of its reach, and the game is told. `reaches()` says so before the punch, for either hand."""
     run = run_script("reach_scene.gd")
     assert "ERROR" not in run.log, run.log[-3000:]
     report = printed(run, "REACH")
@@ -367,6 +371,12 @@ def test_a_target_out_of_reach_is_said_and_one_a_little_out_is_still_hit():
     stance = {move: report["short_arms_stance"][move]["distance_m"] for move in ("jab", "cross", "lead_hook", "rear_hook")}
     assert stance["jab"] == pytest.approx([0.70, 0.795], abs=2e-3) and stance["cross"] == pytest.approx([0.60, 0.695], abs=2e-3)
     assert stance["lead_hook"] == pytest.approx([0.70, 0.795], abs=2e-3) and stance["rear_hook"] == pytest.approx([0.60, 0.695], abs=2e-3)
+    # `reaches()` says beforehand what punch() says with `target_out_of_reach`, for either hand (the lead's mirrored).
+    for name in CASES_OF_REACH:
+        assert report[name]["reaches"] == (report[name]["out_of_reach"] == []), (name, report[name])
+    for move in ("jab", "cross", "lead_hook", "rear_hook"):
+        assert report["short_arms_stance"][move]["reaches_far_end"], move
+        assert not report["short_arms_stance"][move]["reaches_beyond"], move
 
 
 def test_the_demo_with_the_bag_moved_about_keeps_hitting():

@@ -30,7 +30,7 @@ use punch_core::game::policy_gate::{DecisionRequest, PunchingPolicy, decide_batc
 use punch_core::game::punch::{Punch, PunchSummary};
 use punch_core::rig::transform::TransformError;
 
-use crate::convert::{rigid, vector3};
+use crate::convert::{rigid, vec3, vector3};
 use crate::engine_io::{add_area_touches, add_bag_contacts, read_forearm_contacts};
 use crate::punch_character::PunchCharacter;
 use crate::punch_controller_registry::PunchControllerRegistry;
@@ -522,6 +522,32 @@ impl PunchController {
         result
     }
 
+    /// True when a target centred at `position` (global) lies in the reach of `punch(move_name)` (with no move:
+    /// `default_move`'s, or `policy`'s) from where the character stands now: the rule `punch()` checks before it
+    /// says `target_out_of_reach`, with `reach_volume(move_name)`'s volume (3 cm outside still counts). A game's AI
+    /// asks it to throw only what lands from here. False (with the reason in the log) when the move, its policy or
+    /// the character cannot be had.
+    #[func]
+    fn reaches(&self, move_name: StringName, position: Vector3) -> bool {
+        let checked = self.throw_of(&move_name).and_then(|throw| {
+            let character = live(&self.character).ok_or("no character set (or it was freed)")?;
+            let geometry = geometry_of(&character)?;
+            Ok((throw, character, geometry))
+        });
+        match checked {
+            Ok((throw, character, geometry)) => {
+                let offset = policy_offset(&geometry, throw.hand, vec3(position));
+                self.sized_reach(&throw, &character).contains(offset)
+            }
+            Err(error) => {
+                if !error.is_empty() {
+                    godot_error!("PunchController '{}': reaches(): {error}", self.base().get_name());
+                }
+                false
+            }
+        }
+    }
+
     /// True while a punch is running (including its return to guard first, `guard_first`).
     #[func]
     pub fn is_punching(&self) -> bool {
@@ -728,17 +754,17 @@ impl PunchController {
         let reach = self.sized_reach(&throw, &character);
         let Throw { policy, hand, punch_move, cancel_delay_s } = throw;
         self.lifecycle.set_guard(self.guard_targets());
-        let offset = geometry.root_rotation.inverse() * (target_position - geometry.root_position);
-        // The reach volume is the right hand's: the left hand's is its mirror.
-        let to_policy = |local: Vec3| if hand.is_mirrored() { mirror_point(local) } else { local };
-        let out_of_reach = (!reach.contains(to_policy(offset))).then(|| {
-            let world = |local: Vec3| geometry.root_position + geometry.root_rotation * to_policy(local);
+        let offset = policy_offset(&geometry, hand, target_position);
+        let out_of_reach = (!reach.contains(offset)).then(|| {
+            // Back from the policy's frame (a mirror is its own inverse) to the world's.
+            let to_local = |policy: Vec3| if hand.is_mirrored() { mirror_point(policy) } else { policy };
+            let world = |policy: Vec3| geometry.root_position + geometry.root_rotation * to_local(policy);
             // A little out, the policy sees the target itself; far out, the point of its margin nearest to it.
-            let aim = reach.aim_point(to_policy(offset));
-            if aim != to_policy(offset) {
+            let aim = reach.aim_point(offset);
+            if aim != offset {
                 target.aim_at(world(aim));
             }
-            (offset, world(reach.nearest(to_policy(offset))))
+            (to_local(offset), world(reach.nearest(offset)))
         });
         target.describe(&mut geometry);
         self.aim = Some(target);
@@ -1168,6 +1194,13 @@ fn geometry_of(character: &Gd<PunchCharacter>) -> Result<CharacterGeometry, Stri
     let root = rigid(character.get_global_transform()).map_err(|cause| transform_problem(character, cause))?;
     let geometry = character.bind().rig().map(|rig| rig.geometry_at(root));
     geometry.ok_or_else(|| "the character is not ready (is it in the scene tree?)".into())
+}
+
+/// Where `position` (global) lies from the character in the policy's frame: its root's, mirrored for a left-hand
+/// move (the reach volume is the right hand's; the left hand's is its mirror image).
+fn policy_offset(geometry: &CharacterGeometry, hand: Hand, position: Vec3) -> Vec3 {
+    let local = geometry.root_rotation.inverse() * (position - geometry.root_position);
+    if hand.is_mirrored() { mirror_point(local) } else { local }
 }
 
 /// What is wrong with the character's transform, and what to do.
