@@ -9,13 +9,21 @@ notebook.md, "Moves from the stance's guard": it brings the hook in from the sid
 hook_level: `hook_bent` with a level swing asked for: tried for the lead hook (notebook.md, "A hook that sweeps with the
 elbow bent"); `hook_outside`, its landing counted only from outside the line, was tried here first and is a preset now.
 
+hook_outside_gated: `hook_outside` with its sweep near the bag counted only from outside the line too, as the uppercut's
+gated stage: the shipped lead hook earns `hook_outside`'s return from the sweep while arriving 11 degrees off the line
+(notebook.md, "The lead hook from outside, all of it gated").
+
+uppercut_rising: `uppercut_gated` with its approach near the bag counted only for a rising fist too: the shipped lead
+uppercut earns its return from the approach while rising 0.31 of its speed (notebook.md, "The lead hook from outside,
+all of it gated").
+
 The uppercuts' `uppercut_bent` and `uppercut_gated` presets were tried here first (notebook.md, "An uppercut that rises
 with the elbow bent"): from scratch A2C kept the fist away; from a trained uppercut they reshape it.
 """
 
 import numpy as np
 
-from punch_trainer.reward.rewards import along_target, hook_bent
+from punch_trainer.reward.rewards import along_target, hook_bent, hook_outside, uppercut_gated
 
 
 def hook_sweep(f):
@@ -31,3 +39,22 @@ def hook_level(f):
     terms = hook_bent(f)
     near = np.maximum(0.0, 0.3 - f["fist_r_bag_distance"]) ** 2
     return {**terms, "level": -near * 10.0 * np.abs(f["fist_r_vel_y"])}
+
+
+def hook_outside_gated(f):
+    """`hook_outside` (the preset) whose sweep near the bag counts only while the fist moves from outside the line
+    from its shoulder to the bag: none at 20 degrees off it or less, all from 35, as its landing."""
+    terms = hook_outside(f)
+    ux, uz = along_target(f)
+    vx, vz = f["fist_r_vel_x"], f["fist_r_vel_z"]
+    angle_deg = np.degrees(np.arctan2(vx * uz - vz * ux, vx * ux + vz * uz))
+    return {**terms, "sweep": terms["sweep"] * np.clip((angle_deg - 20.0) / 15.0, 0.0, 1.0)}
+
+
+def uppercut_rising(f):
+    """`uppercut_gated` (the preset) whose approach near the bag counts only while the fist rises: none at an upward
+    share of its velocity of 0.35, all from 0.6, as its landing (which also asks the elbow bent)."""
+    terms = uppercut_gated(f)
+    vx, vy, vz = f["fist_r_vel_x"], f["fist_r_vel_y"], f["fist_r_vel_z"]
+    share = vy / np.maximum(np.sqrt(vx ** 2 + vy ** 2 + vz ** 2), 0.5)
+    return {**terms, "rise": terms["rise"] * np.clip((share - 0.35) / 0.25, 0.0, 1.0)}

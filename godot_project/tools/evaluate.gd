@@ -31,10 +31,10 @@
 ##   ends at the first `recovered` after its `combo_finished`;
 ## - `guard_first` (default true): `PunchController.guard_first`; false: a punch asked for away from the guard
 ##   starts from wherever the arms are;
-## - `struck`: {`part`, `impulse_ns`, `direction` [x, y, z] in the character's frame}: no punch; the standing character
-##   is struck by the game (`PunchCharacter.take_hit`: the torso 15 cm above its centre, the head at its centre, an arm
-##   at its upper arm) after `lead_s` (at least 2 frames), and the episode ends at `recovered` (after `knocked_down`,
-##   `recover()` is called 1 s on);
+## - `struck`: {`part`, `impulse_ns`, `direction` [x, y, z] in the character's frame}: no punch; the character in
+##   guard (standing, or on the episode's `body` motion) is struck by the game (`PunchCharacter.take_hit`: the torso
+##   15 cm above its centre, the head at its centre, an arm at its upper arm) after `lead_s` (at least 2 frames), and
+##   the episode ends at `recovered` (after `knocked_down`, `recover()` is called 1 s on);
 ## - `reset_target`: each later punch of a combo starts with the bag hanging as placed again (its start, not where
 ##   the punches before swung it);
 ## - `defender`: {`blocks`, `part`}: a second character of the addon's scene stands facing the first instead of the
@@ -498,12 +498,14 @@ func _punch(slot: Slot) -> bool:
 	slot.lead_frames = -1
 	slot.commanded_at = _frame
 	if not slot.struck.is_empty():
-		return _strike(slot)
-	var thrown: bool = slot.controller.call("combo", slot.combo) if not slot.combo.is_empty() \
-		else slot.controller.call("punch", slot.move)
-	if not thrown:
-		_fail("PunchController refused to punch (see the error above)")
-		return false
+		if not _strike(slot):
+			return false
+	else:
+		var thrown: bool = slot.controller.call("combo", slot.combo) if not slot.combo.is_empty() \
+			else slot.controller.call("punch", slot.move)
+		if not thrown:
+			_fail("PunchController refused to punch (see the error above)")
+			return false
 	if slot.motion != null and slot.motion_with_punch:
 		_start_motion(slot)
 	return true
@@ -565,6 +567,9 @@ func _measure_struck(slot: Slot) -> void:
 			figures.back_s = float(slot.back_at - slot.commanded_at) / Engine.physics_ticks_per_second
 		elif back:
 			figures.back_s = 0.0
+		if slot.moved != null:
+			slot.moved.set("motion", null)
+			slot.row[4] = snappedf(slot.moved.global_position.length(), 0.001)
 		slot.struck_open = false
 		_pending -= 1
 

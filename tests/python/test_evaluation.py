@@ -173,7 +173,7 @@ def test_scales_and_proportions_make_the_sizes_conditions_in_order():
     ({"conditions": [{"name": "a", "struck": {"impulse_ns": 3000}}]}, "at most 1000"),
     ({"conditions": [{"name": "a", "struck": {"impulse_ns": 30, "from": "above"}}]}, "from is one of front, back"),
     ({"conditions": [{"name": "a", "struck": {"part": "head"}}]}, "needs impulse_ns"),
-    ({"conditions": [{"name": "a", "move": "jab", "struck": {"impulse_ns": 30}}]}, "a struck character stands in guard"),
+    ({"conditions": [{"name": "a", "move": "jab", "struck": {"impulse_ns": 30}}]}, "a struck character holds its guard"),
 ])
 def test_a_scenario_that_cannot_be_played_is_refused_with_its_reason(data, message):
     with pytest.raises(ScenarioError, match=message):
@@ -283,6 +283,25 @@ def test_a_scenario_file_of_ones_own_runs_a_new_condition(tmp_path):
     rows = json.loads((tmp_path / "out" / "eval.json").read_text())["evaluations"][0]["rows"]
     assert [(r["condition"], r["punches"]) for r in rows] == [("after a punch, walking", 2), ("swinging", 2)]
     assert rows[0]["moved_m"] > 0.3, rows[0]
+
+
+@pytest.mark.godot
+def test_a_character_struck_while_it_walks_reacts_as_one_standing(tmp_path):
+    """A `struck` condition with a `body` motion: the character walks 0.5 s, is struck at the head from the side, and
+    the figures are read in its own frame: it went on walking and turned as far as standing (a constant walk carries
+    the kinematic pelvis and every body with it)."""
+    scenario = tmp_path / "walking_hit.toml"
+    scenario.write_text('name = "walking_hit"\ndescription = "struck walking"\nsuccess = "hit"\nsigmas = [0.0]\n'
+                        '[placements]\ncount = 2\nvolume = "spec"\n'
+                        '[[conditions]]\nname = "standing"\nstruck = { impulse_ns = 60.0, part = "head", from = "right" }\n'
+                        '[[conditions]]\nname = "walking"\nstruck = { impulse_ns = 60.0, part = "head", from = "right" }\n'
+                        'body = { velocity_mps = [0.0, 0.0, 0.7] }\nlead_s = 0.5\n')
+    run = punch("eval", "--policy", str(POLICY), "--scenario", str(scenario), "--out", str(tmp_path / "out"))
+    assert run.returncode == 0, run.stderr[-3000:]
+    standing, walking = json.loads((tmp_path / "out" / "eval.json").read_text())["evaluations"][0]["rows"]
+    assert standing["successes"] == walking["successes"] == 2 and standing["moved_m"] == 0.0
+    assert walking["moved_m"] > 0.4, walking
+    assert walking["struck"]["peak_turn_deg"] == pytest.approx(standing["struck"]["peak_turn_deg"], rel=0.15), (standing, walking)
 
 
 @pytest.mark.godot

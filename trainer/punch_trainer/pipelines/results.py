@@ -387,8 +387,8 @@ def write_results(recipes: list[Recipe], reports: dict[str, list[dict[str, Any]]
                 "guard (`guard_first`), each move alone for its frame data, and a second punch started at a random moment of the "
                 "first's recovery from wherever the arms are (`from_recovery`; docs/combos.md). The `--policy` only gives the "
                 "placements' volume; every move plays its own policy.", ""]
-        hits = ["The addon's character (`punch_character.tscn`) standing in guard, struck by the game "
-                "(`PunchCharacter.take_hit`) and reacting with its controller's defaults (`react_to_hits`, "
+        hits = ["The addon's character (`punch_character.tscn`) in guard, standing (the last rows: walking or turning, "
+                "or with sized arms), struck by the game (`PunchCharacter.take_hit`) and reacting with its controller's defaults (`react_to_hits`, "
                 "`stagger_impulse_ns` 60, `knockdown_impulse_ns` 320; docs/hits.md). No punch is thrown; the `--policy` "
                 "only places a sandbag nobody punches. Then blocking (`PunchController.block()`): the moveset's jab and "
                 "cross at the head, and its cross at the body, of a second character of the addon's scene that blocks "

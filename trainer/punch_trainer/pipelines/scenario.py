@@ -333,8 +333,9 @@ def _condition(index: int, table: Any, defaults: Mapping[str, Any], scenario_sig
     if not isinstance(reset_target, bool) or (reset_target and not combo):
         raise ScenarioError(f"{where}: reset_target is true or false, and true only with a combo, not {reset_target!r}")
     struck = _struck(f"{where}: struck", merged["struck"]) if "struck" in merged else None
-    if struck is not None and (combo or move or start != "guard" or body is not None or target is not None):
-        raise ScenarioError(f"{where}: a struck character stands in guard: no move, combo, start, body or target")
+    if struck is not None and (combo or move or start != "guard" or target is not None):
+        raise ScenarioError(f"{where}: a struck character holds its guard (standing, or on a body motion): no move, "
+                            "combo, start or target")
     defender = _defender(f"{where}: defender", merged["defender"]) if "defender" in merged else None
     if defender is not None and (combo or struck or start != "guard" or body is not None or target is not None):
         raise ScenarioError(f"{where}: a defender stands in the bag's place for one punch from guard: no combo, struck, "
