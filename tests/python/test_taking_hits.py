@@ -141,8 +141,8 @@ def test_a_chaotic_bout_keeps_every_promise(seed):
 
 def test_the_bout_demo_trades_strings_blocks_and_hits_between_two_own_characters():
     """godot_project/demo/bout.tscn: the two converted CC0 fighters (orthodox and southpaw), each run by its scripted
-    AI, throw strings at each other's head and body, raise their guards and take hits; every punch says what it
-    became and some of each happen."""
+    AI, throw strings at each other's head and body, step in for the close ones, raise their guards and take hits;
+    every punch says what it became and some of each happen."""
     make_characters(DEFAULT_OUT)
     run = run_godot(["--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), "res://demo/bout.tscn", "--",
                      "--seconds=20"], check=False, timeout_s=300)
@@ -156,6 +156,8 @@ def test_the_bout_demo_trades_strings_blocks_and_hits_between_two_own_characters
         assert fighter["landed"] + fighter["blocked"] + fighter["whiffed"] == fighter["punches"], fighter
         assert fighter["landed"] > 0 and fighter["blocks"] > 0 and fighter["hits_taken"] > 0, fighter
     assert sum(f["struck"].get("head", 0) for f in fighters) > 0 and sum(f["blocked"] for f in fighters) > 0, fighters
+    # Footwork: a fighter steps in for a close string (the stance's hooks and uppercuts), and never past the nearest.
+    assert sum(f["steps_in"] for f in fighters) > 0 and all(f["apart_m"] >= 0.55 - 0.01 for f in fighters), fighters
 
 
 def test_the_hits_demo_shows_a_flinch_a_stagger_and_a_knock_down():
