@@ -1,6 +1,7 @@
 ## `PunchController.block()` as a game calls it, on one character standing in guard: a block of 0.5 s (where the fists
 ## are while it holds and after it, `is_blocking()` along the way), a block held until `stop_blocking()`, a punch asked
-## for during a block, and blocks refused (seconds not a number; a knocked-down character). Prints `BLOCKING <json>` and quits.
+## for during a block, and blocks refused (seconds not a number; a knocked-down character); the elbow motor's torque
+## limit along the way (a block braces the guard). Prints `BLOCKING <json>` and quits.
 extends SceneTree
 
 const CHARACTER_SCENE := preload("res://addons/punch_controller/scenes/punch_character.tscn")
@@ -35,7 +36,17 @@ func _sample(label: String) -> void:
 		"head": _vector(to_local * (_character.get_node("Head/HeadMesh") as Node3D).global_position),
 		"fists": [_vector(to_local * (_character.get_node("ForearmL/FistL") as Node3D).global_position),
 			_vector(to_local * (_character.get_node("ForearmR/FistR") as Node3D).global_position)],
+		"elbow_torque_nm": _motor_torque_nm(_character.get_node("ElbowR")),
 	}
+
+
+## The largest motor torque limit on any axis of `joint` as the physics engine has it now (N m).
+func _motor_torque_nm(joint: Node) -> float:
+	var largest := 0.0
+	for axis in [Vector3.AXIS_X, Vector3.AXIS_Y, Vector3.AXIS_Z]:
+		largest = maxf(largest, PhysicsServer3D.generic_6dof_joint_get_param(joint.get_rid(), axis,
+			PhysicsServer3D.G6DOF_JOINT_ANGULAR_MOTOR_FORCE_LIMIT))
+	return snappedf(largest, 0.01)
 
 
 func _vector(v: Vector3) -> Array:

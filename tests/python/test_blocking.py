@@ -32,6 +32,10 @@ def test_a_block_raises_both_fists_before_the_face_for_its_time_and_a_punch_ends
         assert not samples[label]["blocking"], samples[label]
         for fist, guard in zip(samples[label]["fists"], samples["guard"]["fists"], strict=True):
             assert fist == pytest.approx(guard, abs=0.01), (label, samples)
+    # The block braces its guard: the motors hold with twice their torque (the elbow's 60 N m) while it holds only.
+    assert samples["blocking"]["elbow_torque_nm"] == samples["held"]["elbow_torque_nm"] == 120.0, samples
+    for label in ("guard", "after", "stopped"):
+        assert samples[label]["elbow_torque_nm"] == 60.0, (label, samples)
     assert report["punched"] and not report["blocking_after_punch"], report
     assert not report["refused"] and report["knocked_down"] and not report["refused_when_down"], report
     # The blocks said nothing: the only signals are the punch's and its own way back to guard (`auto_recover`).
@@ -53,7 +57,8 @@ def test_a_block_stops_jabs_and_crosses_at_the_head_and_the_body(tmp_path):
             row = rows[f"{move}, blocking {warning}"]
             # The bar: at least 90% blocked (its fist's first contact an arm).
             assert row["successes"] >= 0.9 * row["punches"], row
-            assert row["defended"]["head_impulse_ns_mean"] < open_guard["head_impulse_ns_mean"], (row, open_guard)
+            # The braced guard takes most of the impulse: what reaches the head is less than half the open guard's.
+            assert row["defended"]["head_impulse_ns_mean"] < 0.5 * open_guard["head_impulse_ns_mean"], (row, open_guard)
     # A cross at the body meets the high guard's elbows and forearms too.
     body = rows["cross at the body, blocking 0.15 s before"]
     assert body["successes"] >= 0.9 * body["punches"], body

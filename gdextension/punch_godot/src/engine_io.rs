@@ -71,6 +71,17 @@ pub fn enable_motors(joint_rids: &[Rid; 5], enabled: bool) {
     }
 }
 
+/// Scales every actuated axis's motor torque limit to `scale` times the DOF table's (1: the table's own).
+pub fn scale_motor_torque(joint_rids: &[Rid; 5], scale: f32) {
+    let mut server = PhysicsServer3D::singleton();
+    for (joint_index, rid) in joint_rids.iter().enumerate() {
+        for (_, dof) in joint_dofs(joint_index) {
+            let param = G6dofJointAxisParam::ANGULAR_MOTOR_FORCE_LIMIT;
+            server.generic_6dof_joint_set_param(*rid, godot_axis(dof.axis), param, dof.max_torque_nm * scale);
+        }
+    }
+}
+
 /// Sets each joint's motor target velocities (Godot's 6DOF convention, `JOINTS` order) on its actuated axes.
 pub fn drive_joints(joint_rids: &[Rid; 5], motor_velocities: &[Vec3; 5]) {
     let mut server = PhysicsServer3D::singleton();

@@ -18,6 +18,8 @@
 //! the pelvis is read from the physics server (`Rig::read_bodies`). Setting the transform of a kinematic body
 //! never moves it at once: a teleport switches it to static for the move (placed at once), then back.
 
+use std::cell::Cell;
+
 use glam::Vec3;
 use godot::builtin::{Rid, StringName, Transform3D, Vector2, Vector3};
 use godot::classes::generic6_dof_joint_3d::{Flag, Param};
@@ -31,13 +33,15 @@ use godot::meta::ToGodot;
 use godot::obj::{Base, EngineEnum, Gd, InstanceId, Singleton, WithBaseField};
 use godot::prelude::{GodotClass, godot_api};
 use punch_core::contract::arm_size::{ARM_SCALE_RANGE, ArmLengths, ArmScale};
-use punch_core::contract::character::{Axis, BODY_COUNT, Body, BodyPart, JOINTS, NECK};
+use punch_core::contract::character::{Axis, BODY_COUNT, BRACE_TORQUE_SCALE, Body, BodyPart, JOINTS, NECK};
 use punch_core::contract::sensing::{BodyState, CharacterGeometry, MAX_BAG_CONTACTS};
 use punch_core::rig::transform::{SaidOnce, TransformError};
 
 use crate::arm_sizing::{SceneArms, rebuild_joints};
 use crate::convert::{rigid, rotation, vec3, vector3};
-use crate::engine_io::{character_geometry, drive_joints, enable_motors, joint_axis_settings, neck_axis_settings};
+use crate::engine_io::{
+    character_geometry, drive_joints, enable_motors, joint_axis_settings, neck_axis_settings, scale_motor_torque,
+};
 use crate::punch_controller_registry::PunchControllerRegistry;
 
 /// A move of the character's root larger than this in one physics frame (m) is a teleport (see `PunchCharacter`):
@@ -93,6 +97,8 @@ pub struct Rig {
     pub forearm_states: Vec<(usize, Gd<PhysicsDirectBodyState3D>)>,
     /// The kinematic pelvis's physics state: where the last step put it, with the velocity it moved at.
     pelvis_state: Gd<PhysicsDirectBodyState3D>,
+    /// Whether the motors hold with `BRACE_TORQUE_SCALE` times their torque now (`set_braced`).
+    braced: Cell<bool>,
     /// Rest-pose geometry (without target data, which the controller adds).
     pub geometry: CharacterGeometry,
     /// Each body's rest transform relative to the character's root (`Body::ALL` order).
@@ -179,6 +185,14 @@ impl Rig {
     /// Turns the joint motors off (`limp`: the body hangs in its joints' limits) or back on.
     pub fn set_limp(&self, limp: bool) {
         enable_motors(&self.joint_rids, !limp);
+    }
+
+    /// Braces the joints (`braced`: every motor holds with `BRACE_TORQUE_SCALE` times its torque, a block's guard)
+    /// or lets them back to the DOF table's torques; sets the engine only when that changes.
+    pub fn set_braced(&self, braced: bool) {
+        if self.braced.replace(braced) != braced {
+            scale_motor_torque(&self.joint_rids, if braced { BRACE_TORQUE_SCALE } else { 1.0 });
+        }
     }
 }
 
@@ -572,6 +586,7 @@ impl PunchCharacter {
             body_rids: std::array::from_fn(|i| bodies[i].get_rid()),
             forearm_states,
             pelvis_state,
+            braced: Cell::new(false),
             geometry,
             rest_from_root: std::array::from_fn(|i| root_inverse * body_transforms[i]),
             bodies,

@@ -963,15 +963,15 @@ impl PunchController {
     }
 
     fn apply(&self, drive: Drive) {
-        let commands = match drive {
-            Drive::Nothing => return,
-            Drive::Motors(commands) => commands,
-            Drive::Hold => [Vec3::ZERO; 5],
-        };
-        if let Some(character) = live(&self.driven)
-            && let Some(rig) = character.bind().rig()
-        {
-            rig.drive(&commands);
+        let Some(character) = live(&self.driven) else { return };
+        let character = character.bind();
+        let Some(rig) = character.rig() else { return };
+        // A block's guard holds braced; anything else with the motors' own torques.
+        rig.set_braced(self.lifecycle.is_blocking());
+        match drive {
+            Drive::Nothing => {}
+            Drive::Motors(commands) => rig.drive(&commands),
+            Drive::Hold => rig.drive(&[Vec3::ZERO; 5]),
         }
     }
 

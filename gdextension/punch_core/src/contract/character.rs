@@ -287,6 +287,11 @@ pub fn joint_dofs(joint: usize) -> impl Iterator<Item = (usize, &'static DofSpec
     DOFS.iter().enumerate().filter(move |(_, dof)| dof.joint == joint)
 }
 
+/// How much harder than the DOF table's torques a block's guard holds (`PunchController.block()`): a braced arm
+/// resists with more than it moves with (a muscle's isometric and eccentric strength exceed its concentric), and
+/// physical-animation tools raise a body's drive strength for a state the same way.
+pub const BRACE_TORQUE_SCALE: f32 = 2.0;
+
 /// How far the engine's hard joint limits lie beyond the range actions can target: a joint driven to its
 /// target at speed stops on its motor, not by slamming into a hard stop (which pulls joints apart).
 pub const HARD_LIMIT_MARGIN_RAD: f32 = deg(10.0);
