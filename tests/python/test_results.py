@@ -66,6 +66,8 @@ def test_results_measure_a_recipes_policy_and_rewrite_the_docs(tmp_path, monkeyp
         Measurement("combos", {"placements": 2, "sigmas": [0.0], "conditions": ["1-2-3, southpaw"]}),
         Measurement("frame_data", {"placements": 2, "sigmas": [0.0], "conditions": ["1 jab"]}),
         Measurement("from_recovery", {"placements": 2, "sigmas": [0.0], "conditions": ["jab, then jab"]}),
+        Measurement("blocks_uppercuts", {"placements": 2, "sigmas": [0.0], "conditions": ["lead uppercut, blocking 0.15 s before"]},
+                    move="lead_uppercut"),
         Measurement("hits", {"placements": 2, "conditions": ["torso, front, 60 N s"]}),
     ))
     arguments = ["results", str(PROJECT_ROOT / "recipes" / "straight.toml"), "--out", str(tmp_path / "runs")]
@@ -94,6 +96,9 @@ def test_results_measure_a_recipes_policy_and_rewrite_the_docs(tmp_path, monkeyp
     hits = text.split(f"<!-- {results.HITS_SECTION}:start -->")[1].split(f"<!-- {results.HITS_SECTION}:end -->")[0]
     assert "| torso, front, 60 N s | 0.00 | 2 | 2 (100.0%) |" in hits and hits.rstrip().endswith("| 2 / 0 |"), hits
     assert "torso, front, 60 N s" not in text.split(f"<!-- {results.COMBOS_SECTION}:start -->")[1].split(":end -->")[0]
+    # A measurement of one move's policy plays the moveset's file for it (the uppercut's), in the same section.
+    assert "--policy addons/punch_controller/policies/uppercut.onnx --scenario blocks_uppercuts" in hits, hits
+    assert "| lead uppercut, blocking 0.15 s before | 0.00 | 2 |" in hits, hits
     assert (tmp_path / "runs" / "straight" / "held_out" / "report.md").is_file()
     capsys.readouterr()
 

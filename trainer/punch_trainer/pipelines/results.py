@@ -50,6 +50,9 @@ class Measurement:
     scenario: str
     options: dict[str, Any] = field(default_factory=dict)
     """EvalArgs fields beside the scenario's own"""
+    move: str | None = None
+    """a default-moveset measurement played with this move's policy (its scenario throws that policy's moves); None:
+    the moveset's jab's, which only gives the placements' volume"""
 
     def args(self, policy: Path, out: Path) -> EvalArgs:
         return EvalArgs(policy=policy, scenario=self.scenario, out=out, **self.options)
@@ -109,8 +112,11 @@ MOVESET_MEASUREMENTS = (
     Measurement("from_recovery"),
     # The standing character struck by the game: its reaction and its way back to guard (HITS_SECTION) ...
     Measurement(HITS_SCENARIO := "hits"),
-    # ... and blocking: jabs and crosses at the head of a second character that blocks or stands in guard.
+    # ... and blocking: jabs and crosses at the head of a second character that blocks or stands in guard, then the
+    # moveset's hooks and uppercuts the same way.
     Measurement(BLOCKS_SCENARIO := "blocks"),
+    Measurement(BLOCKS_HOOKS_SCENARIO := "blocks_hooks", move="lead_hook"),
+    Measurement(BLOCKS_UPPERCUTS_SCENARIO := "blocks_uppercuts", move="lead_uppercut"),
 )
 MOVESET_KEY = "moveset"
 """`measure`'s key (and output folder) of the default moveset's measurements"""
@@ -201,8 +207,10 @@ def measure(recipes: list[Recipe], out: Path, *, progress: bool = True, backend:
     files = sorted(set(policies.values()) | set(moveset_policies(STANCE_MOVESET).values()))
     stamp = {"moveset_sha256": sha256_of(MOVESET), "stance_moveset_sha256": sha256_of(STANCE_MOVESET), **extension,
              **{f"{name}_sha256": sha256_of(MOVESET.parent / name) for name in files}}
-    placements_policy = (MOVESET.parent / policies["jab"]).relative_to(PROJECT_ROOT)
-    reports[MOVESET_KEY] = [_measured(measurement, placements_policy, out / MOVESET_KEY / measurement.scenario, stamp,
+    def policy_of(measurement: Measurement) -> Path:
+        return (MOVESET.parent / policies[measurement.move or "jab"]).relative_to(PROJECT_ROOT)
+
+    reports[MOVESET_KEY] = [_measured(measurement, policy_of(measurement), out / MOVESET_KEY / measurement.scenario, stamp,
                                       progress, backend) for measurement in MOVESET_MEASUREMENTS]
     return reports
 
@@ -392,9 +400,10 @@ def write_results(recipes: list[Recipe], reports: dict[str, list[dict[str, Any]]
                 "`stagger_impulse_ns` 60, `knockdown_impulse_ns` 320; docs/hits.md). No punch is thrown; the `--policy` "
                 "only places a sandbag nobody punches. Then blocking (`PunchController.block()`): the moveset's jab and "
                 "cross at the head, and its cross at the body, of a second character of the addon's scene that blocks "
-                "or stands in guard (docs/hits.md).", ""]
+                "or stands in guard, then its hooks and its uppercuts the same way (docs/hits.md).", ""]
         for run in reports[MOVESET_KEY]:
-            part = hits if run["measurement"].scenario in (HITS_SCENARIO, BLOCKS_SCENARIO) else body
+            taking_hits = (HITS_SCENARIO, BLOCKS_SCENARIO, BLOCKS_HOOKS_SCENARIO, BLOCKS_UPPERCUTS_SCENARIO)
+            part = hits if run["measurement"].scenario in taking_hits else body
             part += [f"### `{run['command']}`", "", *benchmarks_body(_repository_paths(run["markdown"]), depth=1), ""]
         write_section(COMBOS_SECTION, command, "\n".join(body).strip(), oldest([MOVESET_KEY]))
         write_section(HITS_SECTION, command, "\n".join(hits).strip(), oldest([MOVESET_KEY]))
