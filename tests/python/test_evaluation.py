@@ -181,7 +181,7 @@ def test_a_scenario_that_cannot_be_played_is_refused_with_its_reason(data, messa
 
 
 def test_unknown_scenarios_and_conditions_are_refused_naming_what_there_is(tmp_path):
-    with pytest.raises(ScenarioError, match="no scenario named 'nope'; the shipped ones are blocks, body, combos, frame_data, from_recovery, hands, held_out, hits, moving, sizes, stance, stance_moving"):
+    with pytest.raises(ScenarioError, match="no scenario named 'nope'; the shipped ones are blocks, blocks_hooks, blocks_uppercuts, body, combos, frame_data, from_recovery, hands, held_out, hits, moving, sizes, stance, stance_moving"):
         scenario_of(EvalArgs(policy=POLICY, scenario="nope"))
     with pytest.raises(ScenarioError, match="unknown condition\\(s\\) 'moonwalk'; the scenario's are: standing"):
         scenario_of(EvalArgs(policy=POLICY, scenario="moving", conditions=["moonwalk"]))
