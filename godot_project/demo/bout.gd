@@ -149,17 +149,16 @@ func _plan(fighter: Dictionary) -> void:
 	_throw(fighter, string, target)
 
 
-## Steps the planned string in until it reaches, then throws it; a jab and a cross when the fighters are as near as
-## they come or it stepped in `STEP_IN_S` (the opponent moved too).
+## Steps in until the planned string reaches, then throws it; a jab and a cross when the fighters are as near as they
+## come or it stepped in `STEP_IN_S` (the opponent moved too).
 func _step_in_or_throw(fighter: Dictionary, delta: float) -> void:
 	var target: Node3D = fighter.plan_target
-	var step_m := _step_to_reach(fighter, fighter.plan, target)
-	if step_m == 0.0:
+	if _reaches(fighter, fighter.plan, target.global_position):
 		_throw(fighter, fighter.plan, target)
-	elif step_m < 0.0 or _apart(fighter) <= CLOSEST_M + 0.005 or _frame >= fighter.plan_until:
+	elif _apart(fighter) <= CLOSEST_M + 0.005 or _frame >= fighter.plan_until:
 		_throw(fighter, [&"jab", &"cross"], target)
 	else:
-		_step(fighter, minf(STEP_MPS * delta, step_m))
+		_step(fighter, STEP_MPS * delta)
 
 
 func _throw(fighter: Dictionary, string: Array, target: Node3D) -> void:

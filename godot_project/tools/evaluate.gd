@@ -412,9 +412,7 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 			if not timings.is_empty() and timings[-1][1] < 0:
 				timings[-1][1] = _frame - slot.commanded_at)
 	var finish := func() -> void:
-		if slot.moved != null:
-			slot.moved.set("motion", null)
-			row[4] = snappedf(slot.moved.global_position.length(), 0.001)
+		_stop_motion(slot)
 		_pending -= 1
 	# A combo's string ends at `combo_finished`; `recovered` before then (a long cancel delay) is between punches.
 	var string_done := [false]
@@ -493,6 +491,13 @@ func _start_motion(slot: Slot) -> void:
 	slot.bag.linear_velocity = slot.motion.start_velocity(slot.moved)
 
 
+## Stops a slot's moving node (if it has one) and records how far it went.
+func _stop_motion(slot: Slot) -> void:
+	if slot.moved != null:
+		slot.moved.set("motion", null)
+		slot.row[4] = snappedf(slot.moved.global_position.length(), 0.001)
+
+
 ## Starts a slot's punch (and the motion that starts with it), or strikes it; false when the controller refused.
 func _punch(slot: Slot) -> bool:
 	slot.lead_frames = -1
@@ -567,9 +572,7 @@ func _measure_struck(slot: Slot) -> void:
 			figures.back_s = float(slot.back_at - slot.commanded_at) / Engine.physics_ticks_per_second
 		elif back:
 			figures.back_s = 0.0
-		if slot.moved != null:
-			slot.moved.set("motion", null)
-			slot.row[4] = snappedf(slot.moved.global_position.length(), 0.001)
+		_stop_motion(slot)
 		slot.struck_open = false
 		_pending -= 1
 
