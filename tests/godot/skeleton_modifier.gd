@@ -502,7 +502,24 @@ func _summary(entry: Dictionary) -> Dictionary:
 		"max_gap_full_m": max_gap_full, "jumps_rad": jumps, "worst_bone": worst_bone, "blend_frames": blend_frames,
 		"untouched_max_rad": untouched, "frames": frames.size(), "pose_gap_rad": pose_gap, "gaps": gaps,
 		"arm_lengths_m": _array(entry.character.call("arm_lengths")),
-		"rig_arm_lengths_m": _rig_arm_lengths(skeleton, modifier) if modifier.call("is_mapped") else []}
+		"rig_arm_lengths_m": _rig_arm_lengths(skeleton, modifier) if modifier.call("is_mapped") else [],
+		"crown_m": entry.character.call("shoulder_to_crown_m"),
+		"rig_crown_m": _rig_crown(skeleton, modifier, entry.rig) if modifier.call("is_mapped") else -1.0}
+
+
+## How high the rig's crown stands above the middle of its upper arms' heads at rest, m: the top of its skinned
+## mesh's bounds (the whole body's, standing: the crown), read apart from the modifier's head skin; -1 without a mesh.
+func _rig_crown(skeleton: Skeleton3D, modifier: Node, rig: Node3D) -> float:
+	var meshes: Array = rig.find_children("*", "MeshInstance3D", true, false)
+	if meshes.is_empty() or meshes[0].skin == null:
+		return -1.0
+	var mesh_instance: MeshInstance3D = meshes[0]
+	var top: float = (mesh_instance.global_transform * mesh_instance.get_aabb().end).y
+	var bone_map: Dictionary = modifier.get("bone_map")
+	var shoulders := Vector3.ZERO
+	for role in ["upper_arm_r", "upper_arm_l"]:
+		shoulders += 0.5 * (skeleton.global_transform * skeleton.get_bone_global_rest(skeleton.find_bone(bone_map[role]))).origin
+	return top - shoulders.y
 
 
 func _array(v: Vector3) -> Array:

@@ -4,7 +4,7 @@
 mod arm_sizing;
 mod convert;
 mod engine_io;
-mod hand_skin;
+mod head_sizing;
 mod punch_character;
 mod punch_controller;
 mod punch_controller_registry;
@@ -16,6 +16,7 @@ mod punch_probe;
 mod punch_runtime;
 mod punch_skeleton_modifier;
 mod punch_spec;
+mod skin;
 // Training runs on Linux (the trainer starts headless Linux Godot); the game classes build everywhere.
 #[cfg(unix)]
 mod punch_training_server;

@@ -34,6 +34,7 @@ use godot::obj::{Base, EngineEnum, Gd, InstanceId, Singleton, WithBaseField};
 use godot::prelude::{GodotClass, godot_api};
 use punch_core::contract::arm_size::{ARM_SCALE_RANGE, ArmLengths, ArmScale};
 use punch_core::contract::character::{Axis, BODY_COUNT, BRACE_TORQUE_SCALE, Body, BodyPart, JOINTS, NECK};
+use punch_core::contract::head_size::head_shift_m;
 use punch_core::contract::sensing::{BodyState, CharacterGeometry, MAX_BAG_CONTACTS};
 use punch_core::rig::transform::{SaidOnce, TransformError};
 
@@ -42,6 +43,7 @@ use crate::convert::{rigid, rotation, vec3, vector3};
 use crate::engine_io::{
     character_geometry, drive_joints, enable_motors, joint_axis_settings, neck_axis_settings, scale_motor_torque,
 };
+use crate::head_sizing::SceneHead;
 use crate::punch_controller_registry::PunchControllerRegistry;
 
 /// A move of the character's root larger than this in one physics frame (m) is a teleport (see `PunchCharacter`):
@@ -71,6 +73,8 @@ pub struct PunchCharacter {
     rig: Option<Rig>,
     /// The arms as the scene had them, captured at the first `size_arms`.
     scene_arms: Option<SceneArms>,
+    /// The head as the scene had it, captured at the first `size_head`.
+    scene_head: Option<SceneHead>,
     /// The root transform (without its scale) the pelvis was last carried to (none before `ready`).
     carried_root: Option<Transform3D>,
     /// The node had no usable transform (scale 0, NaN) at `ready`: it is set up at the first physics frame it has one.
@@ -361,13 +365,65 @@ impl PunchCharacter {
         let scene = self.scene_arms.as_ref().ok_or("no scene arms")?;
         let scale = ArmScale::between(scene.lengths, wanted).map_err(|e| e.to_string())?;
         let root = rigid(self.base().get_global_transform()).map_err(|cause| format!("the character {cause}"))?;
-        // The torso and pelvis back at rest too: the joints are rebuilt from the bodies' places.
-        for i in [Body::Pelvis.index(), Body::Torso.index()] {
+        // The torso, pelvis and head back at rest too: the joints are rebuilt from the bodies' places.
+        for i in [Body::Pelvis.index(), Body::Torso.index(), Body::Head.index()] {
             rig.place(i, root * rig.rest_from_root[i]);
         }
         self.carried_root = Some(root);
         scene.apply(Some(root), scale);
         rebuild_joints(&self.base().clone().upcast::<Node3D>())?;
+        self.rig = Some(self.set_up()?);
+        if let Some(rig) = self.rig.as_ref() {
+            rig.drive(&[Vec3::ZERO; 5]);
+        }
+        Ok(())
+    }
+
+    /// Sizes the simulated head to a character's: `shoulder_to_crown_m`, how high its crown stands above the middle
+    /// of the two shoulder joints (the scene's: 0.29 m). The head moves along its neck (the neck joint on the chest
+    /// stays; the skull keeps its size, mass and inertia), always from the scene's own place, so a fist or
+    /// `take_hit` meets the head where the character's is, and the character is reset to its guard. The crown may
+    /// stand 0.85 to 1.4 times the scene's height; outside that, or before the character is ready, one error says
+    /// why, the head stays and this returns false. Call it between punches: `PunchSkeletonModifier` does, with
+    /// `size_to_rig` on, from the rig's head.
+    #[func]
+    fn size_head(&mut self, shoulder_to_crown_m: f32) -> bool {
+        match self.try_size_head(shoulder_to_crown_m) {
+            Ok(()) => true,
+            Err(error) => {
+                godot_error!("PunchCharacter '{}': cannot size the head: {error}", self.base().get_name());
+                false
+            }
+        }
+    }
+
+    /// How high the simulated head's crown stands above the middle of the shoulder joints now, m (0 before the
+    /// character is ready).
+    #[func]
+    fn shoulder_to_crown_m(&self) -> f32 {
+        let Some(rig) = self.rig.as_ref() else { return 0.0 };
+        SceneHead::capture(&self.base().clone().upcast::<Node3D>(), &rig.rest_from_root)
+            .map_or(0.0, |head| head.crown_m)
+    }
+
+    fn try_size_head(&mut self, shoulder_to_crown_m: f32) -> Result<(), String> {
+        let rest_from_root = self.rig.as_ref().ok_or("the character is not ready")?.rest_from_root;
+        let root_node = self.base().clone().upcast::<Node3D>();
+        if self.scene_head.is_none() {
+            self.scene_head = Some(SceneHead::capture(&root_node, &rest_from_root)?);
+        }
+        let scene = self.scene_head.as_ref().ok_or("no scene head")?;
+        let shift_m = head_shift_m(scene.crown_m, shoulder_to_crown_m).map_err(|e| e.to_string())?;
+        let root = rigid(self.base().get_global_transform()).map_err(|cause| format!("the character {cause}"))?;
+        // Every other body back at rest: the joints are rebuilt from the bodies' places.
+        if let Some(rig) = self.rig.as_ref() {
+            for (i, rest) in rest_from_root.iter().enumerate().filter(|(i, _)| *i != Body::Head.index()) {
+                rig.place(i, root * *rest);
+            }
+        }
+        self.carried_root = Some(root);
+        scene.apply(root, shift_m);
+        rebuild_joints(&root_node)?;
         self.rig = Some(self.set_up()?);
         if let Some(rig) = self.rig.as_ref() {
             rig.drive(&[Vec3::ZERO; 5]);

@@ -51,14 +51,14 @@ use punch_core::contract::character::Body;
 use punch_core::rig::bone_map::{BoneMap, Role, map_bones_with};
 use punch_core::rig::fist::FistPose;
 use punch_core::rig::skeleton_pose::{
-    Blend, BodyFrames, BodyRotations, SkeletonPoser, broken_rest, rig_arm_lengths, rig_fists,
+    Blend, BodyFrames, BodyRotations, SkeletonPoser, broken_rest, rig_arm_lengths, rig_fists, rig_shoulder_to_crown,
 };
 use punch_core::rig::transform::{SaidOnce, TransformError};
 
 use crate::convert::{checked_quat, placement, quaternion, rigid, rotation, vec3, vector3};
-use crate::hand_skin::hand_skin_points;
 use crate::punch_character::{PunchCharacter, is_teleport};
 use crate::punch_controller::PunchController;
+use crate::skin::skin_points;
 
 thread_local! {
     /// Time all modifiers spent writing poses (µs) and the character-frames they wrote, for benchmarks.
@@ -130,7 +130,9 @@ pub struct PunchSkeletonModifier {
     /// Size the simulated arms to the rig's (upper arm, forearm to the fist centre: `rig_fist_centres()`, and
     /// shoulder width), so the skeleton's fists land where the simulated ones do: `PunchCharacter.size_arms`, once,
     /// before the first punch. A rig whose arm is outside 0.75 to 1.25 times the simulated one (shoulder to fist
-    /// 0.619 m) gets one error and punches with the simulated body's own arms.
+    /// 0.619 m) gets one error and punches with the simulated body's own arms. The simulated head moves along its
+    /// neck to the rig's head too (`PunchCharacter.size_head`: its crown as high above the shoulders as the top of
+    /// the skin bound to the rig's head, else of a head-top bone; a rig with neither keeps the simulated head).
     #[export]
     #[init(val = true)]
     size_to_rig: bool,
@@ -205,6 +207,9 @@ struct Mapped {
     fist: FistPose,
     /// The fist centres at rest, [right, left], skeleton space (`rig_fists`, with the hands' skin).
     fists: [Vec3; 2],
+    /// How high the crown stands above the shoulders at rest, in the skeleton's units (`rig_shoulder_to_crown`, with
+    /// the head's skin); `None` when the rig cannot say.
+    shoulder_to_crown: Option<f32>,
 }
 
 #[godot_api]
@@ -452,8 +457,9 @@ impl PunchSkeletonModifier {
             ));
         }
         let fist = FistPose::new(&map, &names, &parents, &rest);
-        let skins = hand_skin_points(skeleton, [map.right.hand, map.left.hand], &parents);
-        let fists = rig_fists(&map, &parents, &rest, [&skins[0], &skins[1]]);
+        let [right_hand, left_hand, head] = skin_points(skeleton, [map.right.hand, map.left.hand, map.head], &parents);
+        let fists = rig_fists(&map, &parents, &rest, [&right_hand, &left_hand]);
+        let shoulder_to_crown = rig_shoulder_to_crown(&map, &parents, &rest, &head, 1.0);
         Ok(Mapped {
             skeleton: skeleton.instance_id(),
             version: skeleton.get_version(),
@@ -462,6 +468,7 @@ impl PunchSkeletonModifier {
             rest,
             fist,
             fists,
+            shoulder_to_crown,
         })
     }
 
@@ -503,6 +510,9 @@ impl PunchSkeletonModifier {
                     lengths.shoulder_width_m.to_variant(),
                 ],
             );
+            if let Some(crown) = mapped.shoulder_to_crown {
+                character.clone().call("size_head", &[(crown * scale).to_variant()]);
+            }
         }
         let (geometry, bodies) = {
             let bound = character.bind();

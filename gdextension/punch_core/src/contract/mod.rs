@@ -3,6 +3,7 @@
 pub mod arm_size;
 pub mod character;
 pub mod controller;
+pub mod head_size;
 pub mod mirror;
 pub mod motion;
 pub mod names;

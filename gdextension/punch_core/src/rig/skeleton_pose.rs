@@ -557,6 +557,34 @@ pub fn rig_arm_lengths(map: &BoneMap, rest: &[(Quat, Vec3)], fists: [Vec3; 2], s
     }
 }
 
+/// The fewest skin points (vertices) that say where a head's crown is.
+pub const MIN_HEAD_SKIN_POINTS: usize = 16;
+
+/// How high the rig's crown stands above the middle of its upper arms' heads (where the simulated shoulder joints
+/// are placed) at rest, along the rig's up (from the hips to the head bone), in the skeleton's units times `scale`:
+/// what `PunchCharacter::size_head` takes. The crown is the highest point of `head_skin` (the rest positions of the
+/// vertices bound mostly to the head and the bones below it), else the farthest of the head bone's children (a
+/// `HeadTop_End`, as Mixamo rigs have); `None` with neither (a head bone alone says nothing of the skull's size).
+pub fn rig_shoulder_to_crown(
+    map: &BoneMap,
+    parents: &[i32],
+    rest: &[(Quat, Vec3)],
+    head_skin: &[Vec3],
+    scale: f32,
+) -> Option<f32> {
+    let pos = |b: usize| rest[b].1;
+    let up = (pos(map.head) - pos(map.hips)).try_normalize()?;
+    let shoulders = 0.5 * (pos(map.right.upper_arm) + pos(map.left.upper_arm));
+    let height = |p: &Vec3| (*p - shoulders).dot(up);
+    let crown = if head_skin.len() >= MIN_HEAD_SKIN_POINTS {
+        head_skin.iter().map(height).fold(f32::MIN, f32::max)
+    } else {
+        let tips = parents.iter().enumerate().filter(|(_, p)| usize::try_from(**p).ok() == Some(map.head));
+        tips.map(|(b, _)| height(&pos(b))).fold(None, |top: Option<f32>, h| Some(top.map_or(h, |t| t.max(h))))?
+    };
+    (crown > height(&pos(map.head))).then_some(crown * scale)
+}
+
 /// The new global rotation of a bone already written (few bones: a linear scan is cheapest).
 fn new_global(written: &[(usize, Quat)], bone: usize) -> Option<Quat> {
     written.iter().rev().find(|(b, _)| *b == bone).map(|(_, q)| *q)

@@ -408,3 +408,25 @@ proptest::proptest! {
         let _ = parents;
     }
 }
+
+#[test]
+fn the_crown_is_read_from_the_heads_skin_else_from_a_head_top_bone() {
+    let (names, mut parents, mut rest) = humanoid(0.0, 1);
+    let map = map_bones(&names, &parents).expect("mapped");
+    // Shoulder joints (the upper arms' heads) at 1.45 m, the head bone at 1.6 m: a skull whose top is 1.78 m high.
+    let skin: Vec<Vec3> = (0..40).map(|i| Vec3::new(0.0, 1.6 + 0.18 * (i as f32 / 39.0), 0.05)).collect();
+    let crown = rig_shoulder_to_crown(&map, &parents, &rest, &skin, 1.0).expect("from the skin");
+    assert!((crown - 0.33).abs() < 1e-5, "{crown}");
+    // In centimetres, as some imports are: the scale brings it back.
+    let in_cm: Vec<(Quat, Vec3)> = rest.iter().map(|(q, p)| (*q, 100.0 * *p)).collect();
+    let cm_skin: Vec<Vec3> = skin.iter().map(|p| 100.0 * *p).collect();
+    let crown = rig_shoulder_to_crown(&map, &parents, &in_cm, &cm_skin, 0.01).expect("from the skin");
+    assert!((crown - 0.33).abs() < 1e-4, "{crown}");
+    // No skin and no bone above the head: nothing to size it by.
+    assert_eq!(rig_shoulder_to_crown(&map, &parents, &rest, &skin[..MIN_HEAD_SKIN_POINTS - 1], 1.0), None);
+    // A head-top bone (Mixamo's HeadTop_End) 0.2 m above the head.
+    parents.push(map.head as i32);
+    rest.push((Quat::IDENTITY, Vec3::new(0.0, 1.8, 0.0)));
+    let crown = rig_shoulder_to_crown(&map, &parents, &rest, &[], 1.0).expect("from the bone");
+    assert!((crown - 0.35).abs() < 1e-5, "{crown}");
+}

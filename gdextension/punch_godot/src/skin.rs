@@ -1,6 +1,6 @@
-//! Reads where a rig's hands are from its skin: the rest positions of the vertices bound mostly to each hand and
-//! the bones below it, for `punch_core::rig::skeleton_pose::rig_fists` (the bones alone cannot say where the middle of
-//! some hands is).
+//! Reads where a rig's hands and head are from its skin: the rest positions of the vertices bound mostly to a bone
+//! and the bones below it, for `punch_core::rig::skeleton_pose::rig_fists` (the bones alone cannot say where the
+//! middle of some hands is) and `rig_shoulder_to_crown` (nor where the crown is).
 
 use glam::Vec3;
 use godot::builtin::{PackedFloat32Array, PackedInt32Array, PackedVector3Array, Transform3D, VarArray};
@@ -10,16 +10,16 @@ use godot::obj::{EngineEnum, Gd};
 
 use crate::convert::vec3;
 
-/// The rest positions (skeleton space) of the skin over each of `hands` ([right, left] bone indices): the vertices
-/// of every skinned mesh that this skeleton deforms (found under the skeleton's parent) whose weights lie at least
-/// half on the hand and the bones below it. Empty for a hand (or a rig) without skin.
-pub fn hand_skin_points(skeleton: &Gd<Skeleton3D>, hands: [usize; 2], parents: &[i32]) -> [Vec<Vec3>; 2] {
-    let mut points = [Vec::new(), Vec::new()];
-    let below = |bone: i32, hand: usize| -> bool {
+/// The rest positions (skeleton space) of the skin over each of `parts` (bone indices, as [right hand, left hand,
+/// head]): the vertices of every skinned mesh that this skeleton deforms (found under the skeleton's parent) whose
+/// weights lie at least half on the bone and the bones below it. Empty for a part (or a rig) without skin.
+pub fn skin_points<const N: usize>(skeleton: &Gd<Skeleton3D>, parts: [usize; N], parents: &[i32]) -> [Vec<Vec3>; N] {
+    let mut points = std::array::from_fn(|_| Vec::new());
+    let below = |bone: i32, part: usize| -> bool {
         let mut at = bone;
         for _ in 0..=parents.len() {
             match usize::try_from(at) {
-                Ok(b) if b == hand => return true,
+                Ok(b) if b == part => return true,
                 Ok(b) if b < parents.len() => at = parents[b],
                 _ => return false,
             }
@@ -38,18 +38,18 @@ pub fn hand_skin_points(skeleton: &Gd<Skeleton3D>, hands: [usize; 2], parents: &
         if !deforms_this {
             continue;
         }
-        // Per bind: its rest matrix (bone's global rest times bind pose) and which hand it belongs to.
-        let binds: Vec<(Transform3D, [bool; 2])> = (0..skin.get_bind_count())
+        // Per bind: its rest matrix (bone's global rest times bind pose) and which parts it belongs to.
+        let binds: Vec<(Transform3D, [bool; N])> = (0..skin.get_bind_count())
             .map(|bind| {
                 let mut bone = skin.get_bind_bone(bind);
                 if bone < 0 {
                     bone = skeleton.find_bone(&skin.get_bind_name(bind).to_string());
                 }
                 if bone < 0 || bone >= skeleton.get_bone_count() {
-                    return (Transform3D::IDENTITY, [false, false]);
+                    return (Transform3D::IDENTITY, [false; N]);
                 }
                 let matrix = skeleton.get_bone_global_rest(bone) * skin.get_bind_pose(bind);
-                (matrix, hands.map(|hand| below(bone, hand)))
+                (matrix, parts.map(|part| below(bone, part)))
             })
             .collect();
         for surface in 0..mesh.get_surface_count() {
@@ -69,17 +69,17 @@ pub fn hand_skin_points(skeleton: &Gd<Skeleton3D>, hands: [usize; 2], parents: &
             for (i, vertex) in vertices.iter().enumerate() {
                 let influences = (i * per_vertex..(i + 1) * per_vertex)
                     .filter_map(|k| binds.get(usize::try_from(bones[k]).ok()?).map(|bind| (bind, weights[k])));
-                let mut share = [0.0f32; 2];
+                let mut share = [0.0f32; N];
                 let mut position = Vec3::ZERO;
-                for ((matrix, in_hand), weight) in influences {
+                for ((matrix, in_part), weight) in influences {
                     position += weight * vec3(*matrix * *vertex);
-                    for side in 0..2 {
-                        share[side] += if in_hand[side] { weight } else { 0.0 };
+                    for (part_share, inside) in share.iter_mut().zip(in_part) {
+                        *part_share += if *inside { weight } else { 0.0 };
                     }
                 }
-                for side in 0..2 {
-                    if share[side] >= 0.5 {
-                        points[side].push(position);
+                for (part_points, part_share) in points.iter_mut().zip(share) {
+                    if part_share >= 0.5 {
+                        part_points.push(position);
                     }
                 }
             }
