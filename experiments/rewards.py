@@ -13,17 +13,14 @@ hook_outside_gated: `hook_outside` with its sweep near the bag counted only from
 gated stage: the shipped lead hook earns `hook_outside`'s return from the sweep while arriving 11 degrees off the line
 (notebook.md, "The lead hook from outside, all of it gated").
 
-uppercut_rising: `uppercut_gated` with its approach near the bag counted only for a rising fist too: the shipped lead
-uppercut earns its return from the approach while rising 0.31 of its speed (notebook.md, "The lead hook from outside,
-all of it gated").
-
-The uppercuts' `uppercut_bent` and `uppercut_gated` presets were tried here first (notebook.md, "An uppercut that rises
-with the elbow bent"): from scratch A2C kept the fist away; from a trained uppercut they reshape it.
+The uppercuts' `uppercut_bent`, `uppercut_gated` and `uppercut_rising` presets were tried here first (notebook.md, "An
+uppercut that rises with the elbow bent" and "A braced guard"): from scratch A2C kept the fist away; from a trained
+uppercut they reshape it.
 """
 
 import numpy as np
 
-from punch_trainer.reward.rewards import along_target, hook_bent, hook_outside, uppercut_gated
+from punch_trainer.reward.rewards import along_target, hook_bent, hook_outside
 
 
 def hook_sweep(f):
@@ -50,11 +47,3 @@ def hook_outside_gated(f):
     angle_deg = np.degrees(np.arctan2(vx * uz - vz * ux, vx * ux + vz * uz))
     return {**terms, "sweep": terms["sweep"] * np.clip((angle_deg - 20.0) / 15.0, 0.0, 1.0)}
 
-
-def uppercut_rising(f):
-    """`uppercut_gated` (the preset) whose approach near the bag counts only while the fist rises: none at an upward
-    share of its velocity of 0.35, all from 0.6, as its landing (which also asks the elbow bent)."""
-    terms = uppercut_gated(f)
-    vx, vy, vz = f["fist_r_vel_x"], f["fist_r_vel_y"], f["fist_r_vel_z"]
-    share = vy / np.maximum(np.sqrt(vx ** 2 + vy ** 2 + vz ** 2), 0.5)
-    return {**terms, "rise": terms["rise"] * np.clip((share - 0.35) / 0.25, 0.0, 1.0)}

@@ -92,6 +92,19 @@ def test_the_bent_uppercut_lands_in_full_only_rising_with_the_elbow_bent():
         pytest.approx(rising["landing"][0, 1], rel=1e-4)
 
 
+def test_the_rising_uppercut_counts_its_approach_only_for_a_rising_fist():
+    """`uppercut_rising`: `uppercut_gated` with its approach near the bag counted in full from an upward share of the
+    fist's speed of 0.6, none at 0.35 or below; its landing as the gated one's."""
+    gated, rising = load_reward("uppercut_gated"), load_reward("uppercut_rising")
+    up = uppercut_frames(0.0, 4.0, 2.0, 0.4, 0.2, 90.0)  # rising 0.89 of its speed
+    for name in ("rise", "landing"):
+        assert evaluate(rising, up, UPPERCUT_NAMES)[name][0, 1] == pytest.approx(
+            evaluate(gated, up, UPPERCUT_NAMES)[name][0, 1], rel=1e-4)
+    level = uppercut_frames(0.0, 1.0, 5.0, 0.0, 0.0, 90.0)  # rising 0.2 of its speed
+    assert evaluate(gated, level, UPPERCUT_NAMES)["rise"][0, 1] > 0.0
+    assert evaluate(rising, level, UPPERCUT_NAMES)["rise"][0, 1] == 0.0
+
+
 def test_terms_are_separate_and_guarded_frames_earn_nothing():
     terms = evaluate(load_reward("hook"), features(0.1, 2.0, 5.0), NAMES)
     assert set(terms) == {"forward", "sideways"}

@@ -165,6 +165,16 @@ def uppercut_gated(f: Frames) -> Terms:
     return uppercut_bent(f, flat_landing=0.0)
 
 
+def uppercut_rising(f: Frames) -> Terms:
+    """`uppercut_gated` whose approach near the bag counts only while the fist rises too (none at an upward share of
+    its velocity of 0.35, all from 0.6, as its landing): the lead uppercut's last stage, where the approach term alone
+    had taught a fist that comes in level (experiments/notebook.md, "A braced guard": "The lead uppercut's rise, all of it gated")."""
+    terms = uppercut_gated(f)
+    vx, vy, vz = f["fist_r_vel_x"], f["fist_r_vel_y"], f["fist_r_vel_z"]
+    share = vy / np.maximum(np.sqrt(vx ** 2 + vy ** 2 + vz ** 2), 0.5)
+    return {**terms, "rise": terms["rise"] * np.clip((share - 0.35) / 0.25, 0.0, 1.0)}
+
+
 @dataclass(frozen=True)
 class Reward:
     """A reward, the episode length it is meant for, and the trajectory search's sigma clip for it."""
@@ -192,6 +202,7 @@ PRESETS = {
     "hook_outside": Reward("hook_outside", hook_outside, 50),
     "uppercut_bent": Reward("uppercut_bent", uppercut_bent, 50),
     "uppercut_gated": Reward("uppercut_gated", uppercut_gated, 50),
+    "uppercut_rising": Reward("uppercut_rising", uppercut_rising, 50),
 }
 
 
