@@ -37,10 +37,10 @@
 ##   the episode ends at `recovered` (after `knocked_down`, `recover()` is called 1 s on);
 ## - `reset_target`: each later punch of a combo starts with the bag hanging as placed again (its start, not where
 ##   the punches before swung it);
-## - `defender`: {`blocks`, `part`}: a second character of the addon's scene stands facing the first instead of the
+## - `defender`: {`blocks`, `part`, `head_up_m`}: a second character of the addon's scene stands facing the first instead of the
 ##   bag, its root at the placement's distance and side (the height is its own), and the punch aims at its `part`:
-##   "head" (the `Head` body, on its neck) or "torso"; with `blocks`, its own controller calls `block()` as the
-##   episode starts (`lead_s` later comes the punch: the warning). The row's struck entry is then {`outcome`,
+##   "head" (the `Head` body, on its neck; `head_up_m` higher up it, as an own rig's, with `size_head`) or "torso";
+##   with `blocks`, its own controller calls `block()` as the episode starts (`lead_s` later comes the punch: the warning). The row's struck entry is then {`outcome`,
 ##   `head_impulse_ns`}: the punch's `punch_finished` outcome ("landed": on the head or the body, "blocked": on an
 ##   arm first, "whiffed") and the impulse of the fist's first frame on the part aimed at (N s; absent when it never
 ##   reached it);
@@ -466,6 +466,9 @@ func _add_defender(controller: Node, bag: RigidBody3D, layer_slot: int, offset: 
 	var layer := 1 << (2 * layer_slot)
 	PunchPair.set_layers(defender, layer << 1, layer)
 	parent.add_child(defender)
+	var head_up_m := float(defender_spec.get("head_up_m", 0.0))
+	if head_up_m != 0.0 and not defender.call("size_head", defender.call("shoulder_to_crown_m") + head_up_m):
+		_fail("the defender's head could not be moved %.3f m up its neck" % head_up_m)
 	var aimed_at: RigidBody3D = defender.get_node("Torso" if defender_spec.get("part", "head") == "torso" else "Head")
 	controller.set("target", aimed_at)
 	var guard: Node = ClassDB.instantiate("PunchController")

@@ -1,7 +1,8 @@
 ## `PunchController.block()` as a game calls it, on one character standing in guard: a block of 0.5 s (where the fists
 ## are while it holds and after it, `is_blocking()` along the way), a block held until `stop_blocking()`, a punch asked
 ## for during a block, and blocks refused (seconds not a number; a knocked-down character); the elbow motor's torque
-## limit along the way (a block braces the guard). Prints `BLOCKING <json>` and quits.
+## limit along the way (a block braces the guard); and a second character with its head sized 6 cm higher on its neck
+## (`size_head`, as an own rig's), blocking too. Prints `BLOCKING <json>` and quits.
 extends SceneTree
 
 const CHARACTER_SCENE := preload("res://addons/punch_controller/scenes/punch_character.tscn")
@@ -9,6 +10,8 @@ const SANDBAG_SCENE := preload("res://addons/punch_controller/scenes/punch_sandb
 
 var _character: Node3D
 var _controller: Node
+var _tall_headed: Node3D
+var _tall_headed_controller: Node
 var _frame := 0
 var _report := {"signals": [], "samples": {}}
 
@@ -24,19 +27,26 @@ func _initialize() -> void:
 	_controller.set("target", sandbag.get_node("Bag"))
 	_controller.set("policy", load("res://addons/punch_controller/policies/straight.onnx"))
 	root.add_child(_controller)
+	_tall_headed = CHARACTER_SCENE.instantiate()
+	_tall_headed.position = Vector3(3, 0, 0)
+	root.add_child(_tall_headed)
+	_tall_headed_controller = ClassDB.instantiate("PunchController")
+	_tall_headed_controller.set("character", _tall_headed)
+	_tall_headed_controller.set("policy", load("res://addons/punch_controller/policies/straight.onnx"))
+	root.add_child(_tall_headed_controller)
 	for name in ["punch_started", "punch_finished", "recovered"]:
 		_controller.connect(name, func(_a = null, _b = null, _c = null): _report.signals.append([name, _frame]))
 
 
 ## The fists (their centres) and the head's centre in the character's frame: +Z ahead, +Y up.
-func _sample(label: String) -> void:
-	var to_local := _character.global_transform.affine_inverse()
+func _sample(label: String, character: Node3D = _character, controller: Node = _controller) -> void:
+	var to_local := character.global_transform.affine_inverse()
 	_report.samples[label] = {
-		"blocking": _controller.call("is_blocking"),
-		"head": _vector(to_local * (_character.get_node("Head/HeadMesh") as Node3D).global_position),
-		"fists": [_vector(to_local * (_character.get_node("ForearmL/FistL") as Node3D).global_position),
-			_vector(to_local * (_character.get_node("ForearmR/FistR") as Node3D).global_position)],
-		"elbow_torque_nm": _motor_torque_nm(_character.get_node("ElbowR")),
+		"blocking": controller.call("is_blocking"),
+		"head": _vector(to_local * (character.get_node("Head/HeadMesh") as Node3D).global_position),
+		"fists": [_vector(to_local * (character.get_node("ForearmL/FistL") as Node3D).global_position),
+			_vector(to_local * (character.get_node("ForearmR/FistR") as Node3D).global_position)],
+		"elbow_torque_nm": _motor_torque_nm(character.get_node("ElbowR")),
 	}
 
 
@@ -56,11 +66,15 @@ func _vector(v: Vector3) -> Array:
 func _physics_process(_delta: float) -> bool:
 	_frame += 1
 	match _frame:
+		5:
+			_report.head_sized = _tall_headed.call("size_head", _tall_headed.call("shoulder_to_crown_m") + 0.06)
 		10:
 			_sample("guard")
 			_report.blocked = _controller.call("block", 0.5)
+			_tall_headed_controller.call("block", 0.5)
 		50:  # 1/3 s into the block
 			_sample("blocking")
+			_sample("tall_headed_blocking", _tall_headed, _tall_headed_controller)
 		150:  # 0.75 s after the block's end
 			_sample("after")
 			_controller.call("block")  # until stopped

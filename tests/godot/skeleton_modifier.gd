@@ -51,6 +51,8 @@ const NAMES := {
 ## upper arm 0.282 m, elbow to fist centre 0.337 m (the wrist 0.269 m from the elbow, the fist centre 0.068 m on:
 ## three quarters of the way to the knuckles).
 const SHOULDER_Y := 1.42
+## The one character whose modifier keeps `size_head_to_rig` off (its default).
+const HEAD_LEFT_AS_IS := "mixamo_155"
 const UPPER_ARM_M := 0.282
 const FOREARM_M := 0.269
 const HAND_M := 0.068 / 0.75
@@ -139,6 +141,8 @@ func _add(name: String, rig: Node3D, twin: Node3D, yaw_deg: float, at: Vector3) 
 	var modifier: Node = ClassDB.instantiate("PunchSkeletonModifier")
 	modifier.set("controller", controller)
 	modifier.set("fist_curl", _fist_curl)
+	# The head moved to the rig's too, but on one character (to see the default: the simulated head).
+	modifier.set("size_head_to_rig", name != HEAD_LEFT_AS_IS)
 	skeleton.add_child(modifier)
 	var entry := {"name": name, "rig": rig, "skeleton": skeleton, "twin": twin_skeleton, "character": character,
 		"controller": controller, "modifier": modifier, "frames": [], "hit_gap_m": -1.0, "hits": 0,

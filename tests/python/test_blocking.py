@@ -28,6 +28,13 @@ def test_a_block_raises_both_fists_before_the_face_for_its_time_and_a_punch_ends
         for fist in samples[label]["fists"]:
             # In front of the face, beside the centre line, level with the head (the guard holds them at the chin).
             assert 0.15 < fist[2] - head[2] < 0.30 and abs(fist[0]) < 0.12 and abs(fist[1] - head[1]) < 0.06, samples[label]
+    # A head 6 cm higher on its neck (an own rig's, `size_head`): the gloves rise with it, as far before the face.
+    assert report["head_sized"], report
+    tall, square = samples["tall_headed_blocking"], samples["blocking"]
+    assert tall["head"][1] == pytest.approx(square["head"][1] + 0.06, abs=0.01), (tall, square)
+    for fist, square_fist in zip(tall["fists"], square["fists"], strict=True):
+        assert fist[1] - tall["head"][1] == pytest.approx(square_fist[1] - square["head"][1], abs=0.02), (tall, square)
+        assert 0.15 < fist[2] - tall["head"][2] < 0.30 and abs(fist[0]) < 0.12, tall
     for label in ("after", "stopped"):  # 0.5 s up, then back in the guard it came from
         assert not samples[label]["blocking"], samples[label]
         for fist, guard in zip(samples[label]["fists"], samples["guard"]["fists"], strict=True):

@@ -75,6 +75,8 @@ pub struct PunchCharacter {
     scene_arms: Option<SceneArms>,
     /// The head as the scene had it, captured at the first `size_head`.
     scene_head: Option<SceneHead>,
+    /// How far `size_head` moved the head up its neck from the scene's place, m (0: not moved).
+    head_shift_m: f32,
     /// The root transform (without its scale) the pelvis was last carried to (none before `ready`).
     carried_root: Option<Transform3D>,
     /// The node had no usable transform (scale 0, NaN) at `ready`: it is set up at the first physics frame it has one.
@@ -406,6 +408,12 @@ impl PunchCharacter {
             .map_or(0.0, |head| head.crown_m)
     }
 
+    /// How far `size_head` moved the head up its neck from the scene's place, m (0 before it did; negative: down):
+    /// a block's high guard rises as much (`high_guard_rad`).
+    pub fn head_shift_m(&self) -> f32 {
+        self.head_shift_m
+    }
+
     fn try_size_head(&mut self, shoulder_to_crown_m: f32) -> Result<(), String> {
         let rest_from_root = self.rig.as_ref().ok_or("the character is not ready")?.rest_from_root;
         let root_node = self.base().clone().upcast::<Node3D>();
@@ -423,6 +431,7 @@ impl PunchCharacter {
         }
         self.carried_root = Some(root);
         scene.apply(root, shift_m);
+        self.head_shift_m = shift_m;
         rebuild_joints(&root_node)?;
         self.rig = Some(self.set_up()?);
         if let Some(rig) = self.rig.as_ref() {

@@ -23,7 +23,7 @@ use punch_core::contract::character::{Body, DEFAULT_DECISION_PERIOD, DOF_COUNT};
 use punch_core::contract::mirror::mirror_point;
 use punch_core::contract::sensing::{CharacterGeometry, FrameReading};
 use punch_core::contract::spec::{ReachVolume, hand_far_m};
-use punch_core::contract::stance::HIGH_GUARD_RAD;
+use punch_core::contract::stance::high_guard_rad;
 use punch_core::game::lifecycle::{Drive, Ending, Event, FrameNeeds, Lifecycle, NoiseSettings, PunchStart};
 use punch_core::game::moves::{Hand, Move, Side, Stance};
 use punch_core::game::policy_gate::{DecisionRequest, PunchingPolicy, decide_batched};
@@ -795,7 +795,9 @@ impl PunchController {
         let ticks_per_s = Engine::singleton().get_physics_ticks_per_second() as f32;
         let frames = (seconds > 0.0).then(|| (seconds * ticks_per_s).round().max(1.0) as u32);
         self.lifecycle.set_guard(self.guard_targets());
-        self.lifecycle.block(geometry, HIGH_GUARD_RAD, frames);
+        // An own rig's head may sit higher on its neck: the gloves rise with it.
+        let high_guard = high_guard_rad(character.bind().head_shift_m());
+        self.lifecycle.block(geometry, high_guard, frames);
         self.drive_from_now(character.clone());
         Ok(character)
     }

@@ -130,12 +130,18 @@ pub struct PunchSkeletonModifier {
     /// Size the simulated arms to the rig's (upper arm, forearm to the fist centre: `rig_fist_centres()`, and
     /// shoulder width), so the skeleton's fists land where the simulated ones do: `PunchCharacter.size_arms`, once,
     /// before the first punch. A rig whose arm is outside 0.75 to 1.25 times the simulated one (shoulder to fist
-    /// 0.619 m) gets one error and punches with the simulated body's own arms. The simulated head moves along its
-    /// neck to the rig's head too (`PunchCharacter.size_head`: its crown as high above the shoulders as the top of
-    /// the skin bound to the rig's head, else of a head-top bone; a rig with neither keeps the simulated head).
+    /// 0.619 m) gets one error and punches with the simulated body's own arms.
     #[export]
     #[init(val = true)]
     size_to_rig: bool,
+    /// Also move the simulated head along its neck to the rig's head, with the arms (`size_to_rig` on):
+    /// `PunchCharacter.size_head`, its crown as high above the shoulders as the top of the skin bound to the rig's
+    /// head (else of a head-top bone; a rig with neither keeps the simulated head). A fist aimed at the `Head` then
+    /// meets the model's face rather than its chin, and a block's gloves rise with it; but most rigs' heads sit
+    /// 6-7 cm higher than the simulated body's, above the reach the shipped moves were trained for, so a punch
+    /// aimed there says `target_out_of_reach` and reaches it less often (docs/hits.md). Off: the simulated head.
+    #[export]
+    size_head_to_rig: bool,
     /// Show the simulated body's capsules (for debugging); hidden otherwise. Physics is the same either way.
     #[export]
     #[var(set = set_show_simulated_body)]
@@ -510,7 +516,7 @@ impl PunchSkeletonModifier {
                     lengths.shoulder_width_m.to_variant(),
                 ],
             );
-            if let Some(crown) = mapped.shoulder_to_crown {
+            if let Some(crown) = mapped.shoulder_to_crown.filter(|_| self.size_head_to_rig) {
                 character.clone().call("size_head", &[(crown * scale).to_variant()]);
             }
         }

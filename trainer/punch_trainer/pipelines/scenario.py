@@ -85,6 +85,9 @@ class Defender:
     """its controller calls `block()` as the episode starts; the punch comes `lead_s` later (the warning)"""
     part: Literal["head", "torso"] = "head"
     """the body the punch aims at: the head, or the torso (a body shot)"""
+    head_up_m: float = 0.0
+    """its head moved this far up its neck (`PunchCharacter.size_head`), as an own rig's head sits: its block's high
+    guard rises with it"""
 
 
 @dataclass(frozen=True)
@@ -352,17 +355,20 @@ def _condition(index: int, table: Any, defaults: Mapping[str, Any], scenario_sig
 
 
 def _defender(where: str, table: Any) -> Defender:
-    """A `defender = { blocks = true, part = "torso" }` table, checked."""
+    """A `defender = { blocks = true, part = "torso", head_up_m = 0.06 }` table, checked."""
     if not isinstance(table, Mapping):
         raise ScenarioError(f"{where}: a table ({{ blocks = true }})")
-    _unknown(where, table, ("blocks", "part"))
+    _unknown(where, table, ("blocks", "part", "head_up_m"))
     blocks = table.get("blocks", False)
     if not isinstance(blocks, bool):
         raise ScenarioError(f"{where}.blocks: true or false, not {blocks!r}")
     part = table.get("part", "head")
     if part not in ("head", "torso"):
         raise ScenarioError(f"{where}.part: \"head\" or \"torso\", not {part!r}")
-    return Defender(blocks=blocks, part=part)
+    head_up_m = table.get("head_up_m", 0.0)
+    if isinstance(head_up_m, bool) or not isinstance(head_up_m, int | float) or not -0.04 <= head_up_m <= 0.11:
+        raise ScenarioError(f"{where}.head_up_m: metres from -0.04 to 0.11 (what `size_head` accepts), not {head_up_m!r}")
+    return Defender(blocks=blocks, part=part, head_up_m=float(head_up_m))
 
 
 def _struck(where: str, table: Any) -> Struck:

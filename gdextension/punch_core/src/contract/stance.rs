@@ -7,7 +7,7 @@
 //! the trunk 30° and opens the lead arm 10° forward at the shoulder and 15° at the elbow, within every joint's
 //! range. The southpaw's is the orthodox's mirror image.
 
-use crate::contract::character::DOF_COUNT;
+use crate::contract::character::{DOF_COUNT, DOFS};
 use crate::contract::mirror::mirror_targets;
 
 /// Which side leads: the lead hand is the one nearer the opponent.
@@ -44,6 +44,27 @@ pub const LEAD_REACH_FORWARD_M: f32 = 0.10;
 pub const HIGH_GUARD_RAD: [f32; DOF_COUNT] =
     [0.0, 0.0, deg(-20.0), deg(30.0), deg(20.0), 0.0, deg(-20.0), deg(-30.0), deg(-20.0), 0.0];
 
+/// How far the high guard's fists rise per radian more of shoulder flexion, m/rad, over the first few centimetres
+/// (measured in the headless scene, tests/godot/blocking.gd: 0.27 rad more raised them 5.8 cm).
+pub const HIGH_GUARD_FIST_RISE_M_PER_RAD: f32 = 0.22;
+
+/// The high guard for a character whose head sits `head_shift_m` higher on its neck than the simulated body's own
+/// (`PunchCharacter.size_head`, an own rig's head): both shoulders flexed further forward (or back, for a lower head)
+/// by as much as raises the fists that much, so the gloves stay in front of the face; within the shoulders' range.
+pub fn high_guard_rad(head_shift_m: f32) -> [f32; DOF_COUNT] {
+    let mut targets = HIGH_GUARD_RAD;
+    if !head_shift_m.is_finite() {
+        return targets;
+    }
+    for (target, dof) in targets.iter_mut().zip(&DOFS) {
+        if dof.name.starts_with("shoulder_") && dof.name.ends_with("_flexion") {
+            // Forward is negative.
+            *target = (*target - head_shift_m / HIGH_GUARD_FIST_RISE_M_PER_RAD).clamp(dof.lower_rad, dof.upper_rad);
+        }
+    }
+    targets
+}
+
 impl Stance {
     /// The joint targets of this stance's guard (rad, action order).
     pub fn guard_targets(self) -> [f32; DOF_COUNT] {
@@ -79,6 +100,24 @@ mod tests {
         assert_eq!(mirror_targets(&HIGH_GUARD_RAD), HIGH_GUARD_RAD, "both arms rise alike");
         for (target, dof) in HIGH_GUARD_RAD.iter().zip(&DOFS) {
             assert!(dof.lower_rad < *target && *target < dof.upper_rad, "{} at {target}", dof.name);
+        }
+    }
+
+    #[test]
+    fn a_higher_head_raises_the_high_guard_by_flexing_both_shoulders_forward() {
+        let index = |name: &str| DOFS.iter().position(|d| d.name == name).expect("a DOF");
+        assert_eq!(high_guard_rad(0.0), HIGH_GUARD_RAD);
+        assert_eq!(high_guard_rad(f32::NAN), HIGH_GUARD_RAD);
+        let raised = high_guard_rad(0.06);
+        assert_eq!(mirror_targets(&raised), raised, "both arms rise alike");
+        for name in ["shoulder_r_flexion", "shoulder_l_flexion"] {
+            let more = HIGH_GUARD_RAD[index(name)] - raised[index(name)];
+            assert!((more - 0.06 / HIGH_GUARD_FIST_RISE_M_PER_RAD).abs() < 1e-6, "{name}: {more}");
+        }
+        let changed = (0..DOF_COUNT).filter(|&i| raised[i] != HIGH_GUARD_RAD[i]).count();
+        assert_eq!(changed, 2, "only the shoulders' flexion");
+        for (target, dof) in high_guard_rad(10.0).iter().zip(&DOFS) {
+            assert!(dof.lower_rad <= *target && *target <= dof.upper_rad, "{} at {target}", dof.name);
         }
     }
 
