@@ -371,8 +371,14 @@ impl PunchCharacter {
         for i in [Body::Pelvis.index(), Body::Torso.index(), Body::Head.index()] {
             rig.place(i, root * rig.rest_from_root[i]);
         }
-        self.carried_root = Some(root);
         scene.apply(Some(root), scale);
+        self.set_up_again(root)
+    }
+
+    /// After a sizing moved bodies and joint nodes with every body at rest at `root`: the joints rebuilt from their
+    /// places, the rig read again, the motors driving to the guard.
+    fn set_up_again(&mut self, root: Transform3D) -> Result<(), String> {
+        self.carried_root = Some(root);
         rebuild_joints(&self.base().clone().upcast::<Node3D>())?;
         self.rig = Some(self.set_up()?);
         if let Some(rig) = self.rig.as_ref() {
@@ -387,7 +393,7 @@ impl PunchCharacter {
     /// `take_hit` meets the head where the character's is, and the character is reset to its guard. The crown may
     /// stand 0.85 to 1.4 times the scene's height; outside that, or before the character is ready, one error says
     /// why, the head stays and this returns false. Call it between punches: `PunchSkeletonModifier` does, with
-    /// `size_to_rig` on, from the rig's head.
+    /// `size_head_to_rig` on, from the rig's head.
     #[func]
     fn size_head(&mut self, shoulder_to_crown_m: f32) -> bool {
         match self.try_size_head(shoulder_to_crown_m) {
@@ -429,15 +435,9 @@ impl PunchCharacter {
                 rig.place(i, root * *rest);
             }
         }
-        self.carried_root = Some(root);
         scene.apply(root, shift_m);
         self.head_shift_m = shift_m;
-        rebuild_joints(&root_node)?;
-        self.rig = Some(self.set_up()?);
-        if let Some(rig) = self.rig.as_ref() {
-            rig.drive(&[Vec3::ZERO; 5]);
-        }
-        Ok(())
+        self.set_up_again(root)
     }
 
     /// How much shorter the arm (shoulder to fist centre) is than the scene had it, m (0 before any `size_arms`;
