@@ -43,7 +43,8 @@ from punch_trainer.sim.rollouts import RolloutPool
 @dataclass
 class SearchArgs:
     reward: str = "straight"
-    """a preset (straight, straight100, hook, swing, uppercut, hook_landing, straight_landing) or FILE.py:FUNCTION"""
+    """a preset (the paper's straight, straight100, hook and swing, and the moves' rewards: README, "Training your own
+    punch") or FILE.py:FUNCTION"""
     style: str = "none"
     """the motion style added to the reward (docs/style.md): none, the reward alone (the paper's search); boxing, a
     human's punch (`punch train`'s default); or FILE.toml:NAME, a style of a file (recipes/styles.toml)"""

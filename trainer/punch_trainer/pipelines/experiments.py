@@ -45,7 +45,8 @@ class Fig6Args:
     """The options of `punch experiment fig6`."""
 
     reward: str = "straight"
-    """a preset (straight, straight100, hook, swing, uppercut, hook_landing, straight_landing) or FILE.py:FUNCTION"""
+    """a preset (the paper's straight, straight100, hook and swing, and the moves' rewards: README, "Training your own
+    punch") or FILE.py:FUNCTION"""
     seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
     """one run of every method per seed"""
     search_iterations: int = 60

@@ -87,7 +87,8 @@ def reach_default_notes() -> dict[str, str]:
 @dataclass
 class TrainArgs:
     reward: str = SearchArgs.reward
-    """a preset (straight, straight100, hook, swing, uppercut, hook_landing, straight_landing) or FILE.py:FUNCTION"""
+    """a preset (the paper's straight, straight100, hook and swing, and the moves' rewards: README, "Training your own
+    punch") or FILE.py:FUNCTION"""
     style: str = DEFAULT_STYLE
     """the motion style added to the reward in every stage (docs/style.md): boxing, a human's punch; none, the reward
     alone (the paper's); or FILE.toml:NAME, a style of a file (recipes/styles.toml: the shipped policies')"""
