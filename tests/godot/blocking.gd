@@ -1,8 +1,8 @@
 ## `PunchController.block()` as a game calls it, on one character standing in guard: a block of 0.5 s (where the fists
 ## are while it holds and after it, `is_blocking()` along the way), a block held until `stop_blocking()`, a punch asked
 ## for during a block, and blocks refused (seconds not a number; a knocked-down character); the elbow motor's torque
-## limit along the way (a block braces the guard); and a second character with its head sized 6 cm higher on its neck
-## (`size_head`, as an own rig's), blocking too. Prints `BLOCKING <json>` and quits.
+## limit along the way (a block braces the guard); and a second character, turned, with its head sized 6 cm higher on
+## its neck (`size_head`, as an own rig's), blocking too. Prints `BLOCKING <json>` and quits.
 extends SceneTree
 
 const CHARACTER_SCENE := preload("res://addons/punch_controller/scenes/punch_character.tscn")
@@ -28,7 +28,8 @@ func _initialize() -> void:
 	_controller.set("policy", load("res://addons/punch_controller/policies/straight.onnx"))
 	root.add_child(_controller)
 	_tall_headed = CHARACTER_SCENE.instantiate()
-	_tall_headed.position = Vector3(3, 0, 0)
+	# Turned 130 degrees (the guard is read in its own frame): not only the set-up the high guard was measured in.
+	_tall_headed.transform = Transform3D(Basis(Vector3.UP, deg_to_rad(130.0)), Vector3(3, 0, 0))
 	root.add_child(_tall_headed)
 	_tall_headed_controller = ClassDB.instantiate("PunchController")
 	_tall_headed_controller.set("character", _tall_headed)

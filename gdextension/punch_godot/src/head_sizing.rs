@@ -4,7 +4,7 @@
 
 use glam::Vec3;
 use godot::builtin::{Basis, Transform3D, Vector3};
-use godot::classes::{CapsuleShape3D, CollisionShape3D, MeshInstance3D, Node3D, RigidBody3D, SphereShape3D};
+use godot::classes::{CapsuleShape3D, CollisionShape3D, MeshInstance3D, Node3D, RigidBody3D};
 use godot::obj::Gd;
 use punch_core::contract::character::{BODY_COUNT, Body, JOINTS};
 
@@ -21,7 +21,7 @@ pub struct SceneHead {
     body: Gd<RigidBody3D>,
     rest: Transform3D,
     parts: Vec<HeadPart>,
-    /// How high the crown (the top of the head's shapes) stands above the middle of the shoulder joints, m.
+    /// How high the crown (the top of the head's capsule) stands above the middle of the shoulder joints, m.
     pub crown_m: f32,
 }
 
@@ -47,22 +47,17 @@ impl SceneHead {
         for child in body.get_children().iter_shared() {
             let Ok(node) = child.try_cast::<Node3D>() else { continue };
             let transform = node.get_transform();
-            let resource = node.clone().try_cast::<CollisionShape3D>().ok().and_then(|shape| shape.get_shape());
-            let capsule = resource.clone().and_then(|r| r.try_cast::<CapsuleShape3D>().ok());
-            let sphere = resource.and_then(|r| r.try_cast::<SphereShape3D>().ok());
-            let centre = rest * transform;
-            if let Some(capsule) = &capsule {
-                let (radius, half) = (capsule.get_radius(), 0.5 * capsule.get_height());
+            let capsule = node.clone().try_cast::<CollisionShape3D>().ok().and_then(|shape| shape.get_shape());
+            if let Some(capsule) = capsule.and_then(|r| r.try_cast::<CapsuleShape3D>().ok()) {
+                // The top of the capsule: its axis's upper end (the axis is its local Y), one radius above.
+                let (centre, radius, half) = (rest * transform, capsule.get_radius(), 0.5 * capsule.get_height());
                 crown =
                     crown.max(centre.origin.y + centre.basis.col_b().normalized().y.abs() * (half - radius) + radius);
-            }
-            if let Some(sphere) = &sphere {
-                crown = crown.max(centre.origin.y + sphere.get_radius());
             }
             parts.push(HeadPart { node, transform });
         }
         if crown == f32::MIN {
-            return Err("the 'Head' has no capsule or sphere shape".into());
+            return Err("the 'Head' has no capsule shape (the addon's character scene has one)".into());
         }
         Ok(SceneHead { body, rest, parts, crown_m: crown - shoulders.y })
     }

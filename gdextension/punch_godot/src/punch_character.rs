@@ -332,13 +332,8 @@ impl PunchCharacter {
     #[func]
     fn size_arms(&mut self, upper_arm_m: f32, forearm_m: f32, shoulder_width_m: f32) -> bool {
         let wanted = ArmLengths { upper_arm_m, forearm_m, shoulder_width_m };
-        match self.try_size_arms(wanted) {
-            Ok(()) => true,
-            Err(error) => {
-                godot_error!("PunchCharacter '{}': cannot size the arms: {error}", self.base().get_name());
-                false
-            }
-        }
+        let result = self.try_size_arms(wanted);
+        self.said_if_refused("the arms", result)
     }
 
     /// The simulated arms' lengths now: (upper arm, elbow to fist centre, shoulder width), m.
@@ -356,6 +351,13 @@ impl PunchCharacter {
     #[func]
     fn arm_scale_range() -> Vector2 {
         Vector2::new(ARM_SCALE_RANGE.0, ARM_SCALE_RANGE.1)
+    }
+
+    /// A sizing's answer to the game: true when it was done, else false after one error saying why.
+    fn said_if_refused(&self, what: &str, result: Result<(), String>) -> bool {
+        result
+            .map_err(|error| godot_error!("PunchCharacter '{}': cannot size {what}: {error}", self.base().get_name()))
+            .is_ok()
     }
 
     fn try_size_arms(&mut self, wanted: ArmLengths) -> Result<(), String> {
@@ -396,13 +398,8 @@ impl PunchCharacter {
     /// `size_head_to_rig` on, from the rig's head.
     #[func]
     fn size_head(&mut self, shoulder_to_crown_m: f32) -> bool {
-        match self.try_size_head(shoulder_to_crown_m) {
-            Ok(()) => true,
-            Err(error) => {
-                godot_error!("PunchCharacter '{}': cannot size the head: {error}", self.base().get_name());
-                false
-            }
-        }
+        let result = self.try_size_head(shoulder_to_crown_m);
+        self.said_if_refused("the head", result)
     }
 
     /// How high the simulated head's crown stands above the middle of the shoulder joints now, m (0 before the

@@ -365,6 +365,8 @@ def _defender(where: str, table: Any) -> Defender:
     part = table.get("part", "head")
     if part not in ("head", "torso"):
         raise ScenarioError(f"{where}.part: \"head\" or \"torso\", not {part!r}")
+    # Checked here so that a scenario file fails before Godot starts: inside what `size_head` accepts for the addon's
+    # head (`HEAD_CROWN_SCALE_RANGE`, punch_core/src/contract/head_size.rs); the engine refuses anything beyond that.
     head_up_m = table.get("head_up_m", 0.0)
     if isinstance(head_up_m, bool) or not isinstance(head_up_m, int | float) or not -0.04 <= head_up_m <= 0.11:
         raise ScenarioError(f"{where}.head_up_m: metres from -0.04 to 0.11 (what `size_head` accepts), not {head_up_m!r}")

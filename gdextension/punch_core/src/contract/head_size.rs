@@ -1,7 +1,6 @@
 //! Sizing the simulated head to a character's: the head moves along its neck so that its crown stands as high above
 //! the shoulder joints as the character's does; the skull keeps its size (adult heads differ far less than bodies:
-//! the converted CC0 characters of 1.55 to 1.95 m all have their crown 0.35-0.36 m above their shoulder joints). The
-//! addon's own crown stands 0.29 m above its shoulder joints. `PunchCharacter::size_head` (punch_godot) applies it
+//! docs/hits.md, "An own rig's head"). The addon's own crown stands 0.29 m above its shoulder joints. `PunchCharacter::size_head` (punch_godot) applies it
 //! to the body and its neck's mesh; the mass and inertia stay (the neck's springs were tuned with them).
 
 use super::arm_size::SizeError;

@@ -580,7 +580,7 @@ pub fn rig_shoulder_to_crown(
         head_skin.iter().map(height).fold(f32::MIN, f32::max)
     } else {
         let tips = parents.iter().enumerate().filter(|(_, p)| usize::try_from(**p).ok() == Some(map.head));
-        tips.map(|(b, _)| height(&pos(b))).fold(None, |top: Option<f32>, h| Some(top.map_or(h, |t| t.max(h))))?
+        tips.map(|(b, _)| height(&pos(b))).reduce(f32::max)?
     };
     (crown > height(&pos(map.head))).then_some(crown * scale)
 }
