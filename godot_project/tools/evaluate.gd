@@ -37,8 +37,9 @@
 ##   the episode ends at `recovered` (after `knocked_down`, `recover()` is called 1 s on);
 ## - `reset_target`: each later punch of a combo starts with the bag hanging as placed again (its start, not where
 ##   the punches before swung it);
-## - `defender`: {`blocks`, `part`, `head_up_m`}: a second character of the addon's scene stands facing the first instead of the
-##   bag, its root at the placement's distance and side (the height is its own), and the punch aims at its `part`:
+## - `defender`: {`blocks`, `part`, `head_up_m`, `turned_deg`}: a second character of the addon's scene stands facing
+##   the first (turned `turned_deg` to its left from there) instead of the bag, its root at the placement's distance and
+##   side (the height is its own), and the punch aims at its `part`:
 ##   "head" (the `Head` body, on its neck; `head_up_m` higher up it, as an own rig's, with `size_head`) or "torso";
 ##   with `blocks`, its own controller calls `block()` as the episode starts (`lead_s` later comes the punch: the warning). The row's struck entry is then {`outcome`,
 ##   `head_impulse_ns`}: the punch's `punch_finished` outcome ("landed": on the head or the body, "blocked": on an
@@ -462,7 +463,8 @@ func _add_defender(controller: Node, bag: RigidBody3D, layer_slot: int, offset: 
 	sandbag.free()
 	var puncher: Node3D = controller.get("character")
 	var defender: Node3D = PunchPair.CHARACTER_SCENE.instantiate()
-	defender.transform = Transform3D(Basis(Vector3.UP, PI), puncher.position + Vector3(offset.x, 0.0, offset.z))
+	var turned_rad := deg_to_rad(float(defender_spec.get("turned_deg", 0.0)))
+	defender.transform = Transform3D(Basis(Vector3.UP, PI + turned_rad), puncher.position + Vector3(offset.x, 0.0, offset.z))
 	var layer := 1 << (2 * layer_slot)
 	PunchPair.set_layers(defender, layer << 1, layer)
 	parent.add_child(defender)

@@ -2,7 +2,8 @@
 ## are while it holds and after it, `is_blocking()` along the way), a block held until `stop_blocking()`, a punch asked
 ## for during a block, and blocks refused (seconds not a number; a knocked-down character); the elbow motor's torque
 ## limit along the way (a block braces the guard); and a second character, turned, with its head sized 6 cm higher on
-## its neck (`size_head`, as an own rig's), blocking too. Prints `BLOCKING <json>` and quits.
+## its neck (`size_head`, as an own rig's), blocking too; and a third, its target 35° to its right, blocking turned
+## toward it. Prints `BLOCKING <json>` and quits.
 extends SceneTree
 
 const CHARACTER_SCENE := preload("res://addons/punch_controller/scenes/punch_character.tscn")
@@ -12,6 +13,8 @@ var _character: Node3D
 var _controller: Node
 var _tall_headed: Node3D
 var _tall_headed_controller: Node
+var _facing: Node3D
+var _facing_controller: Node
 var _frame := 0
 var _report := {"signals": [], "samples": {}}
 
@@ -35,6 +38,17 @@ func _initialize() -> void:
 	_tall_headed_controller.set("character", _tall_headed)
 	_tall_headed_controller.set("policy", load("res://addons/punch_controller/policies/straight.onnx"))
 	root.add_child(_tall_headed_controller)
+	_facing = CHARACTER_SCENE.instantiate()
+	_facing.transform = Transform3D(Basis(Vector3.UP, deg_to_rad(-70.0)), Vector3(-3, 0, 0))
+	root.add_child(_facing)
+	var opponent := Node3D.new()  # 35° to its right (-X in its frame), 1 m away, chest high
+	opponent.position = _facing.transform * (Vector3(-sin(deg_to_rad(35.0)), 1.3, cos(deg_to_rad(35.0))))
+	root.add_child(opponent)
+	_facing_controller = ClassDB.instantiate("PunchController")
+	_facing_controller.set("character", _facing)
+	_facing_controller.set("target", opponent)
+	_facing_controller.set("policy", load("res://addons/punch_controller/policies/straight.onnx"))
+	root.add_child(_facing_controller)
 	for name in ["punch_started", "punch_finished", "recovered"]:
 		_controller.connect(name, func(_a = null, _b = null, _c = null): _report.signals.append([name, _frame]))
 
@@ -73,9 +87,11 @@ func _physics_process(_delta: float) -> bool:
 			_sample("guard")
 			_report.blocked = _controller.call("block", 0.5)
 			_tall_headed_controller.call("block", 0.5)
+			_facing_controller.call("block", 0.5)
 		50:  # 1/3 s into the block
 			_sample("blocking")
 			_sample("tall_headed_blocking", _tall_headed, _tall_headed_controller)
+			_sample("facing_blocking", _facing, _facing_controller)
 		150:  # 0.75 s after the block's end
 			_sample("after")
 			_controller.call("block")  # until stopped

@@ -4,6 +4,7 @@ for its time or until stopped, then goes back to guard without a `recovered`; a 
 policies at the head of a second character, which blocks or stands in guard."""
 
 import json
+import math
 
 import pytest
 
@@ -35,6 +36,10 @@ def test_a_block_raises_both_fists_before_the_face_for_its_time_and_a_punch_ends
     for fist, square_fist in zip(tall["fists"], square["fists"], strict=True):
         assert fist[1] - tall["head"][1] == pytest.approx(square_fist[1] - square["head"][1], abs=0.02), (tall, square)
         assert 0.15 < fist[2] - tall["head"][2] < 0.30 and abs(fist[0]) < 0.12, tall
+    # A block faces its target (the opponent): with it 35° to the right, the trunk turns that way and the gloves with it.
+    facing = samples["facing_blocking"]
+    middle = [(a + b) / 2 for a, b in zip(*facing["fists"], strict=True)]
+    assert math.degrees(math.atan2(middle[0], middle[2])) == pytest.approx(-35.0, abs=8.0), facing
     for label in ("after", "stopped"):  # 0.5 s up, then back in the guard it came from
         assert not samples[label]["blocking"], samples[label]
         for fist, guard in zip(samples[label]["fists"], samples["guard"]["fists"], strict=True):

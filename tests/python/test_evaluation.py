@@ -163,6 +163,7 @@ def test_scales_and_proportions_make_the_sizes_conditions_in_order():
     ({"conditions": [{"name": "a", "defender": {"dodges": True}}]}, "unknown key\\(s\\) 'dodges'"),
     ({"conditions": [{"name": "a", "defender": {"part": "legs"}}]}, "defender.part: \"head\" or \"torso\""),
     ({"conditions": [{"name": "a", "defender": {"head_up_m": 0.5}}]}, "defender.head_up_m: metres from -0.04 to 0.11"),
+    ({"conditions": [{"name": "a", "defender": {"turned_deg": 120}}]}, "defender.turned_deg: degrees from -90 to 90"),
     ({"conditions": [{"name": "a", "combo": ["jab"], "defender": {}}]}, "a defender stands in the bag's place"),
     ({"placements": {"distance_m": [0.9, 0.7]}, "conditions": [{"name": "a"}]}, "placements.distance_m \\[0.9, 0.7\\] runs downward"),
     ({"conditions": [{"name": "a", "cancel_delay_s": [0.0, 0.5]}]}, "cancel_delay_s delays a combo's next punch; it needs a combo"),

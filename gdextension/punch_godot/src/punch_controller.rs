@@ -23,7 +23,7 @@ use punch_core::contract::character::{Body, DEFAULT_DECISION_PERIOD, DOF_COUNT};
 use punch_core::contract::mirror::mirror_point;
 use punch_core::contract::sensing::{CharacterGeometry, FrameReading};
 use punch_core::contract::spec::{ReachVolume, hand_far_m};
-use punch_core::contract::stance::high_guard_rad;
+use punch_core::contract::stance::{high_guard_rad, turned_toward};
 use punch_core::game::lifecycle::{Drive, Ending, Event, FrameNeeds, Lifecycle, NoiseSettings, PunchStart};
 use punch_core::game::moves::{Hand, Move, Side, Stance};
 use punch_core::game::policy_gate::{DecisionRequest, PunchingPolicy, decide_batched};
@@ -455,9 +455,9 @@ impl PunchController {
         Self::emit_events(&mut this);
     }
 
-    /// Raises a high guard now (both fists in front of the face, the trunk square; docs/hits.md) and holds it for
-    /// `seconds` (0 or less: until `stop_blocking()`), then goes back into the character's guard; no `recovered`
-    /// either way. A running punch ends (interrupted; what was queued is dropped). A punch, `recover()` or `cancel()`
+    /// Raises a high guard now (both fists in front of the face, the trunk turned to face `target`, the opponent;
+    /// docs/hits.md) and holds it for `seconds` (0 or less: until `stop_blocking()`), then goes back into the
+    /// character's guard; no `recovered` either way. A running punch ends (interrupted; what was queued is dropped). A punch, `recover()` or `cancel()`
     /// ends the block too; a hit below `stagger_impulse_ns` does not (the arms give a little and rise again). Returns
     /// false, with the reason in the log, when there is no character to block with, it is knocked down, or `seconds`
     /// is not a number.
@@ -796,7 +796,12 @@ impl PunchController {
         let frames = (seconds > 0.0).then(|| (seconds * ticks_per_s).round().max(1.0) as u32);
         self.lifecycle.set_guard(self.guard_targets());
         // An own rig's head may sit higher on its neck: the gloves rise with it.
-        let high_guard = high_guard_rad(character.bind().head_shift_m());
+        let mut high_guard = high_guard_rad(character.bind().head_shift_m());
+        // The trunk faces the target (the opponent) so the shell meets its punches square on.
+        if let Some(target) = live(&self.target) {
+            let local = geometry.root_local(vec3(target.get_global_position()));
+            high_guard = turned_toward(high_guard, local.x.atan2(local.z));
+        }
         self.lifecycle.block(geometry, high_guard, frames);
         self.drive_from_now(character.clone());
         Ok(character)
@@ -1201,7 +1206,7 @@ fn geometry_of(character: &Gd<PunchCharacter>) -> Result<CharacterGeometry, Stri
 /// Where `position` (global) lies from the character in the policy's frame: its root's, mirrored for a left-hand
 /// move (the reach volume is the right hand's; the left hand's is its mirror image).
 fn policy_offset(geometry: &CharacterGeometry, hand: Hand, position: Vec3) -> Vec3 {
-    let local = geometry.root_rotation.inverse() * (position - geometry.root_position);
+    let local = geometry.root_local(position);
     if hand.is_mirrored() { mirror_point(local) } else { local }
 }
 

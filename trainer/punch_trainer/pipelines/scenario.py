@@ -88,6 +88,9 @@ class Defender:
     head_up_m: float = 0.0
     """its head moved this far up its neck (`PunchCharacter.size_head`), as an own rig's head sits: its block's high
     guard rises with it"""
+    turned_deg: float = 0.0
+    """its body (the pelvis, the game's) turned this far to its left (negative: its right) from facing the puncher,
+    as a game's fighter caught off line: its block turns the trunk back toward its target (the puncher)"""
 
 
 @dataclass(frozen=True)
@@ -355,10 +358,10 @@ def _condition(index: int, table: Any, defaults: Mapping[str, Any], scenario_sig
 
 
 def _defender(where: str, table: Any) -> Defender:
-    """A `defender = { blocks = true, part = "torso", head_up_m = 0.06 }` table, checked."""
+    """A `defender = { blocks = true, part = "torso", head_up_m = 0.06, turned_deg = 30 }` table, checked."""
     if not isinstance(table, Mapping):
         raise ScenarioError(f"{where}: a table ({{ blocks = true }})")
-    _unknown(where, table, ("blocks", "part", "head_up_m"))
+    _unknown(where, table, ("blocks", "part", "head_up_m", "turned_deg"))
     blocks = table.get("blocks", False)
     if not isinstance(blocks, bool):
         raise ScenarioError(f"{where}.blocks: true or false, not {blocks!r}")
@@ -370,7 +373,10 @@ def _defender(where: str, table: Any) -> Defender:
     head_up_m = table.get("head_up_m", 0.0)
     if isinstance(head_up_m, bool) or not isinstance(head_up_m, int | float) or not -0.04 <= head_up_m <= 0.11:
         raise ScenarioError(f"{where}.head_up_m: metres from -0.04 to 0.11 (what `size_head` accepts), not {head_up_m!r}")
-    return Defender(blocks=blocks, part=part, head_up_m=float(head_up_m))
+    turned_deg = table.get("turned_deg", 0.0)
+    if isinstance(turned_deg, bool) or not isinstance(turned_deg, int | float) or not -90.0 <= turned_deg <= 90.0:
+        raise ScenarioError(f"{where}.turned_deg: degrees from -90 to 90, not {turned_deg!r}")
+    return Defender(blocks=blocks, part=part, head_up_m=float(head_up_m), turned_deg=float(turned_deg))
 
 
 def _struck(where: str, table: Any) -> Struck:

@@ -65,6 +65,11 @@ pub struct CharacterGeometry {
 }
 
 impl CharacterGeometry {
+    /// Where `position` (global) lies in the root's frame: +Z ahead, +Y up, +X the character's left.
+    pub fn root_local(&self, position: Vec3) -> Vec3 {
+        self.root_rotation.inverse() * (position - self.root_position)
+    }
+
     /// The right arm's lengths and the shoulders' distance, from the joint anchors and the fist: the body's
     /// size as the policy observes it (`body_*` features), so one policy can punch with arms sized to any rig.
     pub fn arm_lengths(&self) -> ArmLengths {

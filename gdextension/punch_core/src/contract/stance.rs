@@ -65,6 +65,19 @@ pub fn high_guard_rad(head_shift_m: f32) -> [f32; DOF_COUNT] {
     targets
 }
 
+/// `guard` with the trunk turned at the waist toward an opponent `toward_rad` to the character's left (negative: its
+/// right) of straight ahead, within the waist's range; a non-finite angle leaves it as it is. A block faces its
+/// opponent so the shell meets the punch square on: the pelvis is the game's and faces where the game turned it,
+/// which need not be the opponent.
+pub fn turned_toward(mut guard: [f32; DOF_COUNT], toward_rad: f32) -> [f32; DOF_COUNT] {
+    if let Some(index) = DOFS.iter().position(|dof| dof.name == "waist_rotation")
+        && toward_rad.is_finite()
+    {
+        guard[index] = toward_rad.clamp(DOFS[index].lower_rad, DOFS[index].upper_rad);
+    }
+    guard
+}
+
 impl Stance {
     /// The joint targets of this stance's guard (rad, action order).
     pub fn guard_targets(self) -> [f32; DOF_COUNT] {
@@ -119,6 +132,18 @@ mod tests {
         for (target, dof) in high_guard_rad(10.0).iter().zip(&DOFS) {
             assert!(dof.lower_rad <= *target && *target <= dof.upper_rad, "{} at {target}", dof.name);
         }
+    }
+
+    #[test]
+    fn a_guard_turned_toward_an_opponent_turns_only_the_waist_within_its_range() {
+        let index = |name: &str| DOFS.iter().position(|d| d.name == name).expect("a DOF");
+        let waist = index("waist_rotation");
+        let left = turned_toward(HIGH_GUARD_RAD, 0.3);
+        assert_eq!(left[waist], 0.3, "positive turns the trunk left");
+        assert_eq!((0..DOF_COUNT).filter(|&i| left[i] != HIGH_GUARD_RAD[i]).count(), 1, "only the waist turns");
+        assert_eq!(mirror_targets(&turned_toward(HIGH_GUARD_RAD, -0.3)), left, "the right is the left's mirror image");
+        assert_eq!(turned_toward(HIGH_GUARD_RAD, 3.0)[waist], DOFS[waist].upper_rad, "behind: as far as it turns");
+        assert_eq!(turned_toward(HIGH_GUARD_RAD, f32::NAN), HIGH_GUARD_RAD);
     }
 
     #[test]
