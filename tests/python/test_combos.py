@@ -26,3 +26,25 @@ def test_random_command_streams_keep_every_combo_promise(seed):
     # The streams did what they are for: many calls, some inside handlers, many punches chained from the queue.
     assert report["calls"] > 1000 and report["handler_calls"] > 100, report
     assert sum(s["chained_starts"] for s in streams) > 300, streams
+
+
+def test_a_combinations_next_punch_starts_as_near_its_guard_as_its_move_asks():
+    """`PunchMoveset`'s "Returns to guard": the uppercuts start from a settled guard by default, the other moves from
+    near it (0.1 rad); a wider tolerance starts the uppercut after a cross sooner (tests/godot/guard_tolerance.gd)."""
+    script = PROJECT_ROOT / "tests" / "godot" / "guard_tolerance.gd"
+    run = run_godot(["--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), "--script", str(script)],
+                    check=False, timeout_s=120)
+    line = next((line for line in run.log.splitlines() if line.startswith("GUARD_TOLERANCE ")), None)
+    assert line is not None and run.fatal_lines() == [] and "ERROR" not in run.log, run.log[-3000:]
+    report = json.loads(line[len("GUARD_TOLERANCE "):])
+    defaults = report["defaults"]
+    assert defaults["lead_uppercut"] == defaults["rear_uppercut"] == pytest.approx(0.02)
+    assert all(defaults[move] == pytest.approx(0.1) for move in ("jab", "cross", "lead_hook", "rear_hook")), defaults
+
+    def uppercut_startup_frames(case):
+        started = dict(report[case]["started"])["lead_uppercut"]
+        left_hits = [frame for hand, frame in report[case]["hits"] if hand == "left"]
+        assert report[case]["finished"] == ["landed", "landed"] and left_hits, report[case]
+        return left_hits[0] - started
+
+    assert uppercut_startup_frames("wide") + 10 < uppercut_startup_frames("default"), report

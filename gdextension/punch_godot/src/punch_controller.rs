@@ -27,7 +27,7 @@ use punch_core::contract::stance::{high_guard_rad, turned_toward};
 use punch_core::game::lifecycle::{Drive, Ending, Event, FrameNeeds, Lifecycle, NoiseSettings, PunchStart};
 use punch_core::game::moves::{Hand, Move, Side, Stance};
 use punch_core::game::policy_gate::{DecisionRequest, PunchingPolicy, decide_batched};
-use punch_core::game::punch::{Punch, PunchSummary};
+use punch_core::game::punch::{Punch, PunchSummary, Recovery};
 use punch_core::rig::transform::TransformError;
 
 use crate::convert::{rigid, vec3, vector3};
@@ -71,6 +71,8 @@ struct Throw {
     punch_move: Option<Move>,
     /// From the fist's first contact (or the punch's last frame) to the cancel window, s (`PunchMoveset`).
     cancel_delay_s: f32,
+    /// How near the guard it starts with `guard_first`, rad (`PunchMoveset`).
+    guard_tolerance_rad: f32,
 }
 
 /// A move that can be thrown now (`checked`): what throws it, at which character (its geometry where it stands) and
@@ -202,7 +204,8 @@ pub struct PunchController {
 
     /// A punch asked for while the character is away from its guard pose (the end of an earlier punch,
     /// mid-recovery, the next punch of a combo) first returns it to guard under physics until every joint is within
-    /// 6° of its guard angle and slower than 1 rad/s (at most 0.5 s), then plays the policy: punches land far more
+    /// the move's tolerance of its guard angle (the moveset's "Returns to guard": 6° and slower than 1 rad/s, the
+    /// uppercuts settled; at most 0.5 s; a punch with no move: 6°), then plays the policy: punches land far more
     /// often from there (BENCHMARKS.md, "after an earlier punch"). Off: the policy starts from
     /// whatever pose the arms are in. A punch from the guard starts at once either way.
     #[export_group(name = "Behaviour")]
@@ -658,6 +661,7 @@ impl PunchController {
                 hand: Hand::Right,
                 punch_move: None,
                 cancel_delay_s: 0.0,
+                guard_tolerance_rad: Recovery::READY_ANGLE_RAD,
             });
         }
         let punch_move = Move::from_name(&name).map_err(|error| error.to_string())?;
@@ -673,8 +677,10 @@ impl PunchController {
             format!("the moveset '{}' has no policy for '{punch_move}': set one in its inspector", moveset.get_path())
         })?;
         let policy = policy.bind_mut().punching()?;
-        let cancel_delay_s = moveset.bind().cancel_delay_s_of(punch_move);
-        Ok(Throw { policy, hand: punch_move.hand(self.stance.into()), punch_move: Some(punch_move), cancel_delay_s })
+        let (cancel_delay_s, guard_tolerance_rad) =
+            (moveset.bind().cancel_delay_s_of(punch_move), moveset.bind().guard_tolerance_rad_of(punch_move));
+        let hand = punch_move.hand(self.stance.into());
+        Ok(Throw { policy, hand, punch_move: Some(punch_move), cancel_delay_s, guard_tolerance_rad })
     }
 
     /// Throws `moves` one after another: while a punch runs (or moves wait for its cancel window) they replace
@@ -752,7 +758,7 @@ impl PunchController {
     fn prepare(&mut self, move_name: &StringName) -> Result<Prepared, String> {
         let Checked { throw, character, mut target, mut geometry, target_position } = self.checked(move_name)?;
         let reach = self.sized_reach(&throw, &character);
-        let Throw { policy, hand, punch_move, cancel_delay_s } = throw;
+        let Throw { policy, hand, punch_move, cancel_delay_s, guard_tolerance_rad } = throw;
         self.lifecycle.set_guard(self.guard_targets());
         let offset = policy_offset(&geometry, hand, target_position);
         let out_of_reach = (!reach.contains(offset)).then(|| {
@@ -775,7 +781,8 @@ impl PunchController {
         let identity = Rc::as_ptr(&policy) as usize;
         let ticks_per_s = Engine::singleton().get_physics_ticks_per_second() as f32;
         let cancel_delay_frames = (cancel_delay_s * ticks_per_s).round() as u32;
-        let start = PunchStart { punch, policy, guard_first: self.guard_first, out_of_reach, cancel_delay_frames };
+        let guard_first = self.guard_first.then_some(guard_tolerance_rad);
+        let start = PunchStart { punch, policy, guard_first, out_of_reach, cancel_delay_frames };
         Ok(Prepared { start, identity, character })
     }
 

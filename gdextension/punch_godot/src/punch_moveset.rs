@@ -5,6 +5,7 @@ use godot::classes::{IResource, Resource};
 use godot::obj::{Base, Gd};
 use godot::prelude::{GodotClass, godot_api};
 use punch_core::game::moves::Move;
+use punch_core::game::punch::Recovery;
 
 use crate::punch_policy::PunchPolicy;
 
@@ -13,7 +14,8 @@ use crate::punch_policy::PunchPolicy;
 /// hand plays the policy mirrored, so one policy serves both stances. The addon's moveset is
 /// `res://addons/punch_controller/policies/boxing.tres`; duplicate it (or make a new one) to swap in a policy of
 /// your own for a move. A move left empty is refused by `punch()`, naming it. Each move's cancel window (when a
-/// move queued during it starts) is set here too.
+/// move queued during it starts) and how near the guard it starts (with the controller's `guard_first`) are set
+/// here too.
 #[derive(GodotClass)]
 #[class(base = Resource, init, tool)]
 pub struct PunchMoveset {
@@ -57,6 +59,36 @@ pub struct PunchMoveset {
     /// The rear uppercut's cancel window (as `jab_cancel_delay_s`), in seconds.
     #[export(range = (0.0, 1.0, 0.01, or_greater, suffix = "s"))]
     rear_uppercut_cancel_delay_s: f32,
+
+    /// How near its guard the jab starts when asked for away from it (with the controller's `guard_first`: the end of
+    /// an earlier punch, mid-recovery, a combination's next punch): the body first returns until every joint is
+    /// within this angle of its guard angle (and slower than ten times it per second; at most 0.5 s). Larger starts
+    /// sooner, smaller lands more often (docs/combos.md). Shown in degrees, stored in radians.
+    #[export_group(name = "Returns to guard")]
+    #[export(range = (0.0, 0.5, 0.005, radians_as_degrees))]
+    #[init(val = Recovery::READY_ANGLE_RAD)]
+    jab_guard_tolerance_rad: f32,
+    /// The cross's (as `jab_guard_tolerance_rad`).
+    #[export(range = (0.0, 0.5, 0.005, radians_as_degrees))]
+    #[init(val = Recovery::READY_ANGLE_RAD)]
+    cross_guard_tolerance_rad: f32,
+    /// The lead hook's (as `jab_guard_tolerance_rad`).
+    #[export(range = (0.0, 0.5, 0.005, radians_as_degrees))]
+    #[init(val = Recovery::READY_ANGLE_RAD)]
+    lead_hook_guard_tolerance_rad: f32,
+    /// The rear hook's (as `jab_guard_tolerance_rad`).
+    #[export(range = (0.0, 0.5, 0.005, radians_as_degrees))]
+    #[init(val = Recovery::READY_ANGLE_RAD)]
+    rear_hook_guard_tolerance_rad: f32,
+    /// The lead uppercut's (as `jab_guard_tolerance_rad`): settled by default (the guard `recovered` waits for), as
+    /// an uppercut begins from under the fist and lands less often from a guard still moving.
+    #[export(range = (0.0, 0.5, 0.005, radians_as_degrees))]
+    #[init(val = Recovery::SETTLED_ANGLE_RAD)]
+    lead_uppercut_guard_tolerance_rad: f32,
+    /// The rear uppercut's (as `lead_uppercut_guard_tolerance_rad`).
+    #[export(range = (0.0, 0.5, 0.005, radians_as_degrees))]
+    #[init(val = Recovery::SETTLED_ANGLE_RAD)]
+    rear_uppercut_guard_tolerance_rad: f32,
     base: Base<Resource>,
 }
 
@@ -104,5 +136,18 @@ impl PunchMoveset {
             Move::RearUppercut => self.rear_uppercut_cancel_delay_s,
         };
         if delay_s.is_finite() { delay_s.max(0.0) } else { 0.0 }
+    }
+
+    /// How near its guard `punch_move` starts with `guard_first`, rad (`Recovery::ready_to_punch` takes care of a
+    /// value that is not a number).
+    pub fn guard_tolerance_rad_of(&self, punch_move: Move) -> f32 {
+        match punch_move {
+            Move::Jab => self.jab_guard_tolerance_rad,
+            Move::Cross => self.cross_guard_tolerance_rad,
+            Move::LeadHook => self.lead_hook_guard_tolerance_rad,
+            Move::RearHook => self.rear_hook_guard_tolerance_rad,
+            Move::LeadUppercut => self.lead_uppercut_guard_tolerance_rad,
+            Move::RearUppercut => self.rear_uppercut_guard_tolerance_rad,
+        }
     }
 }

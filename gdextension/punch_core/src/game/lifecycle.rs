@@ -99,8 +99,9 @@ pub struct NoiseSettings {
 pub struct PunchStart<P> {
     pub punch: Punch,
     pub policy: P,
-    /// Return to guard first (the character is away from it: the end of an earlier punch, mid-recovery).
-    pub guard_first: bool,
+    /// Return to guard first (the character is away from it: the end of an earlier punch, mid-recovery) until every
+    /// joint is within this angle of its guard angle (rad; `Recovery::ready_to_punch`); None: from where the arms are.
+    pub guard_first: Option<f32>,
     pub out_of_reach: Option<(Vec3, Vec3)>,
     /// Physics frames from the punching fist's first contact (or the punch's last frame) to its cancel window,
     /// when a punch queued after it starts.
@@ -272,11 +273,11 @@ impl<P: Clone> Lifecycle<P> {
         let geometry = *punch.geometry();
         self.phase = match start.guard_first {
             // Decided at the next frame's reading: a character already in guard punches in that same frame.
-            true => {
-                let recovery = Recovery::new(geometry, self.guard).ready_to_punch();
+            Some(angle_rad) => {
+                let recovery = Recovery::new(geometry, self.guard).ready_to_punch(angle_rad);
                 Phase::Guarding(punch, start.policy, Box::new(recovery), [Vec3::ZERO; 5])
             }
-            false => Phase::Punching(punch, start.policy),
+            None => Phase::Punching(punch, start.policy),
         };
         self.hold_next = false;
         self.window_in = None;
@@ -565,7 +566,7 @@ mod tests {
         PunchStart {
             punch: Punch::new(rest_geometry(), spec, true),
             policy,
-            guard_first,
+            guard_first: guard_first.then_some(Recovery::READY_ANGLE_RAD),
             out_of_reach: None,
             cancel_delay_frames: 0,
         }

@@ -376,10 +376,12 @@ impl Recovery {
     pub const SETTLED_ANGLE_RAD: f32 = 0.02;
     /// ... and slower than this (rad/s).
     pub const SETTLED_SPEED_RAD_S: f32 = 0.2;
-    /// Near enough to punch from (`ready_to_punch`): every joint within this angle of its guard angle (rad) ...
+    /// Near enough to punch from (`ready_to_punch`), unless a move asks otherwise: every joint within this angle of
+    /// its guard angle (rad) ...
     pub const READY_ANGLE_RAD: f32 = 0.1;
-    /// ... and slower than this (rad/s).
-    pub const READY_SPEED_RAD_S: f32 = 1.0;
+    /// ... and slower than this many times that angle per second (1 rad/s for 0.1 rad; the settled guard's 0.2 rad/s
+    /// for its 0.02 rad).
+    pub const READY_SPEED_PER_ANGLE_HZ: f32 = 10.0;
     /// After a hit the head swings on its neck (springs, no motor) after the driven joints are back: it is back
     /// within this angle of where it rests on the chest (rad; under its own weight it sags about 1.5 degrees) ...
     pub const NECK_SETTLED_ANGLE_RAD: f32 = 0.1;
@@ -416,10 +418,13 @@ impl Recovery {
         self
     }
 
-    /// Ends near the guard rather than settled in it (`READY_ANGLE_RAD`, `READY_SPEED_RAD_S`): a return to guard
-    /// before a punch (`guard_first`), which the policies land from as they do from the guard itself.
-    pub fn ready_to_punch(mut self) -> Self {
-        self.settled = (Self::READY_ANGLE_RAD, Self::READY_SPEED_RAD_S);
+    /// Ends near the guard rather than settled in it: every joint within `angle_rad` of its guard angle and slower
+    /// than `READY_SPEED_PER_ANGLE_HZ` times that (a return to guard before a punch, `guard_first`, which the
+    /// policies land from as they do from the guard itself; `READY_ANGLE_RAD` unless the move asks nearer). A
+    /// non-finite or negative angle is the settled guard's.
+    pub fn ready_to_punch(mut self, angle_rad: f32) -> Self {
+        let angle_rad = if angle_rad.is_finite() && angle_rad >= 0.0 { angle_rad } else { Self::SETTLED_ANGLE_RAD };
+        self.settled = (angle_rad, angle_rad * Self::READY_SPEED_PER_ANGLE_HZ);
         self
     }
 
@@ -682,6 +687,21 @@ mod tests {
         assert!(commands[2].length() > 1.0, "the right elbow is driven back: {commands:?}");
         let steps = std::iter::from_fn(|| recovery.step(&reading)).take(1000).count();
         assert_eq!(steps + 1, Recovery::MAX_FRAMES as usize, "a recovery that cannot settle ends on time");
+    }
+
+    #[test]
+    fn a_return_before_a_punch_ends_within_the_moves_tolerance() {
+        // The right elbow 0.05 rad off its guard angle, at rest.
+        let mut reading = FakeWorld::new(1).read_slot(0);
+        reading.bodies[Body::ForearmR.index()].rotation = Quat::from_rotation_x(0.05);
+        let ready = |angle_rad: f32| Recovery::new(rest_geometry(), [0.0; DOF_COUNT]).ready_to_punch(angle_rad);
+        assert_eq!(ready(Recovery::READY_ANGLE_RAD).step(&reading), None, "near enough for the default tolerance");
+        assert!(ready(Recovery::SETTLED_ANGLE_RAD).step(&reading).is_some(), "not for a settled start");
+        assert!(ready(f32::NAN).step(&reading).is_some(), "a tolerance that is not a number is the settled one");
+        // Within the angle but still moving faster than ten times it per second: not yet.
+        reading.bodies[Body::ForearmR.index()].angular_velocity = Vec3::X * 1.5;
+        assert!(ready(Recovery::READY_ANGLE_RAD).step(&reading).is_some(), "still swinging back");
+        assert_eq!(ready(0.2).step(&reading), None, "a wider tolerance allows a faster joint too");
     }
 
     #[test]
