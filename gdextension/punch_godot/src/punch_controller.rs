@@ -460,10 +460,10 @@ impl PunchController {
 
     /// Raises a high guard now (both fists in front of the face, the trunk turned to face `target`, the opponent;
     /// docs/hits.md) and holds it for `seconds` (0 or less: until `stop_blocking()`), then goes back into the
-    /// character's guard; no `recovered` either way. A running punch ends (interrupted; what was queued is dropped). A punch, `recover()` or `cancel()`
-    /// ends the block too; a hit below `stagger_impulse_ns` does not (the arms give a little and rise again). Returns
-    /// false, with the reason in the log, when there is no character to block with, it is knocked down, or `seconds`
-    /// is not a number.
+    /// character's guard; no `recovered` either way. A running punch ends (interrupted; what was queued is
+    /// dropped). A punch, `recover()` or `cancel()` ends the block too; a hit below `stagger_impulse_ns` does not
+    /// (the arms give a little and rise again). Returns false, with the reason in the log, when there is no
+    /// character to block with, it is knocked down, or `seconds` is not a number.
     #[func(gd_self)]
     fn block(mut this: Gd<Self>, #[opt(default = 0.0)] seconds: f32) -> bool {
         let started = this.bind_mut().start_block(seconds);
