@@ -424,6 +424,9 @@ def hostile_policy_files(policy, directory):
     # A noise scale that would multiply the designer's sigma by 5 on one joint.
     files["noise_scale"] = export_onnx(Swapped(), observations, directory / "noise_scale.onnx",
                                        metadata={**contract, "punch_noise_scale": "[1, 1, 1, 1, 1, 1, 1, 1, 1, 5]"})
+    # A load the game does not know (it would draw the arm nowhere a policy was trained from).
+    files["start_load"] = export_onnx(Swapped(), observations, directory / "start_load.onnx",
+                                      metadata={**contract, "punch_start_load": "kick"})
     # A Loop whose body runs 2^40 times: the graph is small and valid, and ONNX Runtime would run it.
     body = helper.make_graph(
         [helper.make_node("Identity", ["cond_in"], ["cond_out"]), helper.make_node("Identity", ["x_in"], ["x_out"])],
@@ -466,7 +469,7 @@ def test_policy_files_that_lie_are_refused_once_per_file(policy, tmp_path):
         assert len(mine) == 1, (name, mine)  # one error per file, not one per controller
     expected = {"swapped": "outputs are [sigma, mean]", "foo": "outputs are [foo, sigma]", "loop": "operator 'Loop'",
                 "punch_physics_hz_60": "120 Hz", "punch_frames_7": "multiple of the decision period",
-                "noise_scale": "punch_noise_scale", "spec_1": "retrain it with this version's `punch train`",
+                "noise_scale": "punch_noise_scale", "start_load": "none of the loads", "spec_1": "retrain it with this version's `punch train`",
                 "spec_2": "version 3 the arms' lengths"}
     for name, text in expected.items():
         assert text in next(e for e in errors if files[name].name in e), name

@@ -217,6 +217,44 @@ def test_training_starts_in_the_guard_the_game_stands_in():
     assert rolled == pytest.approx(waist, abs=1.0), (rolled, waist)
 
 
+def test_a_policy_trained_from_a_load_starts_there_in_the_game_as_in_training(tmp_path):
+    """A policy file that says `punch_start_load`: the controller draws the punching arm from the stance's guard into
+    that load before the policy's first decision, with `guard_first` off too, for either hand (the left mirrored into
+    the policy's frame), to the pose a training lead-in of the server's `loaded_guard_actions` leaves the body in."""
+    import numpy as np
+    import onnx
+
+    from punch_trainer.learn.volume import STANCE_LEAD_IN_DECISIONS
+    from punch_trainer.pipelines.evaluation import recorded, run_episodes
+    from punch_trainer.sim.conditions import EpisodeStart
+    from punch_trainer.sim.env import PunchVectorEnv
+
+    model = onnx.load(str(PROJECT_ROOT / "addons" / "punch_controller" / "policies" / "lead_hook.onnx"))
+    for entry in list(model.metadata_props):
+        if entry.key == "punch_start_load":
+            model.metadata_props.remove(entry)
+    model.metadata_props.add(key="punch_start_load", value="uppercut")
+    loaded = tmp_path / "loaded.onnx"
+    onnx.save(model, str(loaded))
+    episodes = [{"seed": 0, "move": "lead_uppercut", "stance": "orthodox", "stance_pose": True},
+                {"seed": 1, "move": "lead_uppercut", "stance": "southpaw", "stance_pose": True, "guard_first": False}]
+    meta = run_episodes(loaded, episodes, tmp_path / "game", record=True)
+    game = recorded(tmp_path / "game", meta, "features")[:, 0]
+    names = meta["feature_names"]
+    with PunchVectorEnv(1, 1, frames=50) as env:
+        lead_in = np.tile(np.asarray(env.info.loaded_guard_actions["southpaw"]["uppercut"], dtype=np.float32),
+                          (1, STANCE_LEAD_IN_DECISIONS, 1))
+        env.reset(options=EpisodeStart([env.info.default_bag], lead_in))
+        *_, info = env.step(np.zeros((1, env.info.action_size), dtype=np.float32))
+    trained = info["features"][0, 0]
+    for joint in ("angle_waist_rotation", "angle_waist_flexion", "angle_shoulder_r_flexion", "angle_elbow_r_extension"):
+        column = names.index(joint)
+        # The policy starts within the move's tolerance of its load (the lead hand's 0.1 rad: 6°), not settled.
+        assert np.degrees(np.abs(game[:, column] - trained[column])).max() < 9.0, (joint, game[:, column], trained[column])
+    # The uppercut's load drops the lead fist (to the chest) from the guard it is drawn from.
+    assert np.degrees(trained[names.index("angle_shoulder_r_flexion")]) > 30.0
+
+
 def test_body_shots_are_drawn_in_the_body_band(tmp_path):
     """`placements.height_m`: the body scenario's targets lie 1.00-1.20 m high (below most of the volume); a band
     that runs downward or is not two numbers is refused."""

@@ -37,14 +37,17 @@ REACH_VOLUME = "punch_reach_volume"
 """the target placements the policy covers (learn/reach.py `ReachVolume.to_json`); the game requires it"""
 NOISE_SCALE = "punch_noise_scale"
 """optional: the share of a game's runtime noise sigma each degree of freedom gets (JSON list)"""
+START_LOAD = "punch_start_load"
+"""optional: the load the policy punches from (`hook`, `uppercut`: `punch train --load`); the game draws the arm there
+first"""
 
 CONTRACT_KEYS = (SPEC_VERSION, SPEC_HASH, PHYSICS_HZ, DECISION_PERIOD, FRAMES, SMOOTHING_WINDOW, OBSERVATION_SIZE,
-                 ACTION_SIZE, ACTION_SPEC, REACH_VOLUME, NOISE_SCALE)
+                 ACTION_SIZE, ACTION_SPEC, REACH_VOLUME, NOISE_SCALE, START_LOAD)
 """every entry of punch_core's contract (`keys`)"""
 ANNOUNCED_KEYS = (SPEC_VERSION, SPEC_HASH, PHYSICS_HZ, DECISION_PERIOD, FRAMES, SMOOTHING_WINDOW, OBSERVATION_SIZE,
                   ACTION_SIZE, ACTION_SPEC)
 """what a training server's `reset_done` announces as `policy_metadata` (`PolicySpec::metadata`); a dataset adds
-`REACH_VOLUME` (learn/dataset.py), a style `NOISE_SCALE` (learn/export.py)"""
+`REACH_VOLUME` (learn/dataset.py), a style `NOISE_SCALE` (learn/export.py), a load `START_LOAD` (pipelines/train.py)"""
 REQUIRED_METADATA = (SPEC_HASH, PHYSICS_HZ, DECISION_PERIOD, FRAMES, SMOOTHING_WINDOW)
 """the entries the game refuses to play a policy without (punch_core's `REQUIRED_METADATA`; `ReachVolume::from_metadata`
 requires `REACH_VOLUME` too)"""

@@ -207,7 +207,9 @@ pub struct PunchController {
     /// the move's tolerance of its guard angle (the moveset's "Returns to guard": 6° and slower than 1 rad/s, the
     /// uppercuts settled; at most 0.5 s; a punch with no move: 6°), then plays the policy: punches land far more
     /// often from there (BENCHMARKS.md, "after an earlier punch"). Off: the policy starts from
-    /// whatever pose the arms are in. A punch from the guard starts at once either way.
+    /// whatever pose the arms are in. A punch from the guard starts at once either way, but for a policy trained
+    /// from a load (its file's `punch_start_load`: the lead hook's elbow raised out, the lead uppercut's fist dropped;
+    /// docs/moves.md): its arm is always drawn into the load first, the same way.
     #[export_group(name = "Behaviour")]
     #[export]
     #[init(val = true)]
@@ -781,8 +783,11 @@ impl PunchController {
         let identity = Rc::as_ptr(&policy) as usize;
         let ticks_per_s = Engine::singleton().get_physics_ticks_per_second() as f32;
         let cancel_delay_frames = (cancel_delay_s * ticks_per_s).round() as u32;
-        let guard_first = self.guard_first.then_some(guard_tolerance_rad);
-        let start = PunchStart { punch, policy, guard_first, out_of_reach, cancel_delay_frames };
+        // A policy trained from a load (its `punch_start_load`) punches from there alone: the arm is drawn into it
+        // first, with or without `guard_first`.
+        let start_pose = policy.start_load.map(|load| load.loaded_for(self.guard_targets(), hand.is_mirrored()));
+        let guard_first = (self.guard_first || start_pose.is_some()).then_some(guard_tolerance_rad);
+        let start = PunchStart { punch, policy, guard_first, start_pose, out_of_reach, cancel_delay_frames };
         Ok(Prepared { start, identity, character })
     }
 

@@ -41,7 +41,7 @@ from punch_trainer.learn.volume import (
 from punch_trainer.learn.warm_start import SNAPSHOT_KIND, check_source, warm_start
 from punch_trainer.options import bounds
 from punch_trainer.pipelines.search import run_search
-from punch_trainer.policy_file import SPEC_HASH
+from punch_trainer.policy_file import SPEC_HASH, START_LOAD
 from punch_trainer.report.a2c_report import write_a2c_report
 from punch_trainer.report.motion import motion_report
 from punch_trainer.report.naturalness import capture_figures, naturalness_table, punch_naturalness, summarise
@@ -147,6 +147,12 @@ class TrainArgs:
     stance (docs/moves.md). The volume search, its datasets, A2C's episodes and its validation all start there, after
     a lead-in holding it: one start, so that pretraining keeps what the search found there (experiments/notebook.md,
     "A policy for each hand's guard")"""
+    load: Literal["hook", "uppercut"] | None = None
+    """volume: with --guard orthodox or southpaw, every punch starts with the punching arm drawn from that guard into
+    a move's load (the server's `loaded_guard_actions`, punch_core's `stance::Load`): the hook's elbow raised out to
+    the side, the uppercut's fist dropped to the chest, room for the lead hand's hook to sweep and its uppercut to rise;
+    the policy file says so (`punch_start_load`) and the game draws the arm there before the policy starts
+    (docs/moves.md)"""
     reach_distance: list[float] | None = field(default=None, metadata=bounds(0.3, 1.5, max_items=2))
     """volume: NEAR FAR, how far ahead of the root the targets' centres lie (m), instead of the volume's (which `--guard
     southpaw` moves forward): a move thrown closer than a straight, as a hook with its elbow bent (recipes/rear_hook.toml);
@@ -271,7 +277,7 @@ def search_volume(args: TrainArgs, volume: VolumeArgs, reward: Reward, centre: S
         placements = reach.grid(volume.grid)
         for start in starts:
             out = args.run_dir() / ("volume_search" if start == "square" else f"volume_search_{start}")
-            lead_in = None if start == "square" else holding(pool.info.stance_guard_actions[start])
+            lead_in = None if start == "square" else holding(start_actions(pool.info, start, args.load))
             search_args = SearchArgs(reward=args.reward, style=args.style, style_weight=args.style_weight, frames=reward.frames,
                                      seed=args.seed, out=out, iterations=volume.search_iterations, rollouts=volume.search_rollouts,
                                      sigma_init=volume.search_sigma_init, processes=args.processes, characters_per_process=64,
@@ -287,6 +293,11 @@ def search_volume(args: TrainArgs, volume: VolumeArgs, reward: Reward, centre: S
                     np.savez_compressed(path, **dataset)  # type: ignore[arg-type]  # numpy's stub types **kwargs as its bool option
             paths += start_paths
     return paths, reach, [b.best_return for b in square], np.stack([b.best_actions for b in square])
+
+
+def start_actions(info: ServerInfo, guard: str, load: str | None) -> list[float]:
+    """The action that holds `guard` (a stance's), with the punching arm in `load` when given (`--load`)."""
+    return info.stance_guard_actions[guard] if load is None else info.loaded_guard_actions[guard][load]
 
 
 def arm_range(values: list[float]) -> tuple[float, float]:
@@ -307,6 +318,8 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
     if args.guard != "square" and (not over_volume or args.search_stances or args.stance_share > 0):
         raise ValueError(f"--guard {args.guard} trains from that guard alone, over the reach volume: it goes without "
                          "--reach spot, --search-stances and --stance-share")
+    if args.load is not None and args.guard == "square":
+        raise ValueError(f"--load {args.load} draws the arm from a stance's guard: give --guard orthodox or southpaw too")
     if args.reach_distance is not None and (not over_volume or len(args.reach_distance) != 2
                                             or args.reach_distance[0] > args.reach_distance[1]):
         raise ValueError(f"--reach-distance is two distances over the volume, the nearer first (e.g. 0.70 0.85), not {args.reach_distance}")
@@ -349,7 +362,7 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
     restarts = SimulatorRestarts(env.restart)
     try:
         guards = (args.guard,) if args.guard != "square" else ("orthodox", "southpaw")
-        stance_guards = np.array([env.info.stance_guard_actions[name] for name in guards], dtype=np.float32)
+        stance_guards = np.array([start_actions(env.info, name, args.load) for name in guards], dtype=np.float32)
         if args.lead_in_policies and reach is not None:
             punches = np.concatenate([punches, other_moves_punches(args.lead_in_policies, reach, punches.shape[1],
                                                                    env.info.mirror.actions, args.seed)])
@@ -417,11 +430,13 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
         validated = restarts.run(functools.partial(validate, model, env, reward, validation)) if validation is not None else None
         if validated is not None:
             summary["validation"] = validated.to_json()
-        policy_path = export_policy(model, out / "policy.onnx", contract=data["policy_metadata"], reward=reward.name,
+        # The game draws the arm into the policy's load before it starts (punch_core's `start_load_from_metadata`).
+        contract = {**data["policy_metadata"], **({START_LOAD: args.load} if args.load is not None else {})}
+        policy_path = export_policy(model, out / "policy.onnx", contract=contract, reward=reward.name,
                                     style=reward.style, summary=summary)
         # A policy of one guard punches from there, at its volume's default placement.
         guard_start = None if args.guard == "square" else EpisodeStart(
-            [default_bag] * env.num_envs, np.repeat(holding(env.info.stance_guard_actions[args.guard])[None], env.num_envs, 0))
+            [default_bag] * env.num_envs, np.repeat(holding(start_actions(env.info, args.guard, args.load))[None], env.num_envs, 0))
         exported_return, features = restarts.run(functools.partial(run_exported_policy, policy_path, env, reward,
                                                                    start=guard_start))
     finally:
@@ -447,7 +462,8 @@ def run_train(args: TrainArgs, progress: bool = True, resume: bool = False, *, b
         f"best noise-free return {max(h['eval_return'] for h in a2c_history):.4f}",
         f"- exported policy (onnxruntime, sigma 0) in the simulator: return {exported_return:.4f} = {100 * ratio:.1f}% of the search's best"
         if args.guard == "square" else
-        f"- exported policy (onnxruntime, sigma 0) in the simulator, from the {args.guard} guard at the default placement "
+        f"- exported policy (onnxruntime, sigma 0) in the simulator, from the {args.guard} guard"
+        f"{f' ({args.load} load)' if args.load else ''} at the default placement "
         f"{default_bag.distance_m:.2f} m ahead: return {exported_return:.4f} (the search above started from the square guard)",
         f"- reach: {args.reach}" + (f" ({len(grid_bests)} search placements; on {env.num_envs} validation placements, "
                                     f"sigma 0: success {100 * validated.success_rate:.1f}%, mean return {validated.mean_return:.4f})"

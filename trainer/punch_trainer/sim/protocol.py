@@ -16,7 +16,7 @@ from punch_trainer.errors import PunchError
 from punch_trainer.framing import FrameError, FrameLimits, encode_frame, read_frame
 from punch_trainer.sim.conditions import EpisodeConditions
 
-PROTOCOL_VERSION = 7
+PROTOCOL_VERSION = 8
 MAX_HEADER_BYTES = 64 * 1024
 MAX_PAYLOAD_BYTES = 256 * 1024 * 1024
 LIMITS = FrameLimits(MAX_HEADER_BYTES, MAX_PAYLOAD_BYTES)

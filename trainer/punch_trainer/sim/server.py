@@ -78,6 +78,9 @@ class ServerInfo:
     stance_guard_actions: dict[str, list[float]]
     """the action that holds each boxing stance's guard, by stance name (`orthodox`, `southpaw`;
     punch_core::contract::stance)"""
+    loaded_guard_actions: dict[str, dict[str, list[float]]]
+    """each stance's guard with the punching (right) arm in a move's load, by stance and load name (`hook`,
+    `uppercut`; punch_core::contract::stance::Load)"""
     stance_lead_forward_m: float
     """how much further forward than the reach volume's a lead hand's targets lie in the stance (m; its guard holds the
     lead fist that much nearer: punch_core::contract::stance::LEAD_REACH_FORWARD_M)"""
@@ -225,7 +228,7 @@ class TrainingServer(ServerConnection):
                           f["extension_version"], f["action_names"], f["action_lower_rad"], f["action_upper_rad"],
                           f["observation_names"], f["feature_names"], EpisodeConditions.from_wire(f["default_bag"]), f["reach_volume"],
                           MirrorRules.from_wire(f["mirror"]), f["stance_guard_actions"],
-                          float(f["stance_lead_forward_m"]))
+                          f["loaded_guard_actions"], float(f["stance_lead_forward_m"]))
 
     @property
     def pid(self) -> int | None:

@@ -18,7 +18,7 @@ use crate::contract::arm_size::ArmScale;
 use crate::contract::character::action_from_targets;
 use crate::contract::mirror;
 use crate::contract::motion::BodyMotion;
-use crate::contract::stance::{LEAD_REACH_FORWARD_M, Stance};
+use crate::contract::stance::{LEAD_REACH_FORWARD_M, Load, Stance};
 
 pub use crate::contract::character::{DEFAULT_DECISION_PERIOD, DOF_COUNT, DOFS, PHYSICS_HZ};
 pub use crate::contract::observation::{OBS_DIM, OBS_SPEC_VERSION, observation_names, spec_hash};
@@ -362,6 +362,9 @@ pub mod keys {
     pub const REACH_VOLUME: &str = "punch_reach_volume";
     /// Optional: how the designer's runtime noise is spread over the degrees of freedom (`NoiseScale`).
     pub const NOISE_SCALE: &str = "punch_noise_scale";
+    /// Optional: the load the policy punches from (`stance::Load`'s name; `punch train --load`), absent for a
+    /// policy trained from the guard itself.
+    pub const START_LOAD: &str = "punch_start_load";
 }
 
 /// Per degree of freedom (action order), the share of the designer's runtime noise sigma it gets: 0 to 1.
@@ -386,6 +389,19 @@ pub fn noise_scale_from_metadata(lookup: impl Fn(&str) -> Option<String>) -> Res
     let mut scale = UNIFORM_NOISE;
     scale.copy_from_slice(&numbers);
     Ok(scale)
+}
+
+/// The load the policy punches from (`keys::START_LOAD`): None when the key is absent (from the guard); a name that
+/// is no load is an error naming the key and the loads there are.
+pub fn start_load_from_metadata(lookup: impl Fn(&str) -> Option<String>) -> Result<Option<Load>, SpecError> {
+    let key = keys::START_LOAD;
+    let Some(text) = lookup(key) else { return Ok(None) };
+    let names: Vec<&str> = Load::ALL.iter().map(|(name, _)| *name).collect();
+    Load::from_name(&text).map(Some).ok_or_else(|| SpecError::BadValue {
+        key,
+        value: text.chars().take(200).collect(),
+        reason: format!("it is none of the loads {names:?}"),
+    })
 }
 
 /// The entries a policy file must have to be played; a missing one is an error, never a default.
@@ -533,7 +549,8 @@ impl PolicySpec {
 
 /// The spec part of the training server's handshake for `decision_period`: versions, hash, rates, sizes,
 /// every name, the action bounds, the default bag placement, the reach volume training covers and the mirror's
-/// rules (`mirror::rules_json`), the action that holds each stance's guard (`stance_guard_actions`) and how much
+/// rules (`mirror::rules_json`), the action that holds each stance's guard (`stance_guard_actions`) and each
+/// stance's guard with the punching arm loaded (`loaded_guard_actions`, by load, `stance::Load`) and how much
 /// further forward a lead hand's targets lie (`stance_lead_forward_m`, `stance::LEAD_REACH_FORWARD_M`).
 pub fn handshake_fields(decision_period: u32) -> Map<String, Value> {
     let mut fields = Map::new();
@@ -553,6 +570,18 @@ pub fn handshake_fields(decision_period: u32) -> Map<String, Value> {
     fields.insert(
         "stance_guard_actions".into(),
         json!({"orthodox": guard(Stance::Orthodox), "southpaw": guard(Stance::Southpaw)}),
+    );
+    // Each stance's guard with the punching (right) arm loaded (`punch train --guard G --load L`).
+    let loaded = |stance: Stance| {
+        let by_name: Map<String, Value> = Load::ALL
+            .iter()
+            .map(|(name, load)| (name.to_string(), json!(action_from_targets(&load.loaded(stance.guard_targets())))))
+            .collect();
+        Value::Object(by_name)
+    };
+    fields.insert(
+        "loaded_guard_actions".into(),
+        json!({"orthodox": loaded(Stance::Orthodox), "southpaw": loaded(Stance::Southpaw)}),
     );
     fields.insert("stance_lead_forward_m".into(), json!(LEAD_REACH_FORWARD_M));
     fields
@@ -610,6 +639,17 @@ mod tests {
         ] {
             let error = noise_scale_from_metadata(lookup(&[(keys::NOISE_SCALE, bad.to_string())])).expect_err(bad);
             assert!(error.to_string().contains(keys::NOISE_SCALE), "{error}");
+        }
+    }
+
+    #[test]
+    fn the_start_load_is_none_without_its_key_and_refused_when_it_names_no_load() {
+        assert_eq!(start_load_from_metadata(lookup(&[])), Ok(None));
+        let hook = start_load_from_metadata(lookup(&[(keys::START_LOAD, "hook".to_string())]));
+        assert_eq!(hook, Ok(Some(Load::Hook)));
+        for bad in ["", "Hook", "swing", "hook "] {
+            let error = start_load_from_metadata(lookup(&[(keys::START_LOAD, bad.to_string())])).expect_err(bad);
+            assert!(error.to_string().contains(keys::START_LOAD) && error.to_string().contains("uppercut"), "{error}");
         }
     }
 

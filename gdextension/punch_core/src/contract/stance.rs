@@ -78,6 +78,78 @@ pub fn turned_toward(mut guard: [f32; DOF_COUNT], toward_rad: f32) -> [f32; DOF_
     guard
 }
 
+/// A move's load: where the punching arm is drawn before the policy starts, from the guard the policy was trained
+/// from (`punch train --load`, the policy file's `punch_start_load`). In the stance's guard the lead fist stands near
+/// the line from its shoulder to the target and within 7-22 cm of it, so a lead hook trained from there lands the
+/// shortest way, from the front, and a lead uppercut has no room below the target to rise from
+/// (experiments/notebook.md, "Twelfth session"). Boxers load both: the hook with the elbow raised out to the side
+/// and the trunk turned toward the punching hand ("the elbow up, the fist at the level of the shoulder"), the
+/// uppercut with that shoulder dipped and the fist dropped to the chest. Said for the right hand, as policies punch
+/// (a left-hand move's load is its mirror image).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Load {
+    /// The trunk turned 15° toward the punching side, the upper arm swung 35° back and raised 70° out to the side,
+    /// turned 30° outward, the elbow opened 5°: from the southpaw guard the right fist stands at the shoulder's
+    /// height, 14 cm outside it (measured in the headless scene).
+    Hook,
+    /// The trunk turned 10° toward the punching side and leaning 10° forward, the upper arm swung 55° back, the
+    /// elbow bent 15° more: from the southpaw guard the right fist drops 30 cm, to the chest (1.21 m).
+    Uppercut,
+}
+
+const HOOK_LOAD_SHIFT_RAD: [(&str, f32); 5] = [
+    ("waist_rotation", deg(-15.0)),
+    ("shoulder_r_flexion", deg(35.0)),
+    ("shoulder_r_abduction", deg(-70.0)),
+    ("shoulder_r_rotation", deg(-30.0)),
+    ("elbow_r_extension", deg(5.0)),
+];
+
+const UPPERCUT_LOAD_SHIFT_RAD: [(&str, f32); 4] = [
+    ("waist_rotation", deg(-10.0)),
+    ("waist_flexion", deg(10.0)),
+    ("shoulder_r_flexion", deg(55.0)),
+    ("elbow_r_extension", deg(-15.0)),
+];
+
+impl Load {
+    /// Every load, by the name a policy file and `punch train --load` give it.
+    pub const ALL: [(&'static str, Load); 2] = [("hook", Load::Hook), ("uppercut", Load::Uppercut)];
+
+    /// The load named `name`; None for a name that is none.
+    pub fn from_name(name: &str) -> Option<Load> {
+        Self::ALL.iter().find(|(known, _)| *known == name).map(|(_, load)| *load)
+    }
+
+    /// Its name (`ALL`).
+    pub fn name(self) -> &'static str {
+        Self::ALL.iter().find(|(_, load)| *load == self).map(|(name, _)| *name).unwrap_or_default()
+    }
+
+    /// How far each joint target moves from the guard (rad; the right arm punches).
+    fn shift_rad(self) -> &'static [(&'static str, f32)] {
+        match self {
+            Load::Hook => &HOOK_LOAD_SHIFT_RAD,
+            Load::Uppercut => &UPPERCUT_LOAD_SHIFT_RAD,
+        }
+    }
+
+    /// `guard` (rad, action order) with the right arm loaded, within every joint's range.
+    pub fn loaded(self, mut guard: [f32; DOF_COUNT]) -> [f32; DOF_COUNT] {
+        for &(name, shift) in self.shift_rad() {
+            if let Some(index) = DOFS.iter().position(|dof| dof.name == name) {
+                guard[index] = (guard[index] + shift).clamp(DOFS[index].lower_rad, DOFS[index].upper_rad);
+            }
+        }
+        guard
+    }
+
+    /// `guard` loaded for a move of the left hand when `mirrored` (the policy plays mirrored): its load is the mirror image of the right hand's.
+    pub fn loaded_for(self, guard: [f32; DOF_COUNT], mirrored: bool) -> [f32; DOF_COUNT] {
+        if mirrored { mirror_targets(&self.loaded(mirror_targets(&guard))) } else { self.loaded(guard) }
+    }
+}
+
 impl Stance {
     /// The joint targets of this stance's guard (rad, action order).
     pub fn guard_targets(self) -> [f32; DOF_COUNT] {
@@ -144,6 +216,31 @@ mod tests {
         assert_eq!(mirror_targets(&turned_toward(HIGH_GUARD_RAD, -0.3)), left, "the right is the left's mirror image");
         assert_eq!(turned_toward(HIGH_GUARD_RAD, 3.0)[waist], DOFS[waist].upper_rad, "behind: as far as it turns");
         assert_eq!(turned_toward(HIGH_GUARD_RAD, f32::NAN), HIGH_GUARD_RAD);
+    }
+
+    #[test]
+    fn a_load_moves_only_the_waist_and_the_punching_arm_within_every_range_and_mirrors_for_the_left_hand() {
+        let index = |name: &str| DOFS.iter().position(|d| d.name == name).expect("a DOF");
+        let guard = Stance::Southpaw.guard_targets();
+        for (name, load) in Load::ALL {
+            assert_eq!(Load::from_name(name), Some(load));
+            assert_eq!(load.name(), name);
+            let loaded = load.loaded(guard);
+            for (i, (target, dof)) in loaded.iter().zip(&DOFS).enumerate() {
+                assert!(dof.lower_rad <= *target && *target <= dof.upper_rad, "{name}: {} at {target}", dof.name);
+                if *target != guard[i] {
+                    assert!(dof.name.starts_with("waist_") || dof.name.contains("_r_"), "{name} moves {}", dof.name);
+                }
+            }
+            assert!(loaded[index("waist_rotation")] < guard[index("waist_rotation")], "{name}: turned to the right");
+            assert!(loaded[index("shoulder_r_flexion")] > guard[index("shoulder_r_flexion")], "{name}: the arm back");
+            // The orthodox lead (left) hand's load is the mirror image of the southpaw's right.
+            let orthodox = Stance::Orthodox.guard_targets();
+            assert_eq!(load.loaded_for(orthodox, true), mirror_targets(&loaded), "{name}");
+            assert_eq!(load.loaded_for(guard, false), loaded, "{name}");
+        }
+        assert!(Load::Hook.loaded(guard)[index("shoulder_r_abduction")] < -1.0, "the hook's elbow out to the side");
+        assert_eq!(Load::from_name("swing"), None);
     }
 
     #[test]

@@ -102,6 +102,9 @@ pub struct PunchStart<P> {
     /// Return to guard first (the character is away from it: the end of an earlier punch, mid-recovery) until every
     /// joint is within this angle of its guard angle (rad; `Recovery::ready_to_punch`); None: from where the arms are.
     pub guard_first: Option<f32>,
+    /// Where the punch starts with `guard_first` (joint targets, rad, action order): its move's load
+    /// (`stance::Load`), drawn there even from the guard; None: the guard.
+    pub start_pose: Option<[f32; DOF_COUNT]>,
     pub out_of_reach: Option<(Vec3, Vec3)>,
     /// Physics frames from the punching fist's first contact (or the punch's last frame) to its cancel window,
     /// when a punch queued after it starts.
@@ -274,7 +277,7 @@ impl<P: Clone> Lifecycle<P> {
         self.phase = match start.guard_first {
             // Decided at the next frame's reading: a character already in guard punches in that same frame.
             Some(angle_rad) => {
-                let recovery = Recovery::new(geometry, self.guard).ready_to_punch(angle_rad);
+                let recovery = Recovery::new(geometry, start.start_pose.unwrap_or(self.guard)).ready_to_punch(angle_rad);
                 Phase::Guarding(punch, start.policy, Box::new(recovery), [Vec3::ZERO; 5])
             }
             None => Phase::Punching(punch, start.policy),
@@ -567,6 +570,7 @@ mod tests {
             punch: Punch::new(rest_geometry(), spec, true),
             policy,
             guard_first: guard_first.then_some(Recovery::READY_ANGLE_RAD),
+            start_pose: None,
             out_of_reach: None,
             cancel_delay_frames: 0,
         }
@@ -818,6 +822,20 @@ mod tests {
         assert_eq!(lifecycle.begin_frame(&away), FrameNeeds::Nothing, "guarding first");
         assert!(matches!(lifecycle.act(None, CALM), Ok(Drive::Motors(_))) && lifecycle.is_punching());
         assert_eq!(lifecycle.begin_frame(&FakeWorld::new(1).read_slot(0)), FrameNeeds::Target, "in guard: punching");
+    }
+
+    #[test]
+    fn a_punch_from_a_load_draws_the_arm_there_first_even_from_the_guard() {
+        let in_guard = FakeWorld::new(1).read_slot(0);
+        let mut lifecycle = Lifecycle::<Policy>::default();
+        let loaded = crate::contract::stance::Load::Hook.loaded([0.0; DOF_COUNT]);
+        lifecycle.start(PunchStart { start_pose: Some(loaded), ..start(1, true) }, 1, CALM);
+        assert_eq!(lifecycle.begin_frame(&in_guard), FrameNeeds::Nothing, "loading first");
+        assert!(matches!(lifecycle.act(None, CALM), Ok(Drive::Motors(_))) && lifecycle.is_punching());
+        // A start pose that is the guard itself starts at once, as the guard does.
+        let mut lifecycle = Lifecycle::<Policy>::default();
+        lifecycle.start(PunchStart { start_pose: Some([0.0; DOF_COUNT]), ..start(1, true) }, 1, CALM);
+        assert_eq!(lifecycle.begin_frame(&in_guard), FrameNeeds::Target, "in its start pose: punching");
     }
 
     fn played_actions(lifecycle: &mut Lifecycle<Policy>, policy: Policy, noise: NoiseSettings) -> Vec<f32> {

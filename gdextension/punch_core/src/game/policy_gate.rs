@@ -13,7 +13,9 @@ use crate::contract::character::DOF_COUNT;
 use crate::contract::observation::{OBS_DIM, OBS_SPEC_VERSION, spec_hash};
 use crate::contract::spec::{
     NoiseScale, POLICY_INPUT, POLICY_OUTPUTS, PolicySpec, ReachVolume, keys, noise_scale_from_metadata,
+    start_load_from_metadata,
 };
+use crate::contract::stance::Load;
 use crate::error::{CoreError, CoreResult};
 use crate::inference::policy::{Policy, Tensor};
 
@@ -30,6 +32,9 @@ pub struct PunchingPolicy {
     pub reach: ReachVolume,
     /// How the runtime noise is spread over its degrees of freedom (`punch_noise_scale`; uniform without).
     pub noise_scale: NoiseScale,
+    /// The load it punches from (`punch_start_load`): the controller draws the arm there before the policy starts;
+    /// None: from the guard.
+    pub start_load: Option<Load>,
 }
 
 impl PunchingPolicy {
@@ -55,10 +60,13 @@ impl PunchingPolicy {
         let reach = ReachVolume::from_metadata(|key| policy.metadata(key)).map_err(|e| incompatible(e.to_string()))?;
         let noise_scale =
             noise_scale_from_metadata(|key| policy.metadata(key)).map_err(|e| incompatible(e.to_string()))?;
+        let start_load =
+            start_load_from_metadata(|key| policy.metadata(key)).map_err(|e| incompatible(e.to_string()))?;
         Ok(Self {
             spec,
             reach,
             noise_scale,
+            start_load,
             spec_hash: policy.metadata(keys::SPEC_HASH).unwrap_or_default(),
             policy: RefCell::new(policy),
         })

@@ -10,7 +10,7 @@ use std::io::{Read, Write};
 use serde_json::{Map, Value, json};
 
 /// Bumped on any change to the framing or to a message's fields.
-pub const PROTOCOL_VERSION: u32 = 7;
+pub const PROTOCOL_VERSION: u32 = 8;
 /// Largest header accepted, bytes.
 pub const MAX_HEADER_BYTES: usize = 64 * 1024;
 /// Largest payload accepted, bytes (256 slots x 400 frames x 50 features x 4 bytes is about 20 MB).
