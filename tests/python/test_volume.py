@@ -146,6 +146,9 @@ def test_a_policy_for_one_guard_starts_every_episode_there(tmp_path):
     for wrong in (dict(reach="spot"), dict(search_stances=True), dict(stance_share=0.5)):
         with pytest.raises(ValueError, match="--guard orthodox"):
             run_train(TrainArgs(out=tmp_path / "refused", guard="orthodox", **{**BUDGET, **wrong}), progress=False)
+    # A load is drawn from a stance's guard: from the square guard it is refused.
+    with pytest.raises(ValueError, match="--load hook draws the arm from a stance's guard"):
+        run_train(TrainArgs(out=tmp_path / "refused", load="hook", **BUDGET), progress=False)
     assert not (tmp_path / "refused").exists()
 
 

@@ -83,9 +83,9 @@ pub fn turned_toward(mut guard: [f32; DOF_COUNT], toward_rad: f32) -> [f32; DOF_
 /// the line from its shoulder to the target and within 7-22 cm of it, so a lead hook trained from there lands the
 /// shortest way, from the front, and a lead uppercut has no room below the target to rise from
 /// (experiments/notebook.md, "Twelfth session"). Boxers load both: the hook with the elbow raised out to the side
-/// and the trunk turned toward the punching hand ("the elbow up, the fist at the level of the shoulder"), the
-/// uppercut with that shoulder dipped and the fist dropped to the chest. Said for the right hand, as policies punch
-/// (a left-hand move's load is its mirror image).
+/// and the trunk turned toward the punching hand, the fist near the shoulder's height, the uppercut with that
+/// shoulder dipped and the fist dropped to the chest. Said for the right hand, as policies punch (a left-hand move's
+/// load is its mirror image).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Load {
     /// The trunk turned 15° toward the punching side, the upper arm swung 35° back and raised 70° out to the side,
@@ -144,7 +144,8 @@ impl Load {
         guard
     }
 
-    /// `guard` loaded for a move of the left hand when `mirrored` (the policy plays mirrored): its load is the mirror image of the right hand's.
+    /// `guard` loaded for the move's hand: when `mirrored` (a left-hand move: the policy plays mirrored), the mirror
+    /// image of the right hand's load.
     pub fn loaded_for(self, guard: [f32; DOF_COUNT], mirrored: bool) -> [f32; DOF_COUNT] {
         if mirrored { mirror_targets(&self.loaded(mirror_targets(&guard))) } else { self.loaded(guard) }
     }

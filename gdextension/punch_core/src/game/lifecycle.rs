@@ -277,7 +277,8 @@ impl<P: Clone> Lifecycle<P> {
         self.phase = match start.guard_first {
             // Decided at the next frame's reading: a character already in guard punches in that same frame.
             Some(angle_rad) => {
-                let recovery = Recovery::new(geometry, start.start_pose.unwrap_or(self.guard)).ready_to_punch(angle_rad);
+                let recovery =
+                    Recovery::new(geometry, start.start_pose.unwrap_or(self.guard)).ready_to_punch(angle_rad);
                 Phase::Guarding(punch, start.policy, Box::new(recovery), [Vec3::ZERO; 5])
             }
             None => Phase::Punching(punch, start.policy),
