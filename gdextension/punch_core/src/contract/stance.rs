@@ -65,12 +65,17 @@ pub fn high_guard_rad(head_shift_m: f32) -> [f32; DOF_COUNT] {
     targets
 }
 
+/// The action index of the degree of freedom `name` (`DOFS`).
+fn dof_index(name: &str) -> Option<usize> {
+    DOFS.iter().position(|dof| dof.name == name)
+}
+
 /// `guard` with the trunk turned at the waist toward an opponent `toward_rad` to the character's left (negative: its
 /// right) of straight ahead, within the waist's range; a non-finite angle leaves it as it is. A block faces its
 /// opponent so the shell meets the punch square on: the pelvis is the game's and faces where the game turned it,
 /// which need not be the opponent.
 pub fn turned_toward(mut guard: [f32; DOF_COUNT], toward_rad: f32) -> [f32; DOF_COUNT] {
-    if let Some(index) = DOFS.iter().position(|dof| dof.name == "waist_rotation")
+    if let Some(index) = dof_index("waist_rotation")
         && toward_rad.is_finite()
     {
         guard[index] = toward_rad.clamp(DOFS[index].lower_rad, DOFS[index].upper_rad);
@@ -137,7 +142,7 @@ impl Load {
     /// `guard` (rad, action order) with the right arm loaded, within every joint's range.
     pub fn loaded(self, mut guard: [f32; DOF_COUNT]) -> [f32; DOF_COUNT] {
         for &(name, shift) in self.shift_rad() {
-            if let Some(index) = DOFS.iter().position(|dof| dof.name == name) {
+            if let Some(index) = dof_index(name) {
                 guard[index] = (guard[index] + shift).clamp(DOFS[index].lower_rad, DOFS[index].upper_rad);
             }
         }
