@@ -141,3 +141,14 @@ def test_a_stage_handed_in_spares_the_stages_it_was_made_from(tmp_path: Path) ->
     assert sum("not needed" in line for line in lines) == 7
     with pytest.raises(RecipeError, match="no stage 'sloppy'"):
         run_recipe(recipe, tmp_path / "run", use={"sloppy": handed_in}, dry_run=True, say=lines.append)
+
+
+def test_a_recipe_whose_last_stage_is_handed_in_makes_its_run_folder_and_policy(tmp_path: Path) -> None:
+    recipe = load_recipe(ROOT / "recipes" / "straight.toml")
+    handed_in = tmp_path / "shipped.onnx"
+    handed_in.write_bytes((SHIPPED / "straight.onnx").read_bytes())
+    out = tmp_path / "new" / "run"
+    results = run_recipe(recipe, out, use={"shipped": handed_in}, say=lambda _: None)
+    assert [result.name for result in results] == ["shipped"]
+    assert sha256(out / "policy.onnx") == sha256(handed_in)
+    assert "| shipped |" in (out / "report.md").read_text()

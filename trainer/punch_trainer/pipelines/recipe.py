@@ -295,6 +295,7 @@ def run_recipe(recipe: Recipe, run_dir: Path, *, use: Mapping[str, Path] | None 
             return results
     if not dry_run:
         final = policy_file(made[recipe.stages[-1].name])
+        run_dir.mkdir(parents=True, exist_ok=True)  # every stage handed in: none made the folder
         shutil.copyfile(final, run_dir / "policy.onnx")
         write_report(recipe, run_dir, results)
     return results
