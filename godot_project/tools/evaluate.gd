@@ -37,9 +37,10 @@
 ##   the episode ends at `recovered` (after `knocked_down`, `recover()` is called 1 s on);
 ## - `reset_target`: each later punch of a combo starts with the bag hanging as placed again (its start, not where
 ##   the punches before swung it);
-## - `defender`: {`blocks`, `part`, `head_up_m`, `turned_deg`}: a second character of the addon's scene stands facing
-##   the first (turned `turned_deg` to its left from there) instead of the bag, its root at the placement's distance and
-##   side (the height is its own), and the punch aims at its `part`:
+## - `defender`: {`blocks`, `part`, `head_up_m`, `turned_deg`, `motion`}: a second character of the addon's scene stands
+##   facing the first (turned `turned_deg` to its left from there) instead of the bag, its root at the placement's
+##   distance and side (the height is its own; with a `motion`, below, in a holder of its own that moves it in its own
+##   frame from the episode's start, or the punch's with no lead), and the punch aims at its `part`:
 ##   "head" (the `Head` body, on its neck; `head_up_m` higher up it, as an own rig's, with `size_head`) or "torso";
 ##   with `blocks`, its own controller calls `block()` as the episode starts (`lead_s` later comes the punch: the warning). The row's struck entry is then {`outcome`,
 ##   `head_impulse_ns`}: the punch's `punch_finished` outcome ("landed": on the head or the body, "blocked": on an
@@ -149,6 +150,8 @@ class Slot:
 	## The node that moves, its Motion and the bag that starts at its velocity (or null: nothing moves).
 	var moved: Node3D
 	var motion: Motion
+	## Where the moving node stood at the start (its straight-line distance from there is the row's "moved").
+	var moved_from := Vector3.ZERO
 	var bag: RigidBody3D
 	## The motion starts with the punch (a moving target, or no lead), not with the episode.
 	var motion_with_punch := false
@@ -359,7 +362,7 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 		if body_motion != null or target_motion != null or not combo.is_empty() or episode.get("start", "guard") != "guard":
 			_fail("episode %d: a defender stands: no body or target motion, no combo, a start from guard" % index)
 			return null
-		target = _add_defender(controller, bag, layer_slot, offset, episode.defender)
+		target = _add_defender(controller, bag, layer_slot, offset, episode.defender, slot)
 		bag = null
 	slot.controller = controller
 	slot.row = [0, 0, 0.0, "", 0.0, sized.x, sized.y, sized.z, [], {}, index]
@@ -384,6 +387,7 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 			arena.add_child(moving_hook)
 			anchor = moving_hook
 			slot.moved = moving_hook
+			slot.moved_from = moving_hook.position
 			slot.motion = Motion.new(target_motion)
 		anchor.collision_layer = 0
 		anchor.collision_mask = 0
@@ -455,8 +459,11 @@ func _add_episode(arena: SubViewport, layer_slot: int, episode: Dictionary, inde
 
 ## A defending character in place of `bag` (freed), facing the puncher of `controller`, its root `offset`'s distance
 ## and side from the puncher's, on the bag's collision layers, with a controller of its own (blocking from the start
-## with `defender_spec.blocks`); returns its head or torso (`defender_spec.part`), which the punch now aims at.
-func _add_defender(controller: Node, bag: RigidBody3D, layer_slot: int, offset: Vector3, defender_spec: Dictionary) -> CollisionObject3D:
+## with `defender_spec.blocks`); returns its head or torso (`defender_spec.part`), which the punch now aims at. With
+## `defender_spec.motion` it stands in a holder of its own (as a game's fighter in its CharacterBody3D) that `slot`
+## moves from the episode's start (or the punch's, with no lead), in the defender's own frame.
+func _add_defender(controller: Node, bag: RigidBody3D, layer_slot: int, offset: Vector3, defender_spec: Dictionary,
+		slot: Slot) -> CollisionObject3D:
 	var sandbag := bag.get_parent()
 	var parent := sandbag.get_parent()
 	parent.remove_child(sandbag)
@@ -464,10 +471,20 @@ func _add_defender(controller: Node, bag: RigidBody3D, layer_slot: int, offset: 
 	var puncher: Node3D = controller.get("character")
 	var defender: Node3D = PunchPair.CHARACTER_SCENE.instantiate()
 	var turned_rad := deg_to_rad(float(defender_spec.get("turned_deg", 0.0)))
-	defender.transform = Transform3D(Basis(Vector3.UP, PI + turned_rad), puncher.position + Vector3(offset.x, 0.0, offset.z))
+	var placed := Transform3D(Basis(Vector3.UP, PI + turned_rad), puncher.position + Vector3(offset.x, 0.0, offset.z))
 	var layer := 1 << (2 * layer_slot)
 	PunchPair.set_layers(defender, layer << 1, layer)
-	parent.add_child(defender)
+	if defender_spec.has("motion"):
+		var holder := Holder.new()
+		holder.transform = placed
+		parent.add_child(holder)
+		holder.add_child(defender)
+		slot.moved = holder
+		slot.moved_from = placed.origin
+		slot.motion = Motion.new(defender_spec.motion)
+	else:
+		defender.transform = placed
+		parent.add_child(defender)
 	var head_up_m := float(defender_spec.get("head_up_m", 0.0))
 	if head_up_m != 0.0 and not defender.call("size_head", defender.call("shoulder_to_crown_m") + head_up_m):
 		_fail("the defender's head could not be moved %.3f m up its neck" % head_up_m)
@@ -493,14 +510,15 @@ func _put_back(bag: RigidBody3D, placed: Array) -> void:
 ## along with it) starts at its velocity.
 func _start_motion(slot: Slot) -> void:
 	slot.moved.set("motion", slot.motion)
-	slot.bag.linear_velocity = slot.motion.start_velocity(slot.moved)
+	if slot.bag != null:
+		slot.bag.linear_velocity = slot.motion.start_velocity(slot.moved)
 
 
 ## Stops a slot's moving node (if it has one) and records how far it went.
 func _stop_motion(slot: Slot) -> void:
 	if slot.moved != null:
 		slot.moved.set("motion", null)
-		slot.row[4] = snappedf(slot.moved.global_position.length(), 0.001)
+		slot.row[4] = snappedf(slot.moved.global_position.distance_to(slot.moved_from), 0.001)
 
 
 ## Starts a slot's punch (and the motion that starts with it), or strikes it; false when the controller refused.

@@ -3,7 +3,7 @@
 ## for during a block, and blocks refused (seconds not a number; a knocked-down character); the elbow motor's torque
 ## limit along the way (a block braces the guard); and a second character, turned, with its head sized 6 cm higher on
 ## its neck (`size_head`, as an own rig's), blocking too; and a third, its target 35° to its right, blocking turned
-## toward it. Prints `BLOCKING <json>` and quits.
+## toward it, then still blocking as the target goes round to 35° to its left. Prints `BLOCKING <json>` and quits.
 extends SceneTree
 
 const CHARACTER_SCENE := preload("res://addons/punch_controller/scenes/punch_character.tscn")
@@ -15,6 +15,7 @@ var _tall_headed: Node3D
 var _tall_headed_controller: Node
 var _facing: Node3D
 var _facing_controller: Node
+var _opponent: Node3D
 var _frame := 0
 var _report := {"signals": [], "samples": {}}
 
@@ -41,12 +42,12 @@ func _initialize() -> void:
 	_facing = CHARACTER_SCENE.instantiate()
 	_facing.transform = Transform3D(Basis(Vector3.UP, deg_to_rad(-70.0)), Vector3(-3, 0, 0))
 	root.add_child(_facing)
-	var opponent := Node3D.new()  # 35° to its right (-X in its frame), 1 m away, chest high
-	opponent.position = _facing.transform * (Vector3(-sin(deg_to_rad(35.0)), 1.3, cos(deg_to_rad(35.0))))
-	root.add_child(opponent)
+	_opponent = Node3D.new()  # 35° to its right (-X in its frame), 1 m away, chest high
+	_opponent.position = _facing.transform * (Vector3(-sin(deg_to_rad(35.0)), 1.3, cos(deg_to_rad(35.0))))
+	root.add_child(_opponent)
 	_facing_controller = ClassDB.instantiate("PunchController")
 	_facing_controller.set("character", _facing)
-	_facing_controller.set("target", opponent)
+	_facing_controller.set("target", _opponent)
 	_facing_controller.set("policy", load("res://addons/punch_controller/policies/straight.onnx"))
 	root.add_child(_facing_controller)
 	for name in ["punch_started", "punch_finished", "recovered"]:
@@ -87,11 +88,15 @@ func _physics_process(_delta: float) -> bool:
 			_sample("guard")
 			_report.blocked = _controller.call("block", 0.5)
 			_tall_headed_controller.call("block", 0.5)
-			_facing_controller.call("block", 0.5)
+			_facing_controller.call("block", 1.0)
 		50:  # 1/3 s into the block
 			_sample("blocking")
 			_sample("tall_headed_blocking", _tall_headed, _tall_headed_controller)
 			_sample("facing_blocking", _facing, _facing_controller)
+			# The opponent goes round to the other side: the block's trunk follows it.
+			_opponent.position = _facing.transform * (Vector3(sin(deg_to_rad(35.0)), 1.3, cos(deg_to_rad(35.0))))
+		110:  # half a second later, the block still holding
+			_sample("facing_followed", _facing, _facing_controller)
 		150:  # 0.75 s after the block's end
 			_sample("after")
 			_controller.call("block")  # until stopped

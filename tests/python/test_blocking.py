@@ -37,9 +37,11 @@ def test_a_block_raises_both_fists_before_the_face_for_its_time_and_a_punch_ends
         assert fist[1] - tall["head"][1] == pytest.approx(square_fist[1] - square["head"][1], abs=0.02), (tall, square)
         assert 0.15 < fist[2] - tall["head"][2] < 0.30 and abs(fist[0]) < 0.12, tall
     # A block faces its target (the opponent): with it 35° to the right, the trunk turns that way and the gloves with it.
-    facing = samples["facing_blocking"]
-    middle = [(a + b) / 2 for a, b in zip(*facing["fists"], strict=True)]
-    assert math.degrees(math.atan2(middle[0], middle[2])) == pytest.approx(-35.0, abs=8.0), facing
+    # The opponent then goes round to 35° to the left: the trunk follows it while the block holds.
+    for label, degrees in (("facing_blocking", -35.0), ("facing_followed", 35.0)):
+        facing = samples[label]
+        middle = [(a + b) / 2 for a, b in zip(*facing["fists"], strict=True)]
+        assert facing["blocking"] and math.degrees(math.atan2(middle[0], middle[2])) == pytest.approx(degrees, abs=8.0), (label, facing)
     for label in ("after", "stopped"):  # 0.5 s up, then back in the guard it came from
         assert not samples[label]["blocking"], samples[label]
         for fist, guard in zip(samples[label]["fists"], samples["guard"]["fists"], strict=True):
@@ -74,3 +76,8 @@ def test_a_block_stops_jabs_and_crosses_at_the_head_and_the_body(tmp_path):
     # A cross at the body meets the high guard's elbows and forearms too.
     body = rows["cross at the body, blocking 0.15 s before"]
     assert body["successes"] >= 0.9 * body["punches"], body
+    # A defender stepping sideways while it blocks: it moved, its shell kept facing the puncher, nothing landed.
+    for name in ("cross at a defender stepping to its right 0.7 m/s, blocking 0.15 s before",
+                 "jab at a defender stepping to its left 0.7 m/s, blocking 0.15 s before"):
+        row = rows[name]
+        assert row["moved_m"] > 0.2 and row["defended"]["landed"] == 0, row

@@ -164,6 +164,8 @@ def test_scales_and_proportions_make_the_sizes_conditions_in_order():
     ({"conditions": [{"name": "a", "defender": {"part": "legs"}}]}, "defender.part: \"head\" or \"torso\""),
     ({"conditions": [{"name": "a", "defender": {"head_up_m": 0.5}}]}, "defender.head_up_m: metres from -0.04 to 0.11"),
     ({"conditions": [{"name": "a", "defender": {"turned_deg": 120}}]}, "defender.turned_deg: degrees from -90 to 90"),
+    ({"conditions": [{"name": "a", "defender": {"motion": {"velocity_mps": [0.7]}}}]}, "defender.motion.velocity_mps: three numbers"),
+    ({"conditions": [{"name": "a", "defender": {"motion": {"sway": 1.0}}}]}, "unknown key\\(s\\) 'sway'"),
     ({"conditions": [{"name": "a", "combo": ["jab"], "defender": {}}]}, "a defender stands in the bag's place"),
     ({"placements": {"distance_m": [0.9, 0.7]}, "conditions": [{"name": "a"}]}, "placements.distance_m \\[0.9, 0.7\\] runs downward"),
     ({"conditions": [{"name": "a", "cancel_delay_s": [0.0, 0.5]}]}, "cancel_delay_s delays a combo's next punch; it needs a combo"),
@@ -285,6 +287,7 @@ def test_a_scenario_file_of_ones_own_runs_a_new_condition(tmp_path):
     rows = json.loads((tmp_path / "out" / "eval.json").read_text())["evaluations"][0]["rows"]
     assert [(r["condition"], r["punches"]) for r in rows] == [("after a punch, walking", 2), ("swinging", 2)]
     assert rows[0]["moved_m"] > 0.3, rows[0]
+    assert rows[1]["moved_m"] == 0.0, rows[1]  # the bag swings; its hook, the node a target motion moves, stays
 
 
 @pytest.mark.godot

@@ -460,8 +460,8 @@ impl PunchController {
         Self::emit_events(&mut this);
     }
 
-    /// Raises a high guard now (both fists in front of the face, the trunk turned to face `target`, the opponent;
-    /// docs/hits.md) and holds it for `seconds` (0 or less: until `stop_blocking()`), then goes back into the
+    /// Raises a high guard now (both fists in front of the face, the trunk turned to face `target`, the opponent,
+    /// and kept facing it every frame as either moves; docs/hits.md) and holds it for `seconds` (0 or less: until `stop_blocking()`), then goes back into the
     /// character's guard; no `recovered` either way. A running punch ends (interrupted; what was queued is
     /// dropped). A punch, `recover()` or `cancel()` ends the block too; a hit below `stagger_impulse_ns` does not
     /// (the arms give a little and rise again). Returns false, with the reason in the log, when there is no
@@ -807,16 +807,24 @@ impl PunchController {
         let ticks_per_s = Engine::singleton().get_physics_ticks_per_second() as f32;
         let frames = (seconds > 0.0).then(|| (seconds * ticks_per_s).round().max(1.0) as u32);
         self.lifecycle.set_guard(self.guard_targets());
-        // An own rig's head may sit higher on its neck: the gloves rise with it.
-        let mut high_guard = high_guard_rad(character.bind().head_shift_m());
-        // The trunk faces the target (the opponent) so the shell meets its punches square on.
-        if let Some(target) = live(&self.target) {
-            let local = geometry.root_local(vec3(target.get_global_position()));
-            high_guard = turned_toward(high_guard, local.x.atan2(local.z));
-        }
+        let high_guard = self.high_guard(&character, &geometry);
         self.lifecycle.block(geometry, high_guard, frames);
         self.drive_from_now(character.clone());
         Ok(character)
+    }
+
+    /// A block's guard for `character` standing as `geometry` says: the high guard, its trunk facing the target (the
+    /// opponent) so the shell meets its punches square on. An own rig's head may sit higher on its neck: the gloves
+    /// rise with it.
+    fn high_guard(&self, character: &Gd<PunchCharacter>, geometry: &CharacterGeometry) -> [f32; DOF_COUNT] {
+        let high_guard = high_guard_rad(character.bind().head_shift_m());
+        match live(&self.target) {
+            Some(target) => {
+                let local = geometry.root_local(vec3(target.get_global_position()));
+                turned_toward(high_guard, local.x.atan2(local.z))
+            }
+            None => high_guard,
+        }
     }
 
     /// Starts a recovery; returns the character it drives.
@@ -1063,6 +1071,13 @@ impl PunchController {
         let character = character.bind();
         let rig = character.rig().ok_or("the character is not ready")?;
         let mut reading = FrameReading { bodies: rig.read_bodies()?, ..FrameReading::default() };
+        if self.lifecycle.is_blocking() {
+            // The trunk keeps facing the opponent as either moves (the shell square on).
+            let driven = live(&self.driven).ok_or("the character was freed")?;
+            if let Ok(geometry) = geometry_of(&driven) {
+                self.lifecycle.turn_block(self.high_guard(&driven, &geometry));
+            }
+        }
         if self.lifecycle.begin_frame(&reading) == FrameNeeds::Nothing {
             return Ok(None);
         }

@@ -298,6 +298,8 @@ def episodes_of(scenario: Scenario, still: list[EpisodeConditions], swinging: li
                     episode["defender"] = {"blocks": condition.defender.blocks, "part": condition.defender.part,
                                            "head_up_m": condition.defender.head_up_m,
                                            "turned_deg": condition.defender.turned_deg}
+                    if condition.defender.motion is not None:
+                        episode["defender"]["motion"] = condition.defender.motion.to_wire()
                 if condition.cancel_delay_s != (0.0, 0.0):
                     low, high = condition.cancel_delay_s
                     episode["cancel_delay_s"] = round(float(np.random.default_rng(episode["seed"]).uniform(low, high)), 4)

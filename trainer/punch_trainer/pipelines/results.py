@@ -34,6 +34,8 @@ STANCE_MOVESET = MOVESET.with_name("boxing_stance.tres")
 throw well from there played by policies trained from that guard (`punch train --guard`)"""
 EXTENSION_LIBRARY = PROJECT_ROOT / "addons" / "punch_controller" / "bin" / "libpunch_controller.linux.debug.x86_64.so"
 """the extension headless Godot plays the measurements with (its debug build)"""
+EVALUATOR_DRIVER = PROJECT_ROOT / "godot_project" / "tools" / "evaluate.gd"
+"""the script that plays every measurement's punches in headless Godot"""
 SUMMARY_SECTION = "The shipped policies"
 MOVES_SECTION = "The six moves"
 SUMMARY_MARKERS = ("<!-- punch results:start -->", "<!-- punch results:end -->")
@@ -189,12 +191,14 @@ MEASURED_FILE = "measured.json"
 def measure(recipes: list[Recipe], out: Path, *, progress: bool = True, backend: Backend = LOCAL) -> dict[str, list[dict[str, Any]]]:
     """Every measurement of every recipe's policy: {recipe name: [the evaluator's report, one per measurement]}, and
     the default moveset's (`MOVESET_MEASUREMENTS`) under `MOVESET_KEY`. Each run's report.md and plots stay in
-    `out/<name>/<scenario>`; a measurement already there of the same policy files and extension build (their
-    SHA-256) by the same command is read back instead of played again, so after one policy changes only its
+    `out/<name>/<scenario>`; a measurement already there of the same policy files, extension build and evaluator
+    driver (their SHA-256) by the same command is read back instead of played again, so after one policy changes only its
     measurements run."""
     reports: dict[str, list[dict[str, Any]]] = {}
-    # The controller that plays the punches is measured too: a rebuilt extension measures again.
+    # The controller that plays the punches, and the driver that plays them, are measured too: a rebuilt extension
+    # or a changed driver measures again.
     extension = {"extension_sha256": sha256_of(EXTENSION_LIBRARY)} if EXTENSION_LIBRARY.is_file() else {}
+    extension["evaluator_sha256"] = sha256_of(EVALUATOR_DRIVER)
     for recipe in recipes:
         policy = PROJECT_ROOT / recipe.policy
         if not policy.is_file():

@@ -91,6 +91,9 @@ class Defender:
     turned_deg: float = 0.0
     """its body (the pelvis, the game's) turned this far to its left (negative: its right) from facing the puncher,
     as a game's fighter caught off line: its block turns the trunk back toward its target (the puncher)"""
+    motion: Motion | None = None
+    """how it moves (its root, as a game moves its CharacterBody3D), in its own frame at the start (+X its left, +Z
+    toward the puncher), from the episode's start (with the block) or, with no lead, the punch's"""
 
 
 @dataclass(frozen=True)
@@ -136,7 +139,7 @@ class Condition:
     move of the moveset, so the next punch starts at a random moment after the one before landed"""
 
     def moves(self) -> bool:
-        return self.body is not None or self.target is not None
+        return self.body is not None or self.target is not None or (self.defender is not None and self.defender.motion is not None)
 
 
 @dataclass(frozen=True)
@@ -358,10 +361,11 @@ def _condition(index: int, table: Any, defaults: Mapping[str, Any], scenario_sig
 
 
 def _defender(where: str, table: Any) -> Defender:
-    """A `defender = { blocks = true, part = "torso", head_up_m = 0.06, turned_deg = 30 }` table, checked."""
+    """A `defender = { blocks = true, part = "torso", head_up_m = 0.06, turned_deg = 30, motion = {...} }` table,
+    checked."""
     if not isinstance(table, Mapping):
         raise ScenarioError(f"{where}: a table ({{ blocks = true }})")
-    _unknown(where, table, ("blocks", "part", "head_up_m", "turned_deg"))
+    _unknown(where, table, ("blocks", "part", "head_up_m", "turned_deg", "motion"))
     blocks = table.get("blocks", False)
     if not isinstance(blocks, bool):
         raise ScenarioError(f"{where}.blocks: true or false, not {blocks!r}")
@@ -376,7 +380,8 @@ def _defender(where: str, table: Any) -> Defender:
     turned_deg = table.get("turned_deg", 0.0)
     if isinstance(turned_deg, bool) or not isinstance(turned_deg, int | float) or not -90.0 <= turned_deg <= 90.0:
         raise ScenarioError(f"{where}.turned_deg: degrees from -90 to 90, not {turned_deg!r}")
-    return Defender(blocks=blocks, part=part, head_up_m=float(head_up_m), turned_deg=float(turned_deg))
+    motion = _motion(f"{where}.motion", table["motion"]) if "motion" in table else None
+    return Defender(blocks=blocks, part=part, head_up_m=float(head_up_m), turned_deg=float(turned_deg), motion=motion)
 
 
 def _struck(where: str, table: Any) -> Struck:

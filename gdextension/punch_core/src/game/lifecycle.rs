@@ -351,6 +351,16 @@ impl<P: Clone> Lifecycle<P> {
         self.after_block = Some(Box::new(Recovery::new(geometry, self.guard)));
     }
 
+    /// While a block holds its guard, drives it to `block_guard` from now on (the trunk turning to follow the
+    /// opponent); its time runs on. Nothing happens if none holds.
+    pub fn turn_block(&mut self, block_guard: [f32; DOF_COUNT]) {
+        if self.after_block.is_some()
+            && let Phase::Recovering(holding, _) = &mut self.phase
+        {
+            holding.retarget(block_guard);
+        }
+    }
+
     /// True while a block holds its guard.
     pub fn is_blocking(&self) -> bool {
         self.after_block.is_some()
@@ -736,6 +746,35 @@ mod tests {
         assert!(lifecycle.is_punching());
         frame(&mut lifecycle, &mut world, CALM, forward);
         assert!(matches!(events(&mut lifecycle)[..], [Event::Started { .. }]));
+    }
+
+    #[test]
+    fn a_turned_block_drives_to_its_new_guard_for_the_rest_of_its_time_and_nothing_else_turns() {
+        let world = FakeWorld::new(1);
+        let commands = |lifecycle: &mut Lifecycle<Policy>| {
+            lifecycle.begin_frame(&world.read_slot(0));
+            lifecycle.act(None, CALM).ok()
+        };
+        let (mut turned, mut held) = (Lifecycle::<Policy>::default(), Lifecycle::<Policy>::default());
+        turned.block(rest_geometry(), [0.5; DOF_COUNT], Some(3));
+        held.block(rest_geometry(), [0.5; DOF_COUNT], Some(3));
+        assert!(matches!(commands(&mut turned), Some(Drive::Motors(_))));
+        commands(&mut held);
+        turned.turn_block([-0.5; DOF_COUNT]);
+        assert_ne!(commands(&mut turned), commands(&mut held), "driven toward the new guard");
+        commands(&mut turned);
+        commands(&mut held);
+        turned.begin_frame(&world.read_slot(0));
+        assert!(!turned.is_blocking(), "its time ran on: three frames in all");
+        // Outside a block (on the way back to guard, or idle) nothing turns.
+        let (mut back, mut twin) = (Lifecycle::<Policy>::default(), Lifecycle::<Policy>::default());
+        for lifecycle in [&mut back, &mut twin] {
+            lifecycle.block(rest_geometry(), [0.5; DOF_COUNT], None);
+            lifecycle.lower_block();
+        }
+        back.turn_block([-0.5; DOF_COUNT]);
+        assert_eq!(commands(&mut back), commands(&mut twin));
+        Lifecycle::<Policy>::default().turn_block([-0.5; DOF_COUNT]);
     }
 
     #[test]

@@ -412,6 +412,12 @@ impl Recovery {
         self
     }
 
+    /// Drives to `guard` from now on instead (a block's guard turning with its opponent); its frames run on.
+    pub fn retarget(&mut self, guard: [f32; DOF_COUNT]) {
+        self.controller.set_targets(guard);
+        self.guard = guard;
+    }
+
     /// Holds the guard for exactly `frames` physics frames, settled or not (a block, whose end the caller decides).
     pub fn holding(mut self, frames: u32) -> Self {
         self.frames = (frames, frames);
