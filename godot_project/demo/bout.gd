@@ -7,7 +7,7 @@
 ##   `combo()` when every move of it reaches from where the fighter stands (`reaches(move, position)`); when a step
 ##   nearer would bring it in reach (a hook or an uppercut is a close punch), it first steps in at `STEP_MPS`, at most
 ##   `STEP_IN_S` and to `CLOSEST_M`; else it throws a string that reaches now, a jab and a cross when none does;
-## - between strings it steps back out to `APART_M`;
+## - between strings it steps back out to `APART_M` (`-- --apart=M` sets it: farther apart, more strings need a step in);
 ## - when a punch of the opponent's starts and it is not punching, every other time it raises its guard `REACTION_S`
 ##   later with `block(BLOCK_S)`;
 ## - knocked down (it is not, at these punches' strength), it gets up `GET_UP_S` later with `recover()`.
@@ -44,6 +44,8 @@ const STEP_IN_S := 1.0
 var _rng := RandomNumberGenerator.new()
 var _frame := 0
 var _seconds := 0.0
+## The distance kept between strings (m, root to root): `APART_M` unless `--apart=M` says otherwise.
+var _apart_m := APART_M
 
 
 func _ready() -> void:
@@ -53,12 +55,14 @@ func _ready() -> void:
 			_characters_dir = argument.trim_prefix("--characters=")
 		elif argument.begins_with("--seconds="):
 			_seconds = float(argument.trim_prefix("--seconds="))
+		elif argument.begins_with("--apart="):
+			_apart_m = maxf(float(argument.trim_prefix("--apart=")), CLOSEST_M)
 	add_child(_timer)  # own_character.gd's, unused here: in the tree, it is freed with the scene
 	build_stage(Vector3(3.2, 1.5, 0.1))
 	var camera := get_viewport().get_camera_3d()
 	camera.fov = 38.0
 	camera.look_at_from_position(Vector3(2.6, 1.55, 0.4), Vector3(0.0, 1.2, 0.4))
-	var places := [Transform3D.IDENTITY, Transform3D(Basis(Vector3.UP, PI), Vector3(0, 0, SPARRING_DISTANCE_M))]
+	var places := [Transform3D.IDENTITY, Transform3D(Basis(Vector3.UP, PI), Vector3(0, 0, _apart_m))]
 	for index in FIGHTERS.size():
 		var rig := _load_character(FIGHTERS[index])
 		if rig == null:
@@ -123,7 +127,7 @@ func _physics_process(delta: float) -> void:
 		elif _frame >= fighter.next_think_at:
 			fighter.next_think_at = _frame + _think_frames()
 			_plan(fighter)
-		elif _apart(fighter) < APART_M - 0.01:
+		elif _apart(fighter) < _apart_m - 0.01:
 			_step(fighter, -STEP_MPS * delta)
 	var limit := _seconds if _seconds > 0.0 else ROUND_S
 	if _frame == roundi(limit * Engine.physics_ticks_per_second):
@@ -198,7 +202,7 @@ func _apart(fighter: Dictionary) -> float:
 
 
 ## Moves the fighter's rig `distance_m` toward its opponent (negative: away), never nearer than `CLOSEST_M` nor, going
-## away, farther than `APART_M`.
+## away, farther than `_apart_m`.
 func _step(fighter: Dictionary, distance_m: float) -> void:
 	var me: Node3D = fighter.rig
 	var other: Vector3 = fighter.opponent.rig.global_position
@@ -206,7 +210,7 @@ func _step(fighter: Dictionary, distance_m: float) -> void:
 	var apart := toward.length()
 	if apart < 1e-3:
 		return
-	me.global_position += toward / apart * clampf(distance_m, minf(0.0, apart - APART_M), maxf(0.0, apart - CLOSEST_M))
+	me.global_position += toward / apart * clampf(distance_m, minf(0.0, apart - _apart_m), maxf(0.0, apart - CLOSEST_M))
 
 
 

@@ -142,10 +142,12 @@ def test_a_chaotic_bout_keeps_every_promise(seed):
 def test_the_bout_demo_trades_strings_blocks_and_hits_between_two_own_characters():
     """godot_project/demo/bout.tscn: the two converted CC0 fighters (orthodox and southpaw), each run by its scripted
     AI, throw strings at each other's head and body, step in for the close ones, raise their guards and take hits;
-    every punch says what it became and some of each happen."""
+    every punch says what it became and some of each happen. The fighters stand 0.95 m apart between strings (`--apart`):
+    from the demo's 0.8 m the taller one's close strings at the other's head mostly reach without a step and the
+    shorter one's reach from no step at all, so whether a step in comes within 20 s is down to the bout's course."""
     make_characters(DEFAULT_OUT)
     run = run_godot(["--headless", "--fixed-fps", "120", "--path", str(GODOT_PROJECT), "res://demo/bout.tscn", "--",
-                     "--seconds=20"], check=False, timeout_s=300)
+                     "--seconds=20", "--apart=0.95"], check=False, timeout_s=300)
     assert "ERROR" not in run.log and run.fatal_lines() == [], run.log[-3000:]
     line = next(line for line in run.log.splitlines() if line.startswith("BOUT "))
     fighters = json.loads(line[len("BOUT "):])
@@ -158,6 +160,7 @@ def test_the_bout_demo_trades_strings_blocks_and_hits_between_two_own_characters
     assert sum(f["struck"].get("head", 0) for f in fighters) > 0 and sum(f["blocked"] for f in fighters) > 0, fighters
     # Footwork: a fighter steps in for a close string (the stance's hooks and uppercuts), and never past the nearest.
     assert sum(f["steps_in"] for f in fighters) > 0 and all(f["apart_m"] >= 0.55 - 0.01 for f in fighters), fighters
+    assert all(f["apart_m"] <= 0.95 + 0.01 for f in fighters), fighters
 
 
 def test_the_hits_demo_shows_a_flinch_a_stagger_and_a_knock_down():
