@@ -13,6 +13,10 @@ hook_outside_gated: `hook_outside` with its sweep near the bag counted only from
 gated stage: the shipped lead hook earns `hook_outside`'s return from the sweep while arriving 11 degrees off the line
 (notebook.md, "The lead hook from outside, all of it gated").
 
+hook_hard: `hook_bent` with its landing counted twice (10 times the impulse along the sweep, with the elbow bent): a
+fist that lands harder earns more against the approach near the bag, asked of the rear hook, whose fist is slower than
+the cross's (notebook.md, "A block on the move, and the rear hook's load again").
+
 The uppercuts' `uppercut_bent`, `uppercut_gated` and `uppercut_rising` presets were tried here first (notebook.md, "An
 uppercut that rises with the elbow bent" and "A braced guard"): from scratch A2C kept the fist away; from a trained
 uppercut they reshape it.
@@ -47,3 +51,7 @@ def hook_outside_gated(f):
     angle_deg = np.degrees(np.arctan2(vx * uz - vz * ux, vx * ux + vz * uz))
     return {**terms, "sweep": terms["sweep"] * np.clip((angle_deg - 20.0) / 15.0, 0.0, 1.0)}
 
+
+def hook_hard(f):
+    terms = hook_bent(f)
+    return {**terms, "landing": 2.0 * terms["landing"]}

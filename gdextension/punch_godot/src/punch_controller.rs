@@ -461,8 +461,8 @@ impl PunchController {
     }
 
     /// Raises a high guard now (both fists in front of the face, the trunk turned to face `target`, the opponent,
-    /// and kept facing it every frame as either moves; docs/hits.md) and holds it for `seconds` (0 or less: until `stop_blocking()`), then goes back into the
-    /// character's guard; no `recovered` either way. A running punch ends (interrupted; what was queued is
+    /// and kept facing it every frame as either moves; docs/hits.md) and holds it for `seconds` (0 or less: until
+    /// `stop_blocking()`), then goes back into the character's guard; no `recovered` either way. A running punch ends (interrupted; what was queued is
     /// dropped). A punch, `recover()` or `cancel()` ends the block too; a hit below `stagger_impulse_ns` does not
     /// (the arms give a little and rise again). Returns false, with the reason in the log, when there is no
     /// character to block with, it is knocked down, or `seconds` is not a number.
@@ -1068,16 +1068,16 @@ impl PunchController {
         if let Err(cause @ TransformError::Mirrored) = rigid(character.get_global_transform()) {
             return Err(transform_problem(&character, cause));
         }
+        // A block's trunk keeps facing the opponent as either moves (the shell square on).
+        if self.lifecycle.is_blocking()
+            && let Ok(geometry) = geometry_of(&character)
+        {
+            let high_guard = self.high_guard(&character, &geometry);
+            self.lifecycle.turn_block(high_guard);
+        }
         let character = character.bind();
         let rig = character.rig().ok_or("the character is not ready")?;
         let mut reading = FrameReading { bodies: rig.read_bodies()?, ..FrameReading::default() };
-        if self.lifecycle.is_blocking() {
-            // The trunk keeps facing the opponent as either moves (the shell square on).
-            let driven = live(&self.driven).ok_or("the character was freed")?;
-            if let Ok(geometry) = geometry_of(&driven) {
-                self.lifecycle.turn_block(self.high_guard(&driven, &geometry));
-            }
-        }
         if self.lifecycle.begin_frame(&reading) == FrameNeeds::Nothing {
             return Ok(None);
         }
