@@ -17,6 +17,10 @@ hook_hard: `hook_bent` with its landing counted twice (10 times the impulse alon
 fist that lands harder earns more against the approach near the bag, asked of the rear hook, whose fist is slower than
 the cross's (notebook.md, "A block on the move, and the rear hook's load again").
 
+uppercut_no_drop: `uppercut_gated` less the fist's fall near the bag (10 max(0, 0.3 - d)^2 max(0, -v_y)): the rear
+uppercut's body shots touch the bag on the way down, which the `uppercut` reward its success is read with counts
+against it (notebook.md, "A block on the move, and the rear hook's load again").
+
 The uppercuts' `uppercut_bent`, `uppercut_gated` and `uppercut_rising` presets were tried here first (notebook.md, "An
 uppercut that rises with the elbow bent" and "A braced guard"): from scratch A2C kept the fist away; from a trained
 uppercut they reshape it.
@@ -24,7 +28,7 @@ uppercut they reshape it.
 
 import numpy as np
 
-from punch_trainer.reward.rewards import along_target, hook_bent, hook_outside
+from punch_trainer.reward.rewards import along_target, hook_bent, hook_outside, uppercut_gated
 
 
 def hook_sweep(f):
@@ -55,3 +59,8 @@ def hook_outside_gated(f):
 def hook_hard(f):
     terms = hook_bent(f)
     return {**terms, "landing": 2.0 * terms["landing"]}
+
+
+def uppercut_no_drop(f):
+    near = np.maximum(0.0, 0.3 - f["fist_r_bag_distance"]) ** 2
+    return {**uppercut_gated(f), "drop": -near * 10.0 * np.maximum(0.0, -f["fist_r_vel_y"])}
