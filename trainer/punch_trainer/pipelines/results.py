@@ -192,24 +192,24 @@ def measure(recipes: list[Recipe], out: Path, *, progress: bool = True, backend:
     """Every measurement of every recipe's policy: {recipe name: [the evaluator's report, one per measurement]}, and
     the default moveset's (`MOVESET_MEASUREMENTS`) under `MOVESET_KEY`. Each run's report.md and plots stay in
     `out/<name>/<scenario>`; a measurement already there of the same policy files, extension build and evaluator
-    driver (their SHA-256) by the same command is read back instead of played again, so after one policy changes only its
-    measurements run."""
+    driver (their SHA-256) by the same command is read back instead of played again, so after one policy changes
+    only its measurements run."""
     reports: dict[str, list[dict[str, Any]]] = {}
     # The controller that plays the punches, and the driver that plays them, are measured too: a rebuilt extension
     # or a changed driver measures again.
-    extension = {"extension_sha256": sha256_of(EXTENSION_LIBRARY)} if EXTENSION_LIBRARY.is_file() else {}
-    extension["evaluator_sha256"] = sha256_of(EVALUATOR_DRIVER)
+    instruments = {"extension_sha256": sha256_of(EXTENSION_LIBRARY)} if EXTENSION_LIBRARY.is_file() else {}
+    instruments["evaluator_sha256"] = sha256_of(EVALUATOR_DRIVER)
     for recipe in recipes:
         policy = PROJECT_ROOT / recipe.policy
         if not policy.is_file():
             raise ResultsError(f"{recipe.path}: its policy {recipe.policy} is missing (make it: punch recipe {recipe.path} --install)")
-        stamp = {"policy_sha256": sha256_of(policy), **extension}
+        stamp = {"policy_sha256": sha256_of(policy), **instruments}
         reports[recipe.name] = [_measured(measurement, recipe.policy, out / recipe.name / measurement.scenario, stamp,
                                           progress, backend) for measurement in measurements_for(recipe)]
     # The moveset's combos play every move's policy: its measurements are stamped with all of them.
     policies = moveset_policies()
     files = sorted(set(policies.values()) | set(moveset_policies(STANCE_MOVESET).values()))
-    stamp = {"moveset_sha256": sha256_of(MOVESET), "stance_moveset_sha256": sha256_of(STANCE_MOVESET), **extension,
+    stamp = {"moveset_sha256": sha256_of(MOVESET), "stance_moveset_sha256": sha256_of(STANCE_MOVESET), **instruments,
              **{f"{name}_sha256": sha256_of(MOVESET.parent / name) for name in files}}
     def policy_of(measurement: Measurement) -> Path:
         return (MOVESET.parent / policies[measurement.move or "jab"]).relative_to(PROJECT_ROOT)
